@@ -1,0 +1,46 @@
+"""The package's one exception tree.
+
+    HrcError
+    ├── ModelFormatError     a model file is malformed: carries the file and the line or element
+    ├── ModelError           a model is inconsistent (probabilities, sizes, discount)
+    ├── SolverError          a solver or planner could not do what was asked
+    ├── SimulationError      the world could not carry out an action or query
+    └── LinkError            the websocket link failed
+        └── ProtocolError    a message is malformed, unknown or too large
+"""
+from typing import Optional
+
+
+class HrcError(Exception):
+    """Base of every error raised on purpose by ros_hrc."""
+
+
+class ModelFormatError(HrcError):
+    """A model file cannot be read: names the file, the line or XML element, and what is wrong."""
+
+    def __init__(self, path: str, where: Optional[str], what: str) -> None:
+        self.path = path
+        self.where = where
+        self.what = what
+        location = f"{path}:{where}" if where else path
+        super().__init__(f"{location}: {what}")
+
+
+class ModelError(HrcError):
+    """A model's tables are inconsistent (do not sum to one, wrong sizes, bad discount)."""
+
+
+class SolverError(HrcError):
+    """A solver or planner failed."""
+
+
+class SimulationError(HrcError):
+    """The simulated world could not carry out a request."""
+
+
+class LinkError(HrcError):
+    """A websocket link failed (connect, send or receive)."""
+
+
+class ProtocolError(LinkError):
+    """A message is malformed, of an unknown type, or too large."""

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Runs every test of the package: pytest on test/unit, then each launched test in
+# test/rostest/*.test under rostest. Fails when any test fails or when nothing ran.
+set -uo pipefail
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+cd "$repo"
+# shellcheck source=/dev/null
+source env.sh
+export ROS_LOG_DIR="$repo/.ws/log"
+
+status=0
+echo "=== unit tests (pytest) ==="
+python -m pytest test/unit -q -p no:cacheprovider
+rc=$?
+if [[ $rc -eq 5 ]]; then echo "pytest collected no tests: failing"; status=1
+elif [[ $rc -ne 0 ]]; then status=1; fi
+
+echo "=== integration tests (rostest) ==="
+passed=0; failed=0
+shopt -s nullglob
+tests=(test/rostest/*.test)
+if ((${#tests[@]} == 0)); then echo "no rostest files: failing"; status=1; fi
+for t in "${tests[@]}"; do
+  echo "--- rostest $t"
+  if rostest --text "$t"; then passed=$((passed+1)); else failed=$((failed+1)); status=1; fi
+done
+echo "rostest: $passed passed, $failed failed"
+exit $status

@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# One-command set-up for ros_hrc on Debian 12 (run as root, or with sudo available):
+#   1. Debian's ROS 1 Noetic packages (apt),
+#   2. a virtual environment .venv made from /usr/bin/python3 with --system-site-packages,
+#      holding the pinned PyPI packages of requirements.txt,
+#   3. a catkin workspace .ws/ around the repository (.ws/src/ros_hrc -> repository root),
+#      built with catkin_make and the environment's python.
+# Idempotent: each step leaves a stamp holding what it was made from, and is skipped while
+# that input is unchanged, so a second run does no network work and finishes in seconds.
+set -euo pipefail
+
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+cd "$repo"
+stamps=.ws/stamps
+mkdir -p "$stamps"
+
+# ROS from Debian; python3-venv for the environment; xterm for the MDP's own terminal window.
+APT_PACKAGES=(
+  ros-core-dev catkin catkin-lint rosbash ros-message-generation ros-message-runtime
+  ros-std-msgs ros-std-srvs ros-rosgraph-msgs
+  python3-rospy python3-rostest python3-roslaunch python3-rosservice python3-rostopic
+  python3-rosnode python3-rosmsg python3-std-msgs python3-std-srvs python3-rosgraph-msgs
+  python3-catkin-pkg python3-venv python3-dev python3-nose
+  cmake g++ make xterm
+)
+
+say() { printf '[setup] %s\n' "$*"; }
+
+stamp_ok() {  # stamp_ok NAME CONTENT: true when the stamp holds exactly CONTENT
+  [[ -f "$stamps/$1" ]] && [[ "$(cat "$stamps/$1")" == "$2" ]]
+}
+
+# --- 1. apt -----------------------------------------------------------------
+missing=()
+while read -r pkg status; do
+  [[ "$status" == "installed" ]] || missing+=("$pkg")
+done < <(for p in "${APT_PACKAGES[@]}"; do
+  printf '%s %s\n' "$p" "$(dpkg-query -W -f='${db:Status-Status}' "$p" 2>/dev/null || echo absent)"
+done)
+if ((${#missing[@]})); then
+  say "installing Debian packages: ${missing[*]}"
+  SUDO=""; [[ $(id -u) -ne 0 ]] && SUDO=sudo
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+# --- 2. virtual environment -------------------------------------------------
+req_key=$(sha256sum requirements.txt | cut -d' ' -f1)
+if [[ ! -x .venv/bin/python ]]; then
+  say "creating .venv from /usr/bin/python3 (with system site packages, for Debian's ROS)"
+  /usr/bin/python3 -m venv --system-site-packages .venv
+  rm -f "$stamps/pip"
+fi
+if ! stamp_ok pip "$req_key"; then
+  say "installing pinned PyPI packages from requirements.txt"
+  .venv/bin/python -m pip install --quiet --disable-pip-version-check -r requirements.txt
+  echo "$req_key" > "$stamps/pip"
+fi
+
+# --- 3. catkin workspace ----------------------------------------------------
+mkdir -p .ws/src
+[[ -L .ws/src/ros_hrc ]] || ln -sfn ../.. .ws/src/ros_hrc
+# The build depends on the package's interface files, not on Python sources (those are
+# used in place from src/ by the devel space).
+build_key=$( (cat package.xml CMakeLists.txt setup.py msg/*.msg srv/*.srv; ls scripts test/rostest) | sha256sum | cut -d' ' -f1)
+if ! stamp_ok build "$build_key" || [[ ! -f .ws/devel/setup.bash ]]; then
+  say "building the workspace with catkin_make"
+  (cd .ws && catkin_make -DPYTHON_EXECUTABLE="$repo/.venv/bin/python" -DCATKIN_ENABLE_TESTING=ON \
+      -DCMAKE_BUILD_TYPE=Release > build.log 2>&1) || { tail -40 .ws/build.log; exit 1; }
+  echo "$build_key" > "$stamps/build"
+fi
+say "ready: source env.sh to use roslaunch, rosrun, rostopic and rosservice by hand"
