@@ -1,0 +1,144 @@
+"""The collaboration task's own knowledge, shared by the observer node and the experiments.
+
+* How the world's predicates become the robot model's observation (DESIGN §4): bits
+  1 object visible, 2 object in range, 4 grasp attempt, 8 human has object, 16 warning
+  received, 32 human idle; only 15 bit sums are observations of the robot model, and any other
+  pattern maps to the nearest legal one (rule in :func:`legal_bits`).
+* How the human's true MDP state, and its history since the last reset, maps to the robot
+  model's true state S0..S6 (rule in :class:`RobotStateTracker`). The robot never sees it:
+  it is reported and used for scoring.
+* Which world service carries out each human and robot action.
+
+No ROS, no PyBullet: plain data and functions.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Dict, Mapping, Optional, Tuple
+
+VISIBLE, IN_RANGE, GRASP_ATTEMPT, HAS_OBJECT, WARNING, IDLE = 1, 2, 4, 8, 16, 32
+
+#: The robot model's observations, as bit sums, in the model's order (O0 ... O35).
+LEGAL_BITS: Tuple[int, ...] = (0, 1, 2, 3, 7, 10, 11, 16, 17, 18, 19, 32, 33, 34, 35)
+
+# When a pattern is equally far from two legal ones, keep the bit that matters most for
+# deciding whether the human needs help: holding the object ends the task, a warning must
+# stop the robot, a grasp attempt shows intent, idling shows hesitation, range and
+# visibility are context.
+_BIT_PRIORITY = (HAS_OBJECT, WARNING, GRASP_ATTEMPT, IDLE, IN_RANGE, VISIBLE)
+
+#: Predicate services of the world (seed Table 3.2) and the bit each one sets.
+PREDICATE_BITS: Dict[str, int] = {
+    "is_ov": VISIBLE, "is_oir": IN_RANGE, "is_a0": GRASP_ATTEMPT,
+    "is_ho": HAS_OBJECT, "is_h4": WARNING, "is_a2": IDLE,
+}
+
+#: Human MDP actions -> world service under /human (None: nothing to call, the human stays idle).
+HUMAN_ACTION_SERVICES: Dict[str, Optional[str]] = {
+    "graspAttempt": "attempt_grasp",   # "grasp" instead when the MDP's next state is success
+    "lookAround": "look_around",
+    "idle": "idle",
+    "walkAway": "walk_away",
+    "warnRobot": "warn_robot",
+}
+
+#: Robot POMDP actions -> world service under /robot (None: keep observing, move nothing).
+ROBOT_ACTION_SERVICES: Dict[str, Optional[str]] = {
+    "rIdle": None,
+    "rPoint_obj": "point_to_obj",
+    "rGrasp_obj": "grasp",
+    "rStop_all": "cancel_action",
+}
+
+HUMAN_STATES: Tuple[str, ...] = ("task_assigned", "success", "failed_to_grasp", "no_attention",
+                                 "evaluating", "tired", "recovery", "warningTheRobot")
+ROBOT_STATES: Tuple[str, ...] = ("S0", "S1", "S2", "S3", "S4", "S5", "S6")
+#: Robot states in which the human needs (or may need) help: used to score intrusive actions.
+NEEDS_HELP_STATES = frozenset({"S2", "S3", "S4", "S5"})
+
+
+def human_service_for(action: str, next_state: str) -> Optional[str]:
+    """The /human/* service that carries out the MDP's action leading to ``next_state``."""
+    if action not in HUMAN_ACTION_SERVICES:
+        raise ValueError(f"unknown human action {action!r}; known: {', '.join(HUMAN_ACTION_SERVICES)}")
+    if action == "graspAttempt" and next_state == "success":
+        return "grasp"
+    return HUMAN_ACTION_SERVICES[action]
+
+
+def bits_from_predicates(predicates: Mapping[str, bool]) -> int:
+    """Bit sum of the true predicates, keyed by service name (``is_ov`` ...)."""
+    return sum(bit for name, bit in PREDICATE_BITS.items() if predicates.get(name))
+
+
+def legal_bits(bits: int) -> int:
+    """The legal observation nearest to ``bits``.
+
+    Nearest means fewest differing bits; among equally near ones, the one that agrees with
+    ``bits`` on the most important bit first (order of ``_BIT_PRIORITY``), then the smaller.
+    """
+    if not 0 <= bits <= 63:
+        raise ValueError(f"observation bits {bits} outside 0..63")
+    if bits in LEGAL_BITS:
+        return bits
+
+    def rank(candidate: int):
+        agreement = tuple(0 if (candidate & b) == (bits & b) else 1 for b in _BIT_PRIORITY)
+        return (bin(candidate ^ bits).count("1"), agreement, candidate)
+
+    return min(LEGAL_BITS, key=rank)
+
+
+def observation_name(bits: int) -> str:
+    """Name of a legal observation in the robot model, e.g. ``O35``."""
+    if bits not in LEGAL_BITS:
+        raise ValueError(f"{bits} is not one of the robot model's observations {LEGAL_BITS}")
+    return f"O{bits}"
+
+
+def describe_bits(bits: int) -> str:
+    """Human-readable list of the bits set, e.g. ``visible+in_range+idle``."""
+    names = [(VISIBLE, "visible"), (IN_RANGE, "in_range"), (GRASP_ATTEMPT, "grasp_attempt"),
+             (HAS_OBJECT, "has_object"), (WARNING, "warning"), (IDLE, "idle")]
+    return "+".join(n for b, n in names if bits & b) or "nothing"
+
+
+@dataclass
+class RobotStateTracker:
+    """Maps the human's MDP state, with its history since reset, to the robot's true state.
+
+    S0 no help needed (task just assigned, or evaluating with no failure so far);
+    S1 the human has the object (success);
+    S2 may need help grasping (a first failed grasp, or evaluating after a failure);
+    S3 needs help grasping (failed twice or more, tired, or recovering after walking away);
+    S4 may need help grasping or finding (attention lost once);
+    S5 needs help finding (attention lost twice or more in a row);
+    S6 the human warned the robot.
+    """
+
+    failures: int = 0
+    inattention_streak: int = 0
+
+    def reset(self) -> None:
+        self.failures = 0
+        self.inattention_streak = 0
+
+    def update(self, human_state: str) -> str:
+        """Account for the human's new state and return the robot's true state."""
+        if human_state not in HUMAN_STATES:
+            raise ValueError(f"unknown human state {human_state!r}")
+        self.inattention_streak = self.inattention_streak + 1 if human_state == "no_attention" else 0
+        if human_state == "failed_to_grasp":
+            self.failures += 1
+            return "S2" if self.failures == 1 else "S3"
+        if human_state == "success":
+            return "S1"
+        if human_state == "warningTheRobot":
+            return "S6"
+        if human_state in ("tired", "recovery"):
+            return "S3"
+        if human_state == "no_attention":
+            return "S4" if self.inattention_streak == 1 else "S5"
+        if human_state == "evaluating":
+            return "S2" if self.failures else "S0"
+        return "S0"  # task_assigned
