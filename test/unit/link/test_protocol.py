@@ -1,0 +1,253 @@
+"""The protocol of DESIGN §6 without a socket: every message type round-trips, and every kind of
+malformed input is rejected with a ProtocolError whose reason says what is wrong."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from ros_hrc.errors import LinkError, ProtocolError
+from ros_hrc.link.protocol import (BELIEF_TOLERANCE, MAX_MESSAGE_BYTES, MESSAGE_TYPES, Ack,
+                                   Action, Error, Hello, MessageError, NextState, Observation,
+                                   Reset, Step, decode, encode, error_message, error_reply,
+                                   from_dict)
+
+# One message of each type, with every optional field set, and one with none of them.
+FULL_MESSAGES = [
+    Hello(who="despot_mdp", version=1),
+    Step(step=3, action="idle", state="evaluating", reward=-1.5, state_index=4,
+         belief={"evaluating": 0.8, "tired": 0.2}, manual=True),
+    Observation(step=3, observation="O35", bits=35, state="S2"),
+    Action(step=3, action="rPoint_obj", belief=[0.1, 0.2, 0.7],
+           belief_states=["S0", "S1", "S2"], decision_ms=12.5),
+    Reset(reason="enter pressed"),
+    NextState(state=4),
+    Ack(step=3, of="step", action="rPoint_obj", success=True, result="pointing"),
+    Error(message="bad thing", in_reply_to="step", step=3),
+]
+MINIMAL_MESSAGES = [
+    Hello(who="hrc_obs"),
+    Step(3, "idle", "evaluating"),
+    Observation(0, "O0", 0, "S0"),
+    Action(0, "rIdle", [1.0]),
+    Reset(),
+    NextState(None),
+    Ack(0),
+    Error("oops"),
+]
+
+
+def test_every_message_type_is_covered_by_the_round_trip_tests():
+    assert {m.type for m in FULL_MESSAGES} == set(MESSAGE_TYPES)
+    assert {m.type for m in MINIMAL_MESSAGES} == set(MESSAGE_TYPES)
+
+
+@pytest.mark.parametrize("msg", FULL_MESSAGES + MINIMAL_MESSAGES, ids=lambda m: m.type)
+def test_message_round_trips_through_one_text_frame(msg):
+    text = encode(msg)
+    assert isinstance(text, str) and "\n" not in text
+    obj = json.loads(text)
+    assert next(iter(obj)) == "type" and obj["type"] == msg.type
+    assert decode(text) == msg
+
+
+def test_design_examples_decode_as_written():
+    assert decode('{"type":"step","step":3,"action":"idle","state":"evaluating"}') == \
+        Step(3, "idle", "evaluating")
+    assert decode('{"type":"observation","step":3,"observation":"O35","bits":35,"state":"S2"}') \
+        == Observation(3, "O35", 35, "S2")
+    assert decode('{"type":"action","step":3,"action":"rPoint_obj","belief":[0.5,0.5]}') == \
+        Action(3, "rPoint_obj", (0.5, 0.5))
+    assert decode('{"type":"reset"}') == Reset()
+    assert decode('{"type":"next_state","state":4}') == NextState(4)
+    assert decode('{"type":"ack","step":3}') == Ack(3)
+    assert decode('{"type":"error","message":"..."}') == Error("...")
+
+
+def test_optional_fields_left_unset_are_not_sent_but_a_null_next_state_is():
+    assert json.loads(encode(Step(1, "idle", "tired"))) == \
+        {"type": "step", "step": 1, "action": "idle", "state": "tired"}
+    assert json.loads(encode(NextState(None))) == {"type": "next_state", "state": None}
+
+
+def test_a_next_state_without_its_state_key_is_rejected_rather_than_guessed():
+    with pytest.raises(ProtocolError, match='missing field "state"'):
+        decode('{"type":"next_state"}')
+
+
+def test_unknown_extra_fields_are_tolerated_and_passed_on():
+    msg = decode('{"type":"ack","step":2,"observation":"O3","future":{"x":[1,2]}}')
+    assert msg == Ack(2, extra={"observation": "O3", "future": {"x": [1, 2]}})
+    assert json.loads(encode(msg))["future"] == {"x": [1, 2]}
+
+
+def test_numbers_are_normalised_so_equal_messages_compare_equal():
+    msg = decode('{"type":"action","step":1,"action":"rIdle","belief":[1,0]}')
+    assert msg.belief == (1.0, 0.0) and all(isinstance(p, float) for p in msg.belief)
+    assert msg == Action(1, "rIdle", [1.0, 0.0])
+
+
+def test_a_belief_within_the_tolerance_is_accepted():
+    almost = [0.142857] * 7  # a belief printed with 6 digits sums to 0.999999
+    assert Action(0, "rIdle", almost).belief == tuple(almost)
+    assert abs(sum(almost) - 1) < BELIEF_TOLERANCE
+
+
+def _frame(**fields):
+    return json.dumps(fields)
+
+
+STEP = {"type": "step", "step": 1, "action": "idle", "state": "tired"}
+ACTION = {"type": "action", "step": 1, "action": "rIdle", "belief": [0.5, 0.5]}
+OBSERVATION = {"type": "observation", "step": 1, "observation": "O3", "bits": 3, "state": "S1"}
+
+# (case name, frame, words the reason must contain)
+MALFORMED = [
+    ("binary frame", b'{"type":"reset"}', "binary frame"),
+    ("bytearray frame", bytearray(b"\x00\x01"), "binary frame"),
+    ("not a frame at all", 42, "must be text"),
+    ("invalid JSON", '{"type": "step",', "invalid JSON"),
+    ("empty frame", "", "invalid JSON"),
+    ("NaN literal", '{"type":"action","step":1,"action":"a","belief":[NaN]}', "NaN"),
+    ("Infinity literal", '{"type":"ack","step":Infinity}', "Infinity"),
+    ("duplicate field", '{"type":"ack","step":1,"step":2}', 'field "step" appears twice'),
+    ("nested too deeply", "[" * 50000, "nested too deeply"),
+    ("array, not object", "[1, 2]", "must be a JSON object, got array"),
+    ("string, not object", '"reset"', "must be a JSON object, got string"),
+    ("null", "null", "must be a JSON object, got null"),
+    ("missing type", '{"step": 1}', 'missing field "type"'),
+    ("type not a string", '{"type": 7}', 'field "type" must be a string'),
+    ("unknown type", '{"type": "dance"}', 'unknown message type "dance"'),
+    ("missing step", _frame(**{k: v for k, v in STEP.items() if k != "step"}),
+     'step message: missing field "step"'),
+    ("missing action", _frame(**{k: v for k, v in STEP.items() if k != "action"}),
+     'missing field "action"'),
+    ("missing observation bits",
+     _frame(**{k: v for k, v in OBSERVATION.items() if k != "bits"}), 'missing field "bits"'),
+    ("missing belief", _frame(type="action", step=1, action="rIdle"), 'missing field "belief"'),
+    ("missing hello who", _frame(type="hello"), 'missing field "who"'),
+    ("missing error message", _frame(type="error"), 'missing field "message"'),
+    ("step is a string", _frame(**{**STEP, "step": "3"}), '"step" must be an integer'),
+    ("step is a float", _frame(**{**STEP, "step": 3.0}), '"step" must be an integer'),
+    ("step is a boolean", _frame(**{**STEP, "step": True}), '"step" must be an integer'),
+    ("negative step", _frame(**{**STEP, "step": -1}), '"step" must be >= 0, got -1'),
+    ("action not a string", _frame(**{**STEP, "action": 2}), '"action" must be a string'),
+    ("empty state", _frame(**{**STEP, "state": ""}), '"state" must not be empty'),
+    ("reward not a number", _frame(**{**STEP, "reward": "high"}), '"reward" must be a number'),
+    ("reward too large to be finite", '{"type":"step","step":1,"action":"a","state":"s",'
+     '"reward":1e999}', '"reward" must be finite'),
+    ("manual not a boolean", _frame(**{**STEP, "manual": 1}), '"manual" must be true or false'),
+    ("step belief not an object", _frame(**{**STEP, "belief": [1.0]}), "must be an object"),
+    ("step belief not summing to 1", _frame(**{**STEP, "belief": {"a": 0.5}}), "must sum to 1"),
+    ("negative state_index", _frame(**{**STEP, "state_index": -2}), '"state_index" must be >= 0'),
+    ("bits above 63", _frame(**{**OBSERVATION, "bits": 64}), '"bits" must be in 0..63, got 64'),
+    ("negative bits", _frame(**{**OBSERVATION, "bits": -1}), '"bits" must be in 0..63'),
+    ("belief not an array", _frame(**{**ACTION, "belief": 1.0}), "array of probabilities"),
+    ("empty belief", _frame(**{**ACTION, "belief": []}), '"belief" must not be empty'),
+    ("belief entry not a number", _frame(**{**ACTION, "belief": ["x", 1]}),
+     '"belief[0]" must be a number'),
+    ("non-finite belief", '{"type":"action","step":1,"action":"a","belief":[1e999,0]}',
+     '"belief[0]" must be finite'),
+    ("negative belief", _frame(**{**ACTION, "belief": [1.5, -0.5]}),
+     '"belief[1]" must not be negative'),
+    ("belief summing to more than 1", _frame(**{**ACTION, "belief": [0.5, 0.6]}),
+     "must sum to 1"),
+    ("belief summing to less than 1", _frame(**{**ACTION, "belief": [0.2, 0.2]}),
+     "sums to 0.4"),
+    ("belief_states of another length", _frame(**{**ACTION, "belief_states": ["S0"]}),
+     "has 1 names for 2 probabilities"),
+    ("belief_states repeated", _frame(**{**ACTION, "belief_states": ["S0", "S0"]}),
+     "must not repeat"),
+    ("negative decision time", _frame(**{**ACTION, "decision_ms": -1}), '"decision_ms" must be'),
+    ("next_state negative", _frame(type="next_state", state=-1), '"state" must be >= 0'),
+    ("next_state a name", _frame(type="next_state", state="tired"), "must be an integer"),
+    ("ack success not a boolean", _frame(type="ack", step=1, success="yes"), "true or false"),
+    ("hello version 0", _frame(type="hello", who="x", version=0), '"version" must be >= 1'),
+    ("oversized", _frame(type="reset", padding="x" * MAX_MESSAGE_BYTES), "message too large"),
+    ("oversized in UTF-8 bytes only",  # two bytes per character
+     '{"type":"reset","padding":"' + "\u00e9" * (MAX_MESSAGE_BYTES // 2 + 8) + '"}',
+     "message too large"),
+]
+
+
+@pytest.mark.parametrize("frame,words", [(f, w) for _, f, w in MALFORMED],
+                         ids=[name for name, _, _ in MALFORMED])
+def test_malformed_input_raises_a_protocol_error_with_a_precise_reason(frame, words):
+    with pytest.raises(ProtocolError) as caught:
+        decode(frame)
+    assert isinstance(caught.value, LinkError)
+    assert words in str(caught.value)
+    assert caught.value.reason == str(caught.value)
+
+
+def test_the_utf8_oversize_case_is_short_in_characters_but_long_in_bytes():
+    frame = MALFORMED[-1][1]
+    assert len(frame) <= MAX_MESSAGE_BYTES < len(frame.encode("utf-8"))
+
+
+def test_a_rejection_knows_the_type_and_step_of_the_message_when_they_could_be_read():
+    with pytest.raises(MessageError) as caught:
+        decode(_frame(**{**ACTION, "step": 9, "belief": [2.0]}))
+    assert caught.value.msg_type == "action" and caught.value.step == 9
+    with pytest.raises(MessageError) as caught:
+        decode("[]")
+    assert caught.value.msg_type is None and caught.value.step is None
+
+
+def test_an_invalid_message_cannot_be_built_either():
+    with pytest.raises(ProtocolError, match="must be >= 0"):
+        Step(-1, "idle", "tired")
+    with pytest.raises(ProtocolError, match="must be finite"):
+        Action(0, "rIdle", [float("nan"), 1.0])
+    with pytest.raises(ProtocolError, match="named field"):
+        Ack(1, extra={"step": 2})
+
+
+def test_a_rejected_value_is_quoted_only_briefly():
+    with pytest.raises(ProtocolError) as caught:
+        decode(_frame(**{**STEP, "action": ["x" * 5000]}))
+    assert len(str(caught.value)) < 200
+
+
+def test_encode_refuses_what_the_other_side_would_reject():
+    with pytest.raises(ProtocolError, match="too large"):
+        encode(Reset(extra={"padding": "x" * MAX_MESSAGE_BYTES}))
+    with pytest.raises(ProtocolError, match="cannot be encoded"):
+        encode(Ack(1, extra={"when": object()}))
+    with pytest.raises(ProtocolError, match="only protocol messages"):
+        encode({"type": "reset"})
+
+
+def test_from_dict_validates_an_already_parsed_object():
+    assert from_dict({"type": "ack", "step": 4}) == Ack(4)
+    with pytest.raises(ProtocolError, match="must be an integer"):
+        from_dict({"type": "ack", "step": None})
+
+
+def test_error_reply_answers_a_rejected_message_with_its_type_step_and_reason():
+    with pytest.raises(MessageError) as caught:
+        decode(_frame(**{**OBSERVATION, "step": 5, "bits": 99}))
+    reply = decode(error_reply(caught.value))
+    assert reply == Error(message=caught.value.reason, in_reply_to="observation", step=5)
+
+
+def test_error_reply_names_the_class_of_any_other_exception():
+    reply = decode(error_reply(KeyError("rGrasp"), in_reply_to="action"))
+    assert reply.message == "KeyError: 'rGrasp'" and reply.in_reply_to == "action"
+    assert decode(error_reply(RuntimeError())).message == "RuntimeError: "
+
+
+def test_error_reply_stays_small_and_well_formed_whatever_it_is_given():
+    reply = decode(error_reply(ValueError("x" * 100000), in_reply_to="t" * 1000, step=-3))
+    assert len(reply.message) < 2000 and len(reply.in_reply_to) < 100 and reply.step is None
+    with pytest.raises(MessageError) as caught:
+        decode(_frame(type="z" * 10000))
+    assert len(error_reply(caught.value)) < 2000
+    assert error_message(ProtocolError("plain")).message == "plain"
+
+
+def test_the_protocol_module_imports_no_websocket_library():
+    code = "import sys, ros_hrc.link.protocol; print(sorted(sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                         text=True).stdout
+    assert "websockets" not in out and "'websocket'" not in out and "rospy" not in out
