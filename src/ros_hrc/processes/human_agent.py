@@ -1,0 +1,141 @@
+"""The simulated human: an MDP agent that picks actions and moves between states of mind.
+
+One step: the agent picks an action from its belief over states (QMDP over the exact MDP
+values, or a softer choice), then the next state is either sampled from T(s'|s,a) (auto) or
+given by the user (manual). A manually given state gets ``manual_share`` of the belief
+(80 % by default, as in the seed's modified DESPOT) and the rest is spread over the other
+states in proportion to what the model predicted, uniformly when it predicted none of them;
+so a typed state is followed, yet the agent's next choice stays a little sceptical.
+
+No ROS and no websocket here: the process in :mod:`ros_hrc.processes.despot_mdp` drives it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional
+
+import numpy as np
+
+from ros_hrc.pomdp.mdp import value_iteration
+from ros_hrc.pomdp.model import Model
+
+ACTION_CHOICES = ("optimal", "softmax", "random")
+
+
+@dataclass
+class HumanAgentConfig:
+    """How the human chooses: ``optimal`` (argmax of expected Q), ``softmax`` with a
+    temperature, or ``random``; the belief share of a manually given state; the seed."""
+
+    choice: str = "optimal"
+    temperature: float = 1.0
+    manual_share: float = 0.8
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.choice not in ACTION_CHOICES:
+            raise ValueError(f"choice must be one of {ACTION_CHOICES}, not {self.choice!r}")
+        if not 0.0 < self.manual_share <= 1.0:
+            raise ValueError(f"manual_share must be in (0, 1], not {self.manual_share}")
+        if self.temperature <= 0.0:
+            raise ValueError(f"temperature must be positive, not {self.temperature}")
+
+
+@dataclass
+class HumanStep:
+    """What one step did, in the terms the seed's MDP terminal prints."""
+
+    step: int
+    action: str
+    previous_state: str
+    state: str
+    state_index: int
+    manual: bool
+    reward: float
+    discounted: float
+    undiscounted: float
+    belief: Dict[str, float] = field(default_factory=dict)
+
+
+class HumanAgent:
+    """An MDP human with a belief over its own state (one-hot unless a state was typed)."""
+
+    def __init__(self, model: Model, config: Optional[HumanAgentConfig] = None) -> None:
+        if not model.fully_observable:
+            raise ValueError(f"{model.source or model.name}: the human model must be an MDP "
+                             "(all state variables fullyObs=\"true\")")
+        self.model = model
+        self.config = config or HumanAgentConfig()
+        self.solution = value_iteration(model)
+        self._dense_T = model.dense_T
+        self._rewards = [r.toarray() for r in model.R]
+        self.reset()
+
+    # -- episode -------------------------------------------------------------------
+    def reset(self, seed: Optional[int] = None) -> None:
+        """Back to a state drawn from the initial belief, step 0, no reward."""
+        self.rng = np.random.default_rng(self.config.seed if seed is None else seed)
+        self.state = int(self.rng.choice(self.model.n_states, p=self.model.initial_belief))
+        self.belief = np.zeros(self.model.n_states)
+        self.belief[self.state] = 1.0
+        self.step = 0
+        self.discounted = 0.0
+        self.undiscounted = 0.0
+
+    @property
+    def state_name(self) -> str:
+        return self.model.states[self.state]
+
+    # -- acting ----------------------------------------------------------------------
+    def choose_action(self) -> int:
+        """The action for the current belief (expected Q over the belief)."""
+        q = self.solution.Q @ self.belief   # Q is (A, S)
+        if self.config.choice == "optimal":
+            return int(np.argmax(q))
+        if self.config.choice == "random":
+            return int(self.rng.integers(self.model.n_actions))
+        z = (q - q.max()) / self.config.temperature
+        p = np.exp(z) / np.exp(z).sum()
+        return int(self.rng.choice(self.model.n_actions, p=p))
+
+    def advance(self, action: int, manual_state: Optional[int] = None) -> HumanStep:
+        """Take ``action``; move to ``manual_state`` if given, else sample the next state."""
+        n = self.model.n_states
+        predicted = self._dense_T[action, self.state]
+        if manual_state is not None:
+            if not 0 <= manual_state < n:
+                raise ValueError(f"state must be an integer from 0 to {n - 1}, not {manual_state}")
+            next_state = int(manual_state)
+            self.belief = self._manual_belief(next_state, predicted)
+        else:
+            next_state = int(self.rng.choice(n, p=predicted / predicted.sum()))
+            self.belief = np.zeros(n)
+            self.belief[next_state] = 1.0
+        reward = float(self._rewards[action][self.state, next_state])
+        self.discounted += self.model.discount ** self.step * reward
+        self.undiscounted += reward
+        previous = self.state_name
+        self.state = next_state
+        result = HumanStep(step=self.step, action=self.model.actions[action],
+                           previous_state=previous, state=self.state_name,
+                           state_index=next_state, manual=manual_state is not None,
+                           reward=reward, discounted=self.discounted,
+                           undiscounted=self.undiscounted, belief=self.belief_dict())
+        self.step += 1
+        return result
+
+    def _manual_belief(self, chosen: int, predicted: np.ndarray) -> np.ndarray:
+        share = self.config.manual_share
+        others = predicted.copy()
+        others[chosen] = 0.0
+        if others.sum() <= 0.0:
+            others = np.ones_like(predicted)
+            others[chosen] = 0.0
+        belief = (1.0 - share) * others / others.sum() if others.sum() > 0 else np.zeros_like(others)
+        belief[chosen] = share if others.sum() > 0 else 1.0
+        return belief
+
+    def belief_dict(self) -> Dict[str, float]:
+        """Non-zero belief entries, largest first."""
+        order: List[int] = list(np.argsort(-self.belief, kind="stable"))
+        return {self.model.states[i]: float(self.belief[i]) for i in order if self.belief[i] > 0}
