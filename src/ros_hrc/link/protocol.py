@@ -177,6 +177,20 @@ class _Checker:
         return items
 
 
+_FIELD_CACHE: Dict[type, Tuple[Tuple[str, bool], ...]] = {}
+
+
+def _wire_fields(cls: type) -> Tuple[Tuple[str, bool], ...]:
+    """(name, required) of a message class's wire fields, in order; cached, since
+    ``dataclasses.fields`` is the slowest part of building a message."""
+    cached = _FIELD_CACHE.get(cls)
+    if cached is None:
+        cached = tuple((f.name, f.default is MISSING and f.default_factory is MISSING)
+                       for f in fields(cls) if f.name != "extra")
+        _FIELD_CACHE[cls] = cached
+    return cached
+
+
 @dataclass(frozen=True)
 class Message:
     """Base of every message. ``type`` is the wire name; ``extra`` holds fields this version
@@ -192,8 +206,8 @@ class Message:
         check = _Checker(self.TYPE)
         if not isinstance(self.extra, Mapping):
             raise check.fail("extra", f"must be a mapping, got {_kind(self.extra)}")
-        known = {f.name for f in fields(self)} | {"type"}
-        clash = sorted(known & set(self.extra))
+        clash = sorted(name for name in self.extra
+                       if name == "type" or any(name == f for f, _ in _wire_fields(type(self))))
         if clash:
             raise check.fail(clash[0], "is a named field and cannot also be an extra field")
         object.__setattr__(self, "extra", dict(self.extra))
@@ -211,21 +225,16 @@ class Message:
         object.__setattr__(self, name, value)
 
     def to_dict(self) -> Dict[str, Any]:
-        """The JSON object of this message: ``type`` first, optional ``None`` fields left out."""
+        """The JSON object of this message: ``type`` first, then required fields (even a null
+        ``next_state.state``), optional fields only when set, then the extras."""
         out: Dict[str, Any] = {"type": self.TYPE}
-        for f in fields(self):
-            if f.name == "extra":
+        for name, required in _wire_fields(type(self)):
+            value = getattr(self, name)
+            if value is None and not required:
                 continue
-            value = getattr(self, f.name)
-            if value is None and f.name not in _NULLABLE_REQUIRED.get(self.TYPE, ()):
-                continue
-            out[f.name] = list(value) if isinstance(value, tuple) else value
+            out[name] = list(value) if isinstance(value, tuple) else value
         out.update(self.extra)
         return out
-
-
-# Required fields whose null is meaningful (so they are sent even when None).
-_NULLABLE_REQUIRED: Dict[str, Tuple[str, ...]] = {"next_state": ("state",)}
 
 
 @dataclass(frozen=True)
@@ -409,13 +418,11 @@ def from_dict(obj: Any) -> Message:
         raise MessageError(f"unknown message type {_preview(msg_type)} (known: "
                            f"{', '.join(sorted(MESSAGE_TYPES))})", msg_type, step)
     kwargs: Dict[str, Any] = {}
-    for f in fields(cls):
-        if f.name == "extra":
-            continue
-        if f.name in obj:
-            kwargs[f.name] = obj[f.name]
-        elif f.default is MISSING and f.default_factory is MISSING:
-            raise MessageError(f'{msg_type} message: missing field "{f.name}"', msg_type, step)
+    for name, required in _wire_fields(cls):
+        if name in obj:
+            kwargs[name] = obj[name]
+        elif required:
+            raise MessageError(f'{msg_type} message: missing field "{name}"', msg_type, step)
     extra = {k: v for k, v in obj.items() if k != "type" and k not in kwargs}
     try:
         return cls(**kwargs, extra=extra)
