@@ -247,6 +247,35 @@ def test_client_reconnects_when_the_server_restarts(recorder):
         cli.close()
 
 
+def test_a_send_while_the_server_is_down_goes_out_once_it_is_back(recorder):
+    first = MessageServer(0, recorder, name="first").start()
+    port = first.port
+    cli = MessageClient(first.url, "c", backoff=FAST_BACKOFF).connect(SAFETY)
+    try:
+        first.stop()
+        outcome = []
+        sender = threading.Thread(target=lambda: outcome.append(
+            cli.send(Step(9, "idle", "tired"), timeout=SAFETY)))
+        sender.start()
+        with MessageServer(port, recorder, name="second"):
+            sender.join(SAFETY)
+            assert outcome == [None]
+            recorder.wait_until(lambda: Step(9, "idle", "tired") in recorder.seen)
+    finally:
+        first.stop()
+        cli.close()
+
+
+def test_a_client_that_vanishes_without_closing_does_not_disturb_the_server(server, client,
+                                                                             recorder):
+    ws = raw_connection(server)
+    ws.send(encode(Hello(who="doomed")))
+    assert server.wait_for_client(SAFETY, who="doomed")
+    ws.sock.close()  # as when its process is killed: no close frame
+    recorder.wait_until(lambda: "doomed" in recorder.disconnected)
+    assert client.request(Step(1, "idle", "tired"), timeout=SAFETY).step == 1
+
+
 def test_client_waits_for_a_server_that_starts_later(recorder):
     srv = MessageServer(0, recorder, name="late").start()
     port = srv.port
