@@ -180,7 +180,7 @@ class MessageServer:
 
     def stop(self) -> None:
         """Close every connection (code 1001, going away) and stop listening. Waits for a
-        running handler call to finish. Idempotent."""
+        running handler call to finish, so never call it from the handler. Idempotent."""
         server, self._server = self._server, None
         if server is None:
             return
