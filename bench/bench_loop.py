@@ -1,0 +1,122 @@
+#!/usr/bin/env python3
+"""Benchmark of the whole loop, headless: per-step latency of the full loop and steps/s.
+
+Starts `roslaunch ros_hrc hrc.launch` (world on real_time_factor 0, no pause between steps,
+auto mode, episodes going on) with its own roscore on a free port, listens to /hrc/status and
+times the gaps between consecutive steps: one gap is a whole step — MDP decision, human
+action in the world, six predicate calls, observation over the websocket, DESPOT, robot
+action, acks. Prints p50 / p99 of the step latency, steps per second, and the mean DESPOT
+decision time reported in the status; writes bench/results/loop.json.
+
+    python bench/bench_loop.py [--steps 60] [--time-per-step 0.05] [--human-model humanModel]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def percentile(values, q):
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, max(0, round(q / 100 * len(ordered)) - 1))]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=60, help="steps to time (after 3 warm-up steps)")
+    parser.add_argument("--time-per-step", type=float, default=0.05, help="DESPOT's budget, s")
+    parser.add_argument("--human-model", default="humanModel")
+    parser.add_argument("--timeout", type=float, default=900.0, help="give up after this, s")
+    parser.add_argument("--out", type=Path,
+                        default=Path(__file__).resolve().parent / "results" / "loop.json")
+    args = parser.parse_args(argv)
+
+    port = free_port()
+    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
+    base = 20000 + port % 20000
+    launch = subprocess.Popen(
+        ["roslaunch", "--port", str(port), "ros_hrc", "hrc.launch", "gui:=false",
+         "real_time_factor:=0", "step_delay:=0", "mode:=auto", "on_episode_end:=reset",
+         f"time_per_step:={args.time_per_step}", f"human_model:={args.human_model}",
+         f"pomdp_port:={base}", f"robot_port:={base + 1}", f"human_port:={base + 2}",
+         "read_stdin:=false"],
+        env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True)
+    os.environ["ROS_MASTER_URI"] = env["ROS_MASTER_URI"]
+    import rospy  # after ROS_MASTER_URI is set
+    from ros_hrc.msg import Status
+
+    stamps, decisions = [], []
+    done = threading.Event()
+    warmup = 3
+
+    def on_status(msg):
+        stamps.append(time.perf_counter())
+        decisions.append(msg.decision_ms)
+        if len(stamps) >= args.steps + warmup + 1:
+            done.set()
+
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                rospy.init_node("bench_loop", anonymous=True, disable_signals=True)
+                break
+            except Exception:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.5)
+        rospy.Subscriber("/hrc/status", Status, on_status, queue_size=1000)
+        print(f"loop benchmark: waiting for {args.steps} steps of {args.human_model} ...",
+              flush=True)
+        if not done.wait(args.timeout):
+            print(f"only {len(stamps)} steps in {args.timeout} s", file=sys.stderr)
+            return 1
+    finally:
+        os.killpg(launch.pid, signal.SIGINT)
+        try:
+            launch.wait(30)
+        except subprocess.TimeoutExpired:
+            os.killpg(launch.pid, signal.SIGKILL)
+
+    timed = stamps[warmup:]
+    gaps = [(b - a) * 1000.0 for a, b in zip(timed, timed[1:])]
+    result = {
+        "benchmark": "loop",
+        "when": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "steps": len(gaps),
+        "human_model": args.human_model,
+        "despot_time_per_step_s": args.time_per_step,
+        "step_latency_p50_ms": percentile(gaps, 50),
+        "step_latency_p99_ms": percentile(gaps, 99),
+        "step_latency_mean_ms": statistics.fmean(gaps),
+        "steps_per_s": len(gaps) / (timed[-1] - timed[0]),
+        "despot_decision_mean_ms": statistics.fmean(decisions[warmup:]),
+    }
+    print(f"  full-loop step latency  p50 {result['step_latency_p50_ms']:.1f} ms   "
+          f"p99 {result['step_latency_p99_ms']:.1f} ms   mean {result['step_latency_mean_ms']:.1f} ms")
+    print(f"  steps per second (headless, real_time_factor 0)  {result['steps_per_s']:.2f}")
+    print(f"  DESPOT decision (mean, as reported)  {result['despot_decision_mean_ms']:.1f} ms")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"  written to {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
