@@ -1,0 +1,182 @@
+"""An articulated body loaded from URDF, driven by position-controlled joints looked up by name.
+
+Motions are generators: each ``next()`` sets the joint targets for one physics step and the
+world's stepping loop steps the physics in between. That keeps every PyBullet call on the
+stepping thread and lets a reset stop a motion between two steps (``generator.close()``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..errors import SimulationError
+from .client import PhysicsClient
+from .geometry import min_jerk, quat_to_matrix, yaw_quaternion
+
+#: A motion: advanced once per physics step; its return value (StopIteration.value) is the result.
+Motion = Iterator[None]
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A movable joint of the URDF, as PyBullet reports it."""
+
+    name: str
+    index: int           # PyBullet's joint index, which is also the child link's index
+    lower: float
+    upper: float
+    max_force: float
+
+    def clamp(self, value: float) -> float:
+        """``value`` limited to the joint's range (URDF limits; none when lower > upper)."""
+        if self.lower > self.upper:
+            return value
+        return min(self.upper, max(self.lower, value))
+
+
+class ArticulatedBody:
+    """A fixed-base multibody whose movable joints are held by position motors.
+
+    ``commanded`` keeps the last target of every joint so that a new motion starts from where
+    the previous one was sent, not from a lagging measurement (no jump when one motion follows
+    another).
+    """
+
+    def __init__(self, client: PhysicsClient, urdf_path: str, position: Sequence[float],
+                 yaw: float, time_step: float) -> None:
+        self.client = client
+        self.time_step = time_step
+        try:
+            self.body_id = client.loadURDF(urdf_path, basePosition=list(position),
+                                           baseOrientation=yaw_quaternion(yaw), useFixedBase=True)
+        except client.error as error:  # a missing or malformed file
+            raise SimulationError(f"cannot load {urdf_path}: {error}") from error
+        self.joints: Dict[str, Joint] = {}
+        self.links: Dict[str, int] = {client.getBodyInfo(self.body_id)[0].decode(): -1}
+        for index in range(client.getNumJoints(self.body_id)):
+            info = client.getJointInfo(self.body_id, index)
+            self.links[info[12].decode()] = index
+            if info[2] in (client.JOINT_REVOLUTE, client.JOINT_PRISMATIC):
+                name = info[1].decode()
+                self.joints[name] = Joint(name, index, info[8], info[9], info[10] or 500.0)
+        self.commanded: Dict[str, float] = {name: 0.0 for name in self.joints}
+
+    # --- lookup -------------------------------------------------------------------------
+    def joint(self, name: str) -> Joint:
+        """The movable joint called ``name`` in the URDF."""
+        try:
+            return self.joints[name]
+        except KeyError:
+            raise SimulationError(f"URDF of body {self.body_id} has no movable joint {name!r}") from None
+
+    def link(self, name: str) -> int:
+        """PyBullet link index of the URDF link ``name`` (-1 for the root link)."""
+        try:
+            return self.links[name]
+        except KeyError:
+            raise SimulationError(f"URDF of body {self.body_id} has no link {name!r}") from None
+
+    # --- reading state ----------------------------------------------------------------------
+    def positions(self, names: Iterable[str]) -> Dict[str, float]:
+        """Measured positions of the named joints."""
+        names = list(names)
+        states = self.client.getJointStates(self.body_id, [self.joint(n).index for n in names])
+        return {n: s[0] for n, s in zip(names, states)}
+
+    def link_frame(self, name: str) -> Tuple[np.ndarray, np.ndarray]:
+        """World position and 3x3 rotation of the URDF frame of link ``name``."""
+        index = self.link(name)
+        if index < 0:
+            position, orientation = self.client.getBasePositionAndOrientation(self.body_id)
+        else:
+            state = self.client.getLinkState(self.body_id, index, computeForwardKinematics=True)
+            position, orientation = state[4], state[5]
+        return np.array(position), quat_to_matrix(orientation)
+
+    def link_com_pose(self, name: str) -> Tuple[Tuple[float, ...], Tuple[float, ...]]:
+        """World position and quaternion of the link's centre of mass frame (constraints use it)."""
+        index = self.link(name)
+        if index < 0:
+            return self.client.getBasePositionAndOrientation(self.body_id)
+        state = self.client.getLinkState(self.body_id, index, computeForwardKinematics=True)
+        return state[0], state[1]
+
+    # --- commanding -----------------------------------------------------------------------
+    def command(self, targets: Mapping[str, float]) -> None:
+        """Send position targets (clamped to the joint limits) to the named joints' motors."""
+        if not targets:
+            return
+        joints = [self.joint(n) for n in targets]
+        values = [j.clamp(v) for j, v in zip(joints, targets.values())]
+        self.client.setJointMotorControlArray(
+            self.body_id, [j.index for j in joints], self.client.POSITION_CONTROL,
+            targetPositions=values, forces=[j.max_force for j in joints])
+        self.commanded.update({j.name: v for j, v in zip(joints, values)})
+
+    def teleport(self, pose: Mapping[str, float]) -> None:
+        """Set joints instantly (resets only: no physics in between) and hold them there."""
+        for name, value in pose.items():
+            joint = self.joint(name)
+            self.client.resetJointState(self.body_id, joint.index, joint.clamp(value), 0.0)
+        self.command(pose)
+
+    def hold(self) -> None:
+        """Hold every joint where it is now (used to stop a motion mid-way)."""
+        self.command(self.positions(self.joints))
+
+    # --- motions --------------------------------------------------------------------------
+    def steps(self, duration: float) -> int:
+        """Number of physics steps in ``duration`` seconds (at least one)."""
+        return max(1, int(round(duration / self.time_step)))
+
+    def move(self, goal: Mapping[str, float], duration: float,
+             extra: Optional[Callable[[float], Mapping[str, float]]] = None) -> Motion:
+        """Motion: joints from their commanded positions to ``goal`` along a minimum-jerk profile.
+
+        ``extra(fraction)`` may add targets for other joints at each step (e.g. legs swinging
+        while walking).
+        """
+        start = {n: self.commanded[n] for n in goal}
+        n_steps = self.steps(duration)
+        for i in range(1, n_steps + 1):
+            s = min_jerk(i / n_steps)
+            targets = {n: start[n] + s * (goal[n] - start[n]) for n in goal}
+            if extra is not None:
+                targets.update(extra(i / n_steps))
+            self.command(targets)
+            yield
+
+    def track(self, solve: Callable[[], Mapping[str, float]], duration: float) -> Motion:
+        """Motion: like :meth:`move`, but the goal is solved again at every step (a moving target)."""
+        first = solve()
+        start = {n: self.commanded[n] for n in first}
+        n_steps = self.steps(duration)
+        for i in range(1, n_steps + 1):
+            s = min_jerk(i / n_steps)
+            goal = solve() if i > 1 else first
+            self.command({n: start[n] + s * (goal[n] - start[n]) for n in goal})
+            yield
+
+    def pause(self, duration: float) -> Motion:
+        """Motion: keep the current targets for ``duration`` seconds."""
+        for _ in range(self.steps(duration)):
+            yield
+
+    def settle(self, names: Sequence[str], tolerance: float = 0.02, timeout: float = 0.3) -> Motion:
+        """Motion: wait until the named joints are within ``tolerance`` of their targets (or timeout)."""
+        for _ in range(self.steps(timeout)):
+            measured = self.positions(names)
+            if all(abs(measured[n] - self.commanded[n]) < tolerance for n in names):
+                return
+            yield
+
+    def set_collision_group(self, group: int, mask: int) -> None:
+        """Put the root and every link into collision ``group``, colliding with ``mask``."""
+        for index in [-1] + list(range(self.client.getNumJoints(self.body_id))):
+            self.client.setCollisionFilterGroupMask(self.body_id, index, group, mask)
+
+    def joint_names(self, prefix: str = "") -> List[str]:
+        """Names of the movable joints starting with ``prefix``."""
+        return [n for n in self.joints if n.startswith(prefix)]

@@ -1,0 +1,63 @@
+"""One PyBullet physics server per world, with every call bound to it.
+
+PyBullet's module-level functions act on "the last connected" server unless each call names
+``physicsClientId``. Several worlds live in one process (tests build many), so every body
+module talks to the server through a :class:`PhysicsClient`, never through ``pybullet``
+directly.
+"""
+from __future__ import annotations
+
+import functools
+import types
+from typing import Any
+
+import pybullet
+
+from ..errors import SimulationError
+
+
+class PhysicsClient:
+    """A connection to one physics server; ``client.X(...)`` is ``pybullet.X(..., physicsClientId=id)``.
+
+    Constants (``client.GEOM_BOX``, ``client.POSITION_CONTROL``) and ``client.error`` (the
+    exception PyBullet raises) are passed through unchanged.
+    """
+
+    def __init__(self, gui: bool = False) -> None:
+        mode = pybullet.GUI if gui else pybullet.DIRECT
+        client_id = pybullet.connect(mode)
+        if client_id < 0:
+            what = "a GUI window (is a display available? only one GUI per process)" if gui \
+                else "a DIRECT server"
+            raise SimulationError(f"PyBullet could not open {what}")
+        self.client_id = client_id
+        self.gui = gui
+        # Bound functions are cached: the lookup sits on the per-step path.
+        self._bound: dict = {}
+
+    def __getattr__(self, name: str) -> Any:
+        # Only called for names not found normally: forward to pybullet.
+        if name.startswith("_"):
+            raise AttributeError(name)
+        target = getattr(pybullet, name)
+        if not isinstance(target, types.BuiltinFunctionType):
+            return target  # constants, and the exception class `error`
+        bound = self._bound.get(name)
+        if bound is None:
+            bound = functools.partial(target, physicsClientId=self.client_id)
+            self._bound[name] = bound
+        return bound
+
+    @property
+    def connected(self) -> bool:
+        """True while the server is up."""
+        return self.client_id >= 0 and bool(pybullet.isConnected(physicsClientId=self.client_id))
+
+    def disconnect(self) -> None:
+        """Close the server; later calls fail. Safe to call twice."""
+        if self.client_id >= 0:
+            if pybullet.isConnected(physicsClientId=self.client_id):
+                pybullet.disconnect(physicsClientId=self.client_id)
+            self.client_id = -1
+            self._bound.clear()
+

@@ -1,0 +1,485 @@
+"""The PyBullet world: floor, conveyor, object, human and robot, stepped at a fixed rate.
+
+One loop steps the physics. Each step it (1) takes the requests that came in (a reset or a
+cancel interrupts at once; any other action queues behind the agent's current one), (2) advances
+the human's and the robot's current motion by one step, (3) moves the belt, (4) steps PyBullet.
+Actions are therefore only ever executed by the loop, between two physics steps, and every
+PyBullet call happens under one lock: callers on other threads (ROS service handlers) submit a
+request and wait for its :class:`Ticket`, and predicate queries read the geometry under the
+lock. Nothing waits for anything while holding the lock, so calls cannot deadlock.
+
+Two ways to drive it:
+
+* synchronously, without threads (tests, experiments)::
+
+      world = World(WorldConfig(seed=1))
+      outcome = world.run("human", "grasp")      # steps the physics until the grasp is over
+      world.query("is_ho").value                 # -> True
+      world.advance(2.0)                         # 2 s of simulated time (the belt moves)
+
+* from threads: ``world.start(real_time_factor=1.0)`` runs the loop in a thread of its own;
+  then ``world.run(...)`` (or ``world.submit(...).wait()``) blocks only its caller.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable, Deque, Dict, Iterator, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from ..errors import SimulationError
+from .body import ArticulatedBody, Motion
+from .client import PhysicsClient
+from .conveyor import STATIC_GROUP, STATIC_MASK, Conveyor, ConveyorConfig
+from .human import Human, HumanConfig
+from .object import ObjectConfig, WorkObject
+from .outcome import Outcome, Reading
+from .png import write_png
+from .robot import Robot, RobotConfig
+
+LOG = logging.getLogger(__name__)
+
+#: Actions each agent knows (the seed's Table 3.2, plus the human's ``idle``).
+HUMAN_ACTIONS = ("walk_away", "look_around", "warn_robot", "attempt_grasp", "grasp", "idle", "reset")
+ROBOT_ACTIONS = ("point_to_obj", "grasp", "cancel_action", "reset")
+#: The human predicates (seed Table 3.2), answered by :meth:`World.query`.
+PREDICATES = ("is_ov", "is_oir", "is_ho", "is_a0", "is_a2", "is_h4")
+#: Requests that take effect at once and interrupt the agent's motion and queue.
+_INTERRUPTING = {("human", "reset"), ("robot", "reset"), ("robot", "cancel_action"), ("world", "reset")}
+#: A synchronous run() gives up after this much simulated time (no action lasts that long).
+_MAX_ACTION_TIME = 60.0
+
+
+def default_model_dir() -> Path:
+    """``models/urdf`` of the source tree this module sits in."""
+    return Path(__file__).resolve().parents[3] / "models" / "urdf"
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The fixed camera of snapshots (and the GUI's initial view)."""
+
+    eye: Tuple[float, float, float] = (2.2, -1.45, 1.85)
+    target: Tuple[float, float, float] = (-0.2, 0.05, 0.8)
+    fov_deg: float = 50.0
+    width: int = 800
+    height: int = 600
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Everything that defines a world; the defaults are the scene of docs/world.md."""
+
+    gui: bool = False
+    seed: int = 0
+    time_step: float = 1.0 / 240.0
+    solver_iterations: int = 20  # PyBullet's default 50 costs twice the time for no visible gain
+    belt_speed: float = 0.02  # m/s, downstream (+x)
+    conveyor: ConveyorConfig = field(default_factory=ConveyorConfig)
+    work_object: ObjectConfig = field(default_factory=ObjectConfig)
+    human: HumanConfig = field(default_factory=HumanConfig)
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+
+
+class Ticket:
+    """A submitted action: wait for it to get its :class:`Outcome`."""
+
+    def __init__(self, agent: str, action: str) -> None:
+        self.agent = agent
+        self.action = action
+        self.started_at: Optional[float] = None   # simulated time the motion began
+        self.outcome: Optional[Outcome] = None
+        self._done = threading.Event()
+
+    @property
+    def name(self) -> str:
+        """``agent/action``, as in the service names."""
+        return f"{self.agent}/{self.action}"
+
+    def done(self) -> bool:
+        """True once the action is over (finished, failed or interrupted)."""
+        return self._done.is_set()
+
+    def wait(self, timeout: Optional[float] = None) -> Outcome:
+        """Block until the action is over and return its outcome (``timeout`` in wall seconds)."""
+        if not self._done.wait(timeout):
+            raise SimulationError(f"{self.name} did not finish within {timeout:.0f} s of wall-clock time "
+                                  "(is the world's stepping loop running?)")
+        return self.outcome
+
+    def finish(self, outcome: Outcome, now: float) -> None:
+        """Record the outcome (with its simulated duration) and wake the waiters."""
+        started = self.started_at if self.started_at is not None else now
+        self.outcome = replace(outcome, duration=now - started)
+        self._done.set()
+
+
+class _Channel:
+    """One agent's current motion and the actions queued behind it."""
+
+    def __init__(self, body: ArticulatedBody) -> None:
+        self.body = body
+        self.motion: Optional[Motion] = None
+        self.ticket: Optional[Ticket] = None
+        self.queue: Deque[Ticket] = deque()
+
+
+class World:
+    """The scene and its stepping loop. See the module docstring for the two ways to drive it."""
+
+    def __init__(self, config: Optional[WorldConfig] = None,
+                 model_dir: Optional[Union[str, Path]] = None) -> None:
+        self.config = config or WorldConfig()
+        self.model_dir = Path(model_dir) if model_dir else default_model_dir()
+        for name in ("human.urdf", "pr2_like.urdf"):
+            if not (self.model_dir / name).is_file():
+                raise SimulationError(f"model {name} not found in {self.model_dir}")
+        self.time_step = self.config.time_step
+        self.step_count = 0
+        self.sim_time = 0.0
+        self.rng = np.random.default_rng(self.config.seed)
+        self._lock = threading.RLock()
+        self._waiters = 0
+        self._waiters_lock = threading.Lock()
+        self._requests: Deque[Ticket] = deque()
+        self._work = threading.Event()
+        self._stop = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._listeners: List[Callable[[float], None]] = []
+        self.client = PhysicsClient(self.config.gui)
+        try:
+            self._build()
+        except BaseException:
+            self.client.disconnect()
+            raise
+
+    def _build(self) -> None:
+        c, cfg = self.client, self.config
+        c.setTimeStep(cfg.time_step)
+        c.setPhysicsEngineParameter(numSolverIterations=cfg.solver_iterations)
+        c.setGravity(0, 0, -9.81)
+        if cfg.gui:
+            c.configureDebugVisualizer(c.COV_ENABLE_GUI, 0)
+            self._aim_gui_camera()
+        plane = c.createCollisionShape(c.GEOM_PLANE)
+        floor_look = c.createVisualShape(c.GEOM_BOX, halfExtents=[4, 4, 0.005], rgbaColor=[0.80, 0.80, 0.78, 1],
+                                         visualFramePosition=[0, 0, -0.005])
+        self.floor_id = c.createMultiBody(0, plane, floor_look)
+        c.setCollisionFilterGroupMask(self.floor_id, -1, STATIC_GROUP, STATIC_MASK)
+        self.conveyor = Conveyor(c, cfg.conveyor, cfg.belt_speed)
+        self.object = WorkObject(c, cfg.work_object, cfg.conveyor.surface_height)
+        self.human = Human(c, str(self.model_dir / "human.urdf"), cfg.human, cfg.time_step,
+                           self.object, self.rng)
+        self.robot = Robot(c, str(self.model_dir / "pr2_like.urdf"), cfg.robot, cfg.time_step, self.object)
+        self._channels: Dict[str, _Channel] = {"human": _Channel(self.human), "robot": _Channel(self.robot)}
+        # Groups and masks keep the agents off the scenery and off each other; they must stay
+        # visible to rays (mask 1), which would let them knock the object about, so those
+        # pairs are switched off one by one. Holding is done by constraints, not by contact.
+        for agent in (self.human, self.robot):
+            for link in agent.links.values():  # the root (-1) and every link
+                c.setCollisionFilterPair(agent.body_id, self.object.body_id, link, -1, 0)
+
+    def _aim_gui_camera(self) -> None:
+        cam = self.config.camera
+        offset = np.array(cam.eye) - np.array(cam.target)
+        distance = float(np.linalg.norm(offset))
+        yaw = float(np.degrees(np.arctan2(offset[1], offset[0]))) + 90.0
+        pitch = -float(np.degrees(np.arcsin(offset[2] / distance)))
+        self.client.resetDebugVisualizerCamera(distance, yaw, pitch, list(cam.target))
+
+    # --- context manager ---------------------------------------------------------------------
+    def __enter__(self) -> "World":
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # --- the loop ------------------------------------------------------------------------------
+    @contextmanager
+    def _locked(self) -> Iterator[None]:
+        # Callers from other threads announce themselves, so the loop steps aside for them
+        # between two steps (a plain lock lets the loop re-take it at once, starving them).
+        with self._waiters_lock:
+            self._waiters += 1
+        try:
+            with self._lock:
+                yield
+        finally:
+            with self._waiters_lock:
+                self._waiters -= 1
+
+    def _step_locked(self) -> None:
+        self._take_requests()
+        for channel in self._channels.values():
+            self._advance(channel)
+        self.conveyor.before_step()
+        self.client.stepSimulation()
+        self.step_count += 1
+        self.sim_time = self.step_count * self.time_step
+
+    def _take_requests(self) -> None:
+        while self._requests:
+            ticket = self._requests.popleft()
+            if (ticket.agent, ticket.action) not in _INTERRUPTING:
+                self._channels[ticket.agent].queue.append(ticket)
+                continue
+            ticket.started_at = self.sim_time
+            if ticket.agent == "world":
+                for agent in self._channels:
+                    self._interrupt(agent, "reset")
+                self.object.reset()
+                self.human.reset()
+                self.robot.reset()
+                outcome = Outcome(True, "world reset: human, robot and object back at their start")
+            elif ticket.agent == "human":
+                self._interrupt("human", "reset")
+                self.object.reset()  # the seed's /human/reset puts the object back too
+                outcome = self.human.reset()
+                outcome = replace(outcome, message=outcome.message + "; object back at the start of the belt")
+            elif ticket.action == "reset":
+                self._interrupt("robot", "reset")
+                if self.object.holder == "robot":
+                    self.object.reset()  # a released object would drop anywhere: put it back
+                outcome = self.robot.reset()
+            else:
+                outcome = self.robot.cancel(self._interrupt("robot", "cancel_action"))
+            ticket.finish(outcome, self.sim_time)
+
+    def _interrupt(self, agent: str, by: str) -> Optional[str]:
+        """Stop ``agent``'s motion and drop its queue; return the interrupted action's name."""
+        channel = self._channels[agent]
+        interrupted = None
+        if channel.motion is not None:
+            channel.motion.close()
+            interrupted = channel.ticket.action
+            channel.ticket.finish(Outcome(False, f"{channel.ticket.name} interrupted by {agent}/{by} after "
+                                                 f"{self.sim_time - channel.ticket.started_at:.1f} s"),
+                                  self.sim_time)
+            channel.motion, channel.ticket = None, None
+            channel.body.moving = False
+            channel.body.hold()
+        while channel.queue:
+            channel.queue.popleft().finish(
+                Outcome(False, f"cancelled by {agent}/{by} before it started"), self.sim_time)
+        return interrupted
+
+    def _advance(self, channel: _Channel) -> None:
+        # Loop: a motion may end at its first step (e.g. "already away"), letting the next start.
+        while True:
+            if channel.motion is None:
+                if not channel.queue:
+                    return
+                channel.ticket = channel.queue.popleft()
+                channel.ticket.started_at = self.sim_time
+                channel.motion = getattr(channel.body, channel.ticket.action)()
+                channel.body.moving = True
+            try:
+                next(channel.motion)
+                return
+            except StopIteration as stop:
+                outcome = stop.value or Outcome(True, f"{channel.ticket.name} done")
+            except (SimulationError, self.client.error) as error:
+                outcome = Outcome(False, f"{channel.ticket.name} failed: {error}")
+            except Exception as error:  # a bug must not kill the loop: report it and carry on
+                LOG.exception("%s raised", channel.ticket.name)
+                outcome = Outcome(False, f"{channel.ticket.name} failed with an internal error: {error!r}")
+            channel.ticket.finish(outcome, self.sim_time)
+            channel.motion, channel.ticket = None, None
+            channel.body.moving = False
+
+    def _busy(self) -> bool:
+        return bool(self._requests) or any(ch.motion is not None or ch.queue for ch in self._channels.values())
+
+    def _notify(self) -> None:
+        for listener in self._listeners:
+            try:
+                listener(self.sim_time)
+            except Exception:  # a listener's bug must not stop the physics
+                LOG.exception("step listener %r failed", listener)
+
+    def _loop(self, real_time_factor: float, pause_when_idle: bool) -> None:
+        anchor_wall, anchor_sim = time.monotonic(), self.sim_time
+        while not self._stop.is_set():
+            if pause_when_idle and not self._busy():
+                self._work.clear()
+                if not self._busy():
+                    self._work.wait(0.05)
+                anchor_wall, anchor_sim = time.monotonic(), self.sim_time
+                continue
+            with self._lock:
+                self._step_locked()
+            self._notify()
+            if self._waiters:
+                time.sleep(0.0002)
+            if real_time_factor > 0:
+                ahead = anchor_wall + (self.sim_time - anchor_sim) / real_time_factor - time.monotonic()
+                if ahead > 0:
+                    self._stop.wait(ahead)
+                elif ahead < -0.1:
+                    # Fell behind (a slow step, a snapshot): carry on from now, do not sprint.
+                    anchor_wall, anchor_sim = time.monotonic(), self.sim_time
+
+    # --- driving it ----------------------------------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        """True while the stepping thread runs."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self, real_time_factor: float = 1.0, pause_when_idle: bool = False) -> None:
+        """Step the physics in a thread of its own.
+
+        ``real_time_factor``: simulated seconds per wall second (0: as fast as possible).
+        ``pause_when_idle``: freeze simulated time while no action runs, so a run depends only on
+        the actions asked for, not on how long the callers take between them.
+        """
+        if real_time_factor < 0:
+            raise SimulationError(f"real_time_factor must be >= 0, got {real_time_factor}")
+        if self.running:
+            raise SimulationError("the world's stepping loop is already running")
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._loop, args=(real_time_factor, pause_when_idle),
+                                        name="world-physics", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the stepping thread (motions in progress stay where they are)."""
+        self._stop.set()
+        self._work.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        self._thread = None
+
+    def close(self) -> None:
+        """Stop the loop, end every pending action, disconnect from PyBullet."""
+        self.stop()
+        with self._lock:
+            pending = list(self._requests)
+            self._requests.clear()
+            for channel in self._channels.values():
+                if channel.ticket is not None:
+                    pending.append(channel.ticket)
+                pending.extend(channel.queue)
+                channel.queue.clear()
+                channel.motion, channel.ticket = None, None
+            for ticket in pending:
+                ticket.finish(Outcome(False, f"{ticket.name} abandoned: the world was closed"), self.sim_time)
+            self.client.disconnect()
+
+    def add_step_listener(self, listener: Callable[[float], None]) -> None:
+        """Call ``listener(sim_time)`` after every physics step (on the stepping thread)."""
+        self._listeners.append(listener)
+
+    def step(self, count: int = 1) -> None:
+        """Advance the physics by ``count`` steps on the calling thread (no stepping thread)."""
+        if self.running:
+            raise SimulationError("the stepping thread is running: use run() or submit() instead of step()")
+        for _ in range(count):
+            with self._locked():
+                self._step_locked()
+            self._notify()
+
+    def advance(self, seconds: float) -> None:
+        """Advance ``seconds`` of simulated time on the calling thread."""
+        self.step(max(0, int(round(seconds / self.time_step))))
+
+    def submit(self, agent: str, action: str) -> Ticket:
+        """Ask ``agent`` ("human", "robot" or "world") to carry out ``action``; returns at once."""
+        known = {"human": HUMAN_ACTIONS, "robot": ROBOT_ACTIONS, "world": ("reset",)}
+        if action not in known.get(agent, ()):
+            raise SimulationError(f"unknown action {agent}/{action}; known: " + ", ".join(
+                f"{a}/{x}" for a, xs in known.items() for x in xs))
+        ticket = Ticket(agent, action)
+        with self._locked():
+            if not self.client.connected:
+                raise SimulationError("the world is closed")
+            self._requests.append(ticket)
+        self._work.set()
+        return ticket
+
+    def run(self, agent: str, action: str, timeout: Optional[float] = None) -> Outcome:
+        """Carry out an action and return its outcome once it is over.
+
+        With the stepping thread running this waits (``timeout`` in wall seconds); without it,
+        it steps the physics itself until the action is over.
+        """
+        ticket = self.submit(agent, action)
+        if self.running:
+            return ticket.wait(timeout)
+        limit = int(_MAX_ACTION_TIME / self.time_step)
+        for _ in range(limit):
+            if ticket.done():
+                return ticket.outcome
+            self.step()
+        raise SimulationError(f"{ticket.name} still running after {_MAX_ACTION_TIME:.0f} s of simulated time")
+
+    def reset(self, timeout: Optional[float] = None) -> Outcome:
+        """Everything back to the start: human, robot and object (the belt keeps its speed)."""
+        return self.run("world", "reset", timeout)
+
+    def query(self, predicate: str) -> Reading:
+        """A human predicate (``is_ov``, ``is_oir``, ``is_ho``, ``is_a0``, ``is_a2``, ``is_h4``)."""
+        if predicate not in PREDICATES:
+            raise SimulationError(f"unknown predicate {predicate!r}; known: {', '.join(PREDICATES)}")
+        with self._locked():
+            return getattr(self.human, predicate)()
+
+    def set_belt_speed(self, speed: float) -> None:
+        """Change the belt speed (m/s, downstream positive) from the next step on."""
+        with self._locked():
+            self.conveyor.speed = float(speed)
+
+    def state(self) -> dict:
+        """A snapshot of the world as plain data (JSON-ready)."""
+        with self._locked():
+            position, orientation = self.object.pose()
+            return {
+                "sim_time": self.sim_time,
+                "step": self.step_count,
+                "belt_speed": self.conveyor.speed,
+                "object": {"position": list(position), "orientation": list(orientation),
+                           "holder": self.object.holder,
+                           "on_belt": self.conveyor.is_on_belt(position)},
+                "human": {"action": self.human.activity, "moving": self.human.moving,
+                          "at_station": self.human.at_station()},
+                "robot": {"action": self.robot.activity, "moving": self.robot.moving,
+                          "can_reach_object": self.robot.can_reach()},
+                "predicates": {name: getattr(self.human, name)().value for name in PREDICATES},
+            }
+
+    def render(self, width: Optional[int] = None, height: Optional[int] = None) -> np.ndarray:
+        """An RGB image ``(height, width, 3)`` from the fixed camera (software renderer: works headless)."""
+        cam = self.config.camera
+        width, height = width or cam.width, height or cam.height
+        with self._locked():
+            c = self.client
+            view = c.computeViewMatrix(list(cam.eye), list(cam.target), [0, 0, 1])
+            projection = c.computeProjectionMatrixFOV(cam.fov_deg, width / height, 0.05, 20.0)
+            image = c.getCameraImage(width, height, view, projection, shadow=1,
+                                     lightDirection=[-1.0, -2.0, 4.0], renderer=c.ER_TINY_RENDERER)
+        pixels = np.reshape(np.asarray(image[2], dtype=np.uint8), (height, width, 4))
+        return pixels[:, :, :3]
+
+    def snapshot(self, path: Union[str, Path], width: Optional[int] = None,
+                 height: Optional[int] = None) -> Path:
+        """Write a PNG of the scene from the fixed camera to ``path``; returns the path."""
+        path = Path(path)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_png(path, self.render(width, height))
+        except OSError as error:
+            raise SimulationError(f"cannot write the snapshot {path}: {error}") from error
+        return path
+
+    def describe(self) -> Sequence[str]:
+        """One line per body: what the world holds (for logs)."""
+        cfg = self.config
+        return [f"belt x {cfg.conveyor.start_x:+.2f}..{cfg.conveyor.end_x:+.2f} m at {self.conveyor.speed:.3f} m/s",
+                f"object start {tuple(round(v, 3) for v in self.object.start_position)}",
+                f"human at {cfg.human.station}, robot at {cfg.robot.position}"]

@@ -1,0 +1,70 @@
+"""The robot points, grasps what it can reach, refuses what it cannot, stops and resets."""
+import math
+
+import numpy as np
+import pytest
+
+from ros_hrc.world import World, WorldConfig
+from ros_hrc.world.geometry import angle_between
+from ros_hrc.world.object import ObjectConfig
+
+
+@pytest.fixture
+def near_robot():
+    """The object placed on the belt in front of the robot, belt stopped."""
+    with World(WorldConfig(belt_speed=0.0, work_object=ObjectConfig(start=(0.3, 0.0)))) as world:
+        yield world
+
+
+def test_robot_grasp_takes_the_object_and_lifts_it(near_robot):
+    outcome = near_robot.run("robot", "grasp")
+    assert outcome.success, outcome.message
+    assert outcome.duration >= 1.0
+    assert near_robot.object.holder == "robot" and not near_robot.query("is_ho").value
+    assert near_robot.object.position()[2] > near_robot.conveyor.config.surface_height + 0.1
+    assert "robot holds" in near_robot.query("is_ho").message
+    refused = near_robot.run("human", "grasp")
+    assert not refused.success and "robot holds" in refused.message
+
+
+def test_robot_grasp_out_of_reach_fails_without_taking_it(world):
+    outcome = world.run("robot", "grasp")
+    assert not outcome.success and "out of reach" in outcome.message
+    assert world.object.holder == "none"
+
+
+def test_robot_cannot_take_the_object_from_the_human(world):
+    world.run("human", "grasp")
+    outcome = world.run("robot", "grasp")
+    assert not outcome.success and "human holds" in outcome.message
+
+
+def test_point_to_obj_aims_the_gripper_at_the_object(world):
+    outcome = world.run("robot", "point_to_obj")
+    assert outcome.success and outcome.duration >= 1.0
+    tool = world.robot.tool_position()
+    _, palm = world.robot.link_frame("r_gripper_palm_link")
+    aim = angle_between(palm[:, 0], world.object.position() - tool)
+    assert math.degrees(aim) < 15.0
+
+
+def test_cancel_stops_a_grasp_mid_way_and_holds_still(near_robot):
+    ticket = near_robot.submit("robot", "grasp")
+    near_robot.step(120)
+    cancel = near_robot.run("robot", "cancel_action")
+    assert ticket.done() and not ticket.outcome.success and "interrupted" in ticket.outcome.message
+    assert cancel.success and "cancelled grasp" in cancel.message
+    near_robot.step(30)  # let the arm come to rest where it was stopped
+    held = near_robot.robot.tool_position()
+    near_robot.step(120)
+    assert np.allclose(near_robot.robot.tool_position(), held, atol=0.01)
+    assert near_robot.object.holder == "none"
+
+
+def test_robot_reset_returns_a_held_object_to_the_belt_start(near_robot):
+    near_robot.run("robot", "grasp")
+    outcome = near_robot.run("robot", "reset")
+    assert outcome.success and near_robot.object.holder == "none"
+    assert np.allclose(near_robot.object.position(), near_robot.object.start_position, atol=2e-3)
+    rest = near_robot.robot.positions(["r_shoulder_lift_joint", "torso_lift_joint"])
+    assert rest["torso_lift_joint"] == pytest.approx(0.30, abs=1e-6)
