@@ -193,10 +193,10 @@ class Robot(ArticulatedBody):
                                   f"the right shoulder (the arm reaches {self.reach:.2f} m)")
         last: Dict[str, Dict[str, float]] = {}
 
-        def towards(backoff: float, rise: float = 0.0) -> Dict[str, float]:
+        def towards(backoff: float) -> Dict[str, float]:
             # The goal follows the object along the belt; keep the last good pose if a step fails.
             target = self.object.position()
-            goal = target - backoff * self._gripper_direction(target, pitch) + np.array([0, 0, rise])
+            goal = target - backoff * self._gripper_direction(target, pitch)
             pose = self.solve_tool(goal, pitch)
             if pose is not None:
                 last["pose"] = {**pose, **self.look_at(target)}
@@ -206,8 +206,14 @@ class Robot(ArticulatedBody):
         self.command(opened)
         yield from self.track(lambda: towards(c.approach), c.reach_time)
         yield from self.track(lambda: towards(0.0), c.descend_time)
+        # Close while still following the object, so a moving belt does not pull it away.
         half = self.object.config.size / 2
-        yield from self.move({f: half for f in _FINGERS}, c.close_time)
+        start = self.commanded[_FINGERS[0]]
+        n_close = self.steps(c.close_time)
+        for i in range(1, n_close + 1):
+            fingers = start + (half - start) * i / n_close
+            self.command({**towards(0.0), **{f: fingers for f in _FINGERS}})
+            yield
         gap = float(np.linalg.norm(self.tool_position() - self.object.position()))
         if gap <= c.grasp_tolerance and self.object.holder == NOBODY:
             gripper = self.link("r_gripper_palm_link")

@@ -210,6 +210,8 @@ class World:
             self._waiters += 1
         try:
             with self._lock:
+                if self.client.client_id < 0:
+                    raise SimulationError("the world is closed")
                 yield
         finally:
             with self._waiters_lock:
@@ -397,8 +399,6 @@ class World:
                 f"{a}/{x}" for a, xs in known.items() for x in xs))
         ticket = Ticket(agent, action)
         with self._locked():
-            if not self.client.connected:
-                raise SimulationError("the world is closed")
             self._requests.append(ticket)
         self._work.set()
         return ticket
@@ -481,5 +481,5 @@ class World:
         """One line per body: what the world holds (for logs)."""
         cfg = self.config
         return [f"belt x {cfg.conveyor.start_x:+.2f}..{cfg.conveyor.end_x:+.2f} m at {self.conveyor.speed:.3f} m/s",
-                f"object start {tuple(round(v, 3) for v in self.object.start_position)}",
+                "object start ({:+.2f}, {:+.2f}, {:.3f}) m".format(*self.object.start_position),
                 f"human at {cfg.human.station}, robot at {cfg.robot.position}"]

@@ -1,0 +1,220 @@
+"""hrc_world: the PyBullet world (ros_hrc.world) served over ROS.
+
+Every service is a ``std_srvs/Trigger`` adapter around one call of the world; actions return
+when their motion is over (``success``: it did what was asked; ``message``: what happened),
+predicates answer in ``success`` and explain in ``message``.
+
+Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapshot):
+  /human/walk_away, /human/look_around, /human/warn_robot, /human/attempt_grasp, /human/grasp,
+  /human/reset (human and object back to the start), /human/idle (relax and do nothing: the
+  MDP's idle action), /human/is_ov, /human/is_oir, /human/is_ho, /human/is_a0, /human/is_a2,
+  /human/is_h4, /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset,
+  /hrc/world/snapshot (writes a PNG of the scene; ``message`` is its path)
+
+Topics published:
+  /hrc/world_state (ros_hrc/WorldState)  object pose, holder, both agents' actions, predicates,
+                                         at ~publish_rate Hz of wall-clock time
+  /clock (rosgraph_msgs/Clock)           the world's simulated time, when /use_sim_time is true
+
+Parameters (read once at start-up):
+  ~gui (bool, false)              open PyBullet's window
+  ~seed (int, 0)                  seed of the world's randomness
+  ~belt_speed (float, 0.02)       conveyor speed, m/s
+  ~real_time_factor (float, 1.0)  simulated seconds per wall second; 0 = as fast as possible
+  ~pause_when_idle (bool, false)  freeze simulated time while no action runs
+  ~publish_rate (float, 10.0)     /hrc/world_state rate, Hz
+  ~action_timeout (float, 120.0)  wall seconds a service call waits for its action
+  ~snapshot_dir (str, $ROS_HOME/hrc_snapshots)  where /hrc/world/snapshot writes
+  ~model_dir (str, <package>/models/urdf)       where the URDF models are
+  /use_sim_time (bool, false)     publish /clock from the simulated time
+"""
+from __future__ import annotations
+
+import os
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import rospkg
+import rospy
+from rosgraph_msgs.msg import Clock
+from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
+
+from ros_hrc.errors import SimulationError
+from ros_hrc.msg import WorldState
+from ros_hrc.world import HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, World, WorldConfig
+
+#: /clock is published at most this often (wall clock): enough for any rospy.Rate, and cheap
+#: when the world runs much faster than real time.
+_CLOCK_MAX_RATE = 1000.0
+
+
+@dataclass(frozen=True)
+class WorldNodeConfig:
+    """The node's parameters, with the launch file's defaults."""
+
+    gui: bool = False
+    seed: int = 0
+    belt_speed: float = 0.02
+    real_time_factor: float = 1.0
+    pause_when_idle: bool = False
+    publish_rate: float = 10.0
+    action_timeout: float = 120.0
+    snapshot_dir: str = ""
+    model_dir: str = ""
+    use_sim_time: bool = False
+
+    @classmethod
+    def from_params(cls, get_param: Callable[[str, Any], Any] = rospy.get_param) -> "WorldNodeConfig":
+        """Read the private parameters (and /use_sim_time) once."""
+        defaults = cls()
+        snapshot_dir = get_param("~snapshot_dir", "") or os.path.join(rospkg.get_ros_home(), "hrc_snapshots")
+        model_dir = get_param("~model_dir", "") or os.path.join(
+            rospkg.RosPack().get_path("ros_hrc"), "models", "urdf")
+        config = cls(
+            gui=bool(get_param("~gui", defaults.gui)),
+            seed=int(get_param("~seed", defaults.seed)),
+            belt_speed=float(get_param("~belt_speed", defaults.belt_speed)),
+            real_time_factor=float(get_param("~real_time_factor", defaults.real_time_factor)),
+            pause_when_idle=bool(get_param("~pause_when_idle", defaults.pause_when_idle)),
+            publish_rate=float(get_param("~publish_rate", defaults.publish_rate)),
+            action_timeout=float(get_param("~action_timeout", defaults.action_timeout)),
+            snapshot_dir=snapshot_dir, model_dir=model_dir,
+            use_sim_time=bool(get_param("/use_sim_time", defaults.use_sim_time)))
+        if config.real_time_factor < 0 or config.publish_rate <= 0 or config.action_timeout <= 0:
+            raise ValueError("~real_time_factor must be >= 0, ~publish_rate and ~action_timeout > 0; "
+                             f"got {config}")
+        return config
+
+
+def action_handler(world: World, agent: str, action: str,
+                   timeout: float) -> Callable[[TriggerRequest], TriggerResponse]:
+    """Trigger handler running ``agent``'s ``action`` in the world and waiting for its outcome."""
+    def handle(_request: TriggerRequest) -> TriggerResponse:
+        try:
+            outcome = world.run(agent, action, timeout)
+        except SimulationError as error:
+            return TriggerResponse(False, str(error))
+        return TriggerResponse(outcome.success, outcome.message)
+    return handle
+
+
+def predicate_handler(world: World, predicate: str) -> Callable[[TriggerRequest], TriggerResponse]:
+    """Trigger handler answering a human predicate from the current geometry."""
+    def handle(_request: TriggerRequest) -> TriggerResponse:
+        try:
+            reading = world.query(predicate)
+        except SimulationError as error:
+            return TriggerResponse(False, str(error))
+        return TriggerResponse(reading.value, reading.message)
+    return handle
+
+
+def snapshot_handler(world: World, directory: str) -> Callable[[TriggerRequest], TriggerResponse]:
+    """Trigger handler writing a PNG of the scene; the message is the file's path."""
+    def handle(_request: TriggerRequest) -> TriggerResponse:
+        path = os.path.join(directory, f"world_{world.sim_time:09.3f}s.png")
+        try:
+            return TriggerResponse(True, str(world.snapshot(path)))
+        except SimulationError as error:
+            return TriggerResponse(False, str(error))
+    return handle
+
+
+def state_message(state: dict, stamp: rospy.Time) -> WorldState:
+    """The world's :meth:`~ros_hrc.world.World.state` as a ``ros_hrc/WorldState``."""
+    msg = WorldState()
+    msg.header.stamp = stamp
+    msg.header.frame_id = "world"
+    msg.sim_time = state["sim_time"]
+    msg.object_position = state["object"]["position"]
+    msg.object_orientation = state["object"]["orientation"]
+    msg.holder = state["object"]["holder"]
+    msg.human_action = state["human"]["action"]
+    msg.robot_action = state["robot"]["action"]
+    msg.belt_speed = state["belt_speed"]
+    predicates = state["predicates"]
+    msg.object_visible = predicates["is_ov"]
+    msg.object_in_reach = predicates["is_oir"]
+    msg.human_has_object = predicates["is_ho"]
+    msg.human_attempting_grasp = predicates["is_a0"]
+    msg.human_idle = predicates["is_a2"]
+    msg.human_warning = predicates["is_h4"]
+    return msg
+
+
+class WorldNode:
+    """The world, its services, its state publisher and (under simulated time) its clock."""
+
+    def __init__(self, config: WorldNodeConfig) -> None:
+        self.config = config
+        self.world: World = None
+        self._services: list = []
+        self._stop = threading.Event()
+        self._last_clock = 0.0
+
+    def start(self) -> None:
+        """Build the world, advertise everything, start stepping."""
+        c = self.config
+        self.world = World(WorldConfig(gui=c.gui, seed=c.seed, belt_speed=c.belt_speed), c.model_dir)
+        self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=1) if c.use_sim_time else None
+        self._state_pub = rospy.Publisher("/hrc/world_state", WorldState, queue_size=1)
+        if self._clock_pub is not None:
+            self.world.add_step_listener(self._publish_clock)
+        for action in HUMAN_ACTIONS:
+            self._advertise(f"/human/{action}", action_handler(self.world, "human", action, c.action_timeout))
+        for predicate in PREDICATES:
+            self._advertise(f"/human/{predicate}", predicate_handler(self.world, predicate))
+        for action in ROBOT_ACTIONS:
+            self._advertise(f"/robot/{action}", action_handler(self.world, "robot", action, c.action_timeout))
+        self._advertise("/hrc/world/snapshot", snapshot_handler(self.world, c.snapshot_dir))
+        # The physics runs in its own thread paced by the wall clock: under /use_sim_time this
+        # node is the clock, so nothing here may wait on rospy time.
+        self.world.start(c.real_time_factor, c.pause_when_idle)
+        threading.Thread(target=self._publish_states, name="world-state", daemon=True).start()
+        rospy.loginfo("hrc_world: %s; real-time factor %s%s; %d services up",
+                      "; ".join(self.world.describe()), c.real_time_factor or "max",
+                      ", publishing /clock" if c.use_sim_time else "", len(self._services))
+
+    def _advertise(self, name: str, handler: Callable[[TriggerRequest], TriggerResponse]) -> None:
+        self._services.append(rospy.Service(name, Trigger, handler))
+
+    def _publish_clock(self, sim_time: float) -> None:
+        now = time.monotonic()
+        if now - self._last_clock >= 1.0 / _CLOCK_MAX_RATE:
+            self._last_clock = now
+            self._clock_pub.publish(Clock(clock=rospy.Time.from_sec(sim_time)))
+
+    def _publish_states(self) -> None:
+        period = 1.0 / self.config.publish_rate
+        while not self._stop.wait(period):
+            try:
+                state = self.world.state()
+            except SimulationError as error:   # the world closed under us: shutting down
+                rospy.logdebug("hrc_world: no state: %s", error)
+                return
+            stamp = rospy.Time.from_sec(state["sim_time"]) if self.config.use_sim_time else rospy.Time.now()
+            self._state_pub.publish(state_message(state, stamp))
+
+    def shutdown(self) -> None:
+        """Stop publishing, release every waiting caller, close the world."""
+        self._stop.set()
+        for service in self._services:
+            service.shutdown()
+        if self.world is not None:
+            self.world.close()
+
+
+def main() -> None:
+    """Entry point of ``scripts/hrc_world``."""
+    rospy.init_node("hrc_world")
+    try:
+        config = WorldNodeConfig.from_params()
+        node = WorldNode(config)
+        rospy.on_shutdown(node.shutdown)
+        node.start()
+    except (SimulationError, ValueError) as error:
+        rospy.logfatal("hrc_world cannot start: %s", error)
+        raise SystemExit(1) from error
+    rospy.spin()
