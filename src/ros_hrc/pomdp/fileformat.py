@@ -1,0 +1,97 @@
+"""What the two model-file formats (Cassandra ``.pomdp``, POMDPX) share: numbers, names, checks.
+
+Only the format modules (``cassandra``, ``pomdpx``, ``io``) import this; solvers never do.
+"""
+from __future__ import annotations
+
+import math
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+
+from ros_hrc.errors import ModelFormatError
+from ros_hrc.pomdp.model import PROBABILITY_TOLERANCE
+
+__all__ = ["PROBABILITY_TOLERANCE", "FULL_REWARD_STATES", "format_number", "name_lookup", "resolve_token",
+           "check_writable_names", "default_names", "joint_names", "is_identity"]
+
+#: Up to this many states R(s, a, s') is kept wherever the file gives it (a human typing an
+#: unlikely next state still gets the file's reward). Above it, R is kept only where
+#: T(s'|s,a) > 0 -- elsewhere it can never be earned -- so a reward that depends on s alone
+#: does not become a dense S x S table (RockSample_7_8: 12,800 states).
+FULL_REWARD_STATES = 2000
+
+
+def format_number(x: float) -> str:
+    """The shortest text that reads back as exactly ``x`` (integers without a decimal point).
+
+    Both writers use it, so a model written and read again has bit-identical tables.
+    """
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"cannot write the non-finite number {x}")
+    if x == int(x) and abs(x) < 1e15:
+        return str(int(x))
+    return repr(x)
+
+
+def name_lookup(names: Sequence[str]) -> Dict[str, int]:
+    """Name -> index for one list of states, actions, observations or variable values."""
+    return {name: i for i, name in enumerate(names)}
+
+
+def resolve_token(token: str, lookup: Dict[str, int], size: int) -> Optional[int]:
+    """A name or a 0-based index -> index; None when it is neither.
+
+    Names win over indices, so a model whose names are numbers (``states: 1 0``) still reads
+    as written.
+    """
+    index = lookup.get(token)
+    if index is not None:
+        return index
+    if token.isdigit():
+        index = int(token)
+        if index < size:
+            return index
+    return None
+
+
+def check_writable_names(kind: str, names: Sequence[str], forbidden: str, source: str) -> None:
+    """Refuse names a writer cannot put in a file and read back unchanged."""
+    seen = set()
+    for name in names:
+        if not name or any(ch.isspace() for ch in name) or any(ch in forbidden for ch in name) \
+                or name in ("*", "-"):
+            raise ModelFormatError(source, None, f"the {kind} name {name!r} cannot be written "
+                                                 f"(empty, whitespace, '*', '-' or one of {forbidden!r})")
+        if name in seen:
+            raise ModelFormatError(source, None, f"the {kind} name {name!r} appears twice")
+        seen.add(name)
+
+
+def default_names(prefix: str, count: int) -> List[str]:
+    """Names for a set given only by its size: s0 s1 ..., a0 ..., o0 ... (as POMDPX NumValues)."""
+    return [f"{prefix}{i}" for i in range(count)]
+
+
+def joint_names(value_lists: Sequence[Sequence[str]], separator: str = "_") -> List[str]:
+    """Names of a product space, first list most significant: ``[[a, b], [x, y]]`` ->
+    ``a_x a_y b_x b_y``. A single list keeps its own names."""
+    if len(value_lists) == 1:
+        return list(value_lists[0])
+    names = [""]
+    for values in value_lists:
+        names = [f"{prefix}{separator}{v}" if prefix else str(v) for prefix in names for v in values]
+    return names
+
+
+def is_identity(matrix) -> bool:
+    """True when a square sparse matrix is exactly the identity."""
+    n, m = matrix.shape
+    if n != m:
+        return False
+    coo = matrix.tocoo()
+    keep = coo.data != 0
+    rows, cols, data = coo.row[keep], coo.col[keep], coo.data[keep]
+    return rows.size == n and bool(np.all(rows == cols)) and bool(np.all(data == 1.0)) \
+        and np.unique(rows).size == n
