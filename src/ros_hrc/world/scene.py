@@ -65,8 +65,8 @@ def default_model_dir() -> Path:
 class CameraConfig:
     """The fixed camera of snapshots (and the GUI's initial view)."""
 
-    eye: Tuple[float, float, float] = (2.2, -1.45, 1.85)
-    target: Tuple[float, float, float] = (-0.2, 0.05, 0.8)
+    eye: Tuple[float, float, float] = (2.6, -1.7, 2.0)
+    target: Tuple[float, float, float] = (-0.2, 0.05, 0.9)
     fov_deg: float = 50.0
     width: int = 800
     height: int = 600
