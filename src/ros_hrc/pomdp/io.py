@@ -1,0 +1,82 @@
+"""Model files by extension: load, save, convert and compare.
+
+``.pomdp`` is Cassandra's format (:mod:`ros_hrc.pomdp.cassandra`), ``.pomdpx`` is POMDPX
+(:mod:`ros_hrc.pomdp.pomdpx`); the case of the extension does not matter (the seed writes
+``humanModel.POMDPx``). Converting either way and back gives identical tables, bit for bit.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from types import ModuleType
+from typing import List
+
+import numpy as np
+import scipy.sparse as sp
+
+from ros_hrc.errors import ModelFormatError
+from ros_hrc.pomdp import cassandra, pomdpx
+from ros_hrc.pomdp.model import Model
+
+__all__ = ["FORMATS", "format_of", "load_model", "save_model", "convert", "differences"]
+
+#: File extension -> (format name, module with load/loads/dump/save).
+FORMATS = {".pomdp": ("Cassandra", cassandra), ".pomdpx": ("POMDPX", pomdpx)}
+
+
+def _module(path) -> ModuleType:
+    suffix = Path(str(path)).suffix.lower()
+    if suffix not in FORMATS:
+        raise ModelFormatError(str(path), None, f"unknown model format {suffix or '(no extension)'!r}: "
+                                                "expected .pomdp (Cassandra) or .pomdpx (POMDPX)")
+    return FORMATS[suffix][1]
+
+
+def format_of(path) -> str:
+    """``"Cassandra"`` or ``"POMDPX"`` from the file's extension; ModelFormatError otherwise."""
+    _module(path)
+    return FORMATS[Path(str(path)).suffix.lower()][0]
+
+
+def load_model(path) -> Model:
+    """Read a model file, choosing the parser by extension (.pomdp or .pomdpx)."""
+    return _module(path).load(path)
+
+
+def save_model(model: Model, path) -> None:
+    """Write ``model`` in the format the extension of ``path`` names."""
+    module = _module(path)
+    text = module.dump(model)          # fully written before the file is touched
+    Path(path).write_text(text, encoding="utf-8")
+
+
+def convert(source, target) -> Model:
+    """Read ``source`` and write it to ``target`` in the format of ``target``'s extension."""
+    _module(target)                    # refuse a bad target before reading anything
+    model = load_model(source)
+    save_model(model, target)
+    return model
+
+
+def differences(a: Model, b: Model) -> List[str]:
+    """What differs between two models' names, discount, flags and tables (exactly); [] if none."""
+    out: List[str] = []
+    for label in ("states", "actions", "observations"):
+        if list(getattr(a, label)) != list(getattr(b, label)):
+            out.append(f"{label} differ: {getattr(a, label)} vs {getattr(b, label)}")
+    if out:
+        return out
+    for label in ("discount", "fully_observable", "minimise"):
+        if getattr(a, label) != getattr(b, label):
+            out.append(f"{label} differs: {getattr(a, label)} vs {getattr(b, label)}")
+    if not np.array_equal(np.asarray(a.initial_belief), np.asarray(b.initial_belief)):
+        out.append("initial beliefs differ")
+    for label in ("T", "O", "R"):
+        for i, action in enumerate(a.actions):
+            x, y = sp.csr_matrix(getattr(a, label)[i]), sp.csr_matrix(getattr(b, label)[i])
+            if x.shape != y.shape:
+                out.append(f"{label}[{action}] shapes differ: {x.shape} vs {y.shape}")
+                continue
+            delta = abs(x - y)
+            if delta.nnz and delta.max() != 0:
+                out.append(f"{label}[{action}] differs (largest difference {delta.max():g})")
+    return out
