@@ -34,7 +34,7 @@ import os
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Optional
 
 import rospkg
 import rospy
@@ -149,7 +149,7 @@ class WorldNode:
 
     def __init__(self, config: WorldNodeConfig) -> None:
         self.config = config
-        self.world: World = None
+        self.world: Optional[World] = None
         self._services: list = []
         self._stop = threading.Event()
         self._last_clock = 0.0

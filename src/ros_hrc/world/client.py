@@ -8,6 +8,8 @@ directly.
 from __future__ import annotations
 
 import functools
+import os
+import sys
 import types
 from typing import Any
 
@@ -24,6 +26,10 @@ class PhysicsClient:
     """
 
     def __init__(self, gui: bool = False) -> None:
+        if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+            # PyBullet's GUI exits the whole process when it cannot reach an X server.
+            raise SimulationError("a PyBullet window needs a display, and DISPLAY is not set "
+                                  "(run headless with gui:=false)")
         mode = pybullet.GUI if gui else pybullet.DIRECT
         client_id = pybullet.connect(mode)
         if client_id < 0:

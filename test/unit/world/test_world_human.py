@@ -2,7 +2,6 @@
 import math
 
 import numpy as np
-import pytest
 
 from ros_hrc.world import PREDICATES, World, WorldConfig
 from ros_hrc.world.object import ObjectConfig

@@ -55,6 +55,12 @@ def test_unknown_actions_and_predicates_are_refused(world):
         world.query("is_happy")
 
 
+def test_gui_without_a_display_is_refused_not_fatal(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    with pytest.raises(SimulationError, match="display"):
+        World(WorldConfig(gui=True))
+
+
 def test_missing_models_are_reported(tmp_path):
     with pytest.raises(SimulationError, match="human.urdf"):
         World(model_dir=tmp_path)
