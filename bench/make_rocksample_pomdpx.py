@@ -108,7 +108,8 @@ def rocksample_pomdpx(n: int, k: int, rocks: Optional[Sequence[Tuple[int, int]]]
 
     # Transitions: the rover moves deterministically; a rock only changes when sampled.
     w("  <StateTransitionFunction>")
-    w("    <CondProb><Var>robot_1</Var><Parent>action_robot robot_0</Parent><Parameter type=\"TBL\">")
+    w("    <CondProb><Var>robot_1</Var><Parent>action_robot robot_0</Parent>"
+      '<Parameter type="TBL">')
     w("      <Entry><Instance>* - -</Instance><ProbTable>identity</ProbTable></Entry>")
     for x, y in cells:
         here = _cell(x, y, n)
@@ -152,14 +153,17 @@ def rocksample_pomdpx(n: int, k: int, rocks: Optional[Sequence[Tuple[int, int]]]
 
     # Rewards: exit east, and one function per rock for sampling it.
     w("  <RewardFunction>")
-    w('    <Func><Var>reward_robot</Var><Parent>action_robot robot_0</Parent><Parameter type="TBL">')
+    w("    <Func><Var>reward_robot</Var><Parent>action_robot robot_0</Parent>"
+      '<Parameter type="TBL">')
     for y in range(n):
-        w(f"      <Entry><Instance>ame {_cell(n - 1, y, n)}</Instance><ValueTable>10</ValueTable></Entry>")
+        w(f"      <Entry><Instance>ame {_cell(n - 1, y, n)}</Instance>"
+          "<ValueTable>10</ValueTable></Entry>")
     w("    </Parameter></Func>")
     for i, (x, y) in enumerate(rocks):
         w(f"    <Func><Var>reward_robot</Var><Parent>action_robot robot_0 rock{i}_0</Parent>"
           '<Parameter type="TBL">')
-        w(f"      <Entry><Instance>as {_cell(x, y, n)} -</Instance><ValueTable>-10 10</ValueTable></Entry>")
+        w(f"      <Entry><Instance>as {_cell(x, y, n)} -</Instance>"
+          "<ValueTable>-10 10</ValueTable></Entry>")
         w("    </Parameter></Func>")
     w("  </RewardFunction>")
     w("</pomdpx>")

@@ -123,7 +123,8 @@ def _statements(tokens: List[str], lines: List[int], fail) -> List[_Statement]:
     # Where a statement may begin: a keyword followed by ':' (or 'start include|exclude').
     # A header field that happens to look like one is skipped below, as fields are read in order.
     starts = [j for j in range(n - 1) if tokens[j] in _KEYWORDS and
-              (tokens[j + 1] == ":" or (tokens[j] == "start" and tokens[j + 1] in ("include", "exclude")))]
+              (tokens[j + 1] == ":" or
+               (tokens[j] == "start" and tokens[j + 1] in ("include", "exclude")))]
     starts.append(n)
     out: List[_Statement] = []
     i = 0
@@ -227,7 +228,8 @@ class _Layers:
         if kind == "const" and payload == 0:
             return sp.csr_matrix((R, C))
         if kind == "rows":
-            return sp.csr_matrix(np.ones((R, 1))) @ sp.csr_matrix((payload != 0).astype(float)[None, :])
+            used = sp.csr_matrix((payload != 0).astype(float)[None, :])
+            return sp.csr_matrix(np.ones((R, 1))) @ used
         return sp.csr_matrix(np.ones((R, C)))          # uniform, nonzero const
 
     def _cell_arrays(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -385,7 +387,8 @@ class _Reader:
         self.seq_lines = [st.line for st in statements]
         for seq, st in enumerate(statements):
             handler = {"discount": self._discount, "values": self._values, "start": self._start,
-                       "T": self._transition, "O": self._observation, "R": self._reward}.get(st.keyword)
+                       "T": self._transition, "O": self._observation,
+                       "R": self._reward}.get(st.keyword)
             if handler is None:
                 self._declare(st)
             else:
@@ -424,7 +427,7 @@ class _Reader:
     def _discount(self, st: _Statement, seq: int) -> None:
         if self.discount is not None:
             self.fail(st.line, "'discount:' is given twice")
-        value = self._single(st, "discount")
+        value = self._single(st)
         if not 0.0 <= value < 1.0:
             self.fail(st.line, f"discount {format_number(value)} is outside [0, 1)")
         self.discount = value
@@ -454,10 +457,11 @@ class _Reader:
             raise
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
-            self.fail(st.data_lines[bad[0]], f"{st.header} has a non-finite number {st.data[bad[0]]!r}")
+            self.fail(st.data_lines[bad[0]],
+                      f"{st.header} has a non-finite number {st.data[bad[0]]!r}")
         return arr
 
-    def _single(self, st: _Statement, what: str) -> float:
+    def _single(self, st: _Statement) -> float:
         if len(st.data) != 1:
             self.fail(st.line, f"{st.header} expects one number, found {len(st.data)}")
         try:
@@ -539,7 +543,7 @@ class _Reader:
         action = self._select(st, "actions", st.fields[0])
         if len(st.fields) == 3:
             s, s2 = (self._select(st, "states", f) for f in st.fields[1:])
-            p = self._single(st, "T")
+            p = self._single(st)
             self._probability(st, p)
             for a in self._each("actions", action):
                 self.T[a].set_cell(seq, s, s2, p)
@@ -561,7 +565,7 @@ class _Reader:
         if len(st.fields) == 3:
             s2 = self._select(st, "states", st.fields[1])
             o = self._select(st, "observations", st.fields[2])
-            p = self._single(st, "O")
+            p = self._single(st)
             self._probability(st, p)
             for a in self._each("actions", action):
                 self.O[a].set_cell(seq, s2, o, p)
@@ -585,7 +589,7 @@ class _Reader:
         end = self._select(st, "states", st.fields[2]) if len(st.fields) > 2 else None
         obs = self._select(st, "observations", st.fields[3]) if len(st.fields) > 3 else None
         if len(st.fields) == 4:
-            kind, payload = "value", self._single(st, "R")
+            kind, payload = "value", self._single(st)
         elif len(st.fields) == 3:
             kind, payload = "row", self._row(st, Z, probabilities=False)[1]
         else:
@@ -694,7 +698,8 @@ class _Reader:
         return out
 
     def _build(self) -> Model:
-        states, actions, observations = (self.names[k] for k in ("states", "actions", "observations"))
+        states, actions, observations = (self.names[k]
+                                         for k in ("states", "actions", "observations"))
         self._tables()
         T, O = [], []
         for a in range(len(actions)):
@@ -784,6 +789,7 @@ def dump(model: Model) -> str:
         for s in range(model.n_states):
             for k in range(r.indptr[s], r.indptr[s + 1]):
                 if r.data[k] != 0:
-                    lines.append(f"R: {name} : {model.states[s]} : {model.states[r.indices[k]]} : * "
+                    lines.append(f"R: {name} : {model.states[s]} : "
+                                 f"{model.states[r.indices[k]]} : * "
                                  f"{format_number(sign * r.data[k])}")
     return "\n".join(lines) + "\n"

@@ -110,7 +110,8 @@ def _print_info(facts: dict, out: TextIO) -> None:
 # --------------------------------------------------------------------------------------------
 def _register_info(subparsers) -> None:
     p = subparsers.add_parser("info", help="sizes, discount, kind and checks of a model file",
-                              description="Read a .pomdp or .pomdpx file, check it and describe it.")
+                              description="Read a .pomdp or .pomdpx file, check it and "
+                                          "describe it.")
     p.add_argument("model", help="a .pomdp (Cassandra) or .pomdpx (POMDPX) file")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_info)
@@ -149,7 +150,8 @@ def cmd_convert(args: argparse.Namespace) -> int:
 
 
 #: Every subcommand's register function, in the order ``--help`` lists them.
-SUBCOMMANDS: List[Callable[[argparse._SubParsersAction], None]] = [_register_info, _register_convert]
+SUBCOMMANDS: List[Callable[[argparse._SubParsersAction], None]] = [_register_info,
+                                                                  _register_convert]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -12,8 +12,8 @@ import numpy as np
 from ros_hrc.errors import ModelFormatError
 from ros_hrc.pomdp.model import PROBABILITY_TOLERANCE
 
-__all__ = ["PROBABILITY_TOLERANCE", "FULL_REWARD_STATES", "format_number", "name_lookup", "resolve_token",
-           "check_writable_names", "default_names", "joint_names", "is_identity"]
+__all__ = ["PROBABILITY_TOLERANCE", "FULL_REWARD_STATES", "format_number", "name_lookup",
+           "resolve_token", "check_writable_names", "default_names", "joint_names", "is_identity"]
 
 #: Up to this many states R(s, a, s') is kept wherever the file gives it (a human typing an
 #: unlikely next state still gets the file's reward). Above it, R is kept only where
@@ -62,8 +62,9 @@ def check_writable_names(kind: str, names: Sequence[str], forbidden: str, source
     for name in names:
         if not name or any(ch.isspace() for ch in name) or any(ch in forbidden for ch in name) \
                 or name in ("*", "-"):
-            raise ModelFormatError(source, None, f"the {kind} name {name!r} cannot be written "
-                                                 f"(empty, whitespace, '*', '-' or one of {forbidden!r})")
+            raise ModelFormatError(source, None,
+                                   f"the {kind} name {name!r} cannot be written (empty, "
+                                   f"whitespace, '*', '-' or one of {forbidden!r})")
         if name in seen:
             raise ModelFormatError(source, None, f"the {kind} name {name!r} appears twice")
         seen.add(name)
@@ -81,7 +82,8 @@ def joint_names(value_lists: Sequence[Sequence[str]], separator: str = "_") -> L
         return list(value_lists[0])
     names = [""]
     for values in value_lists:
-        names = [f"{prefix}{separator}{v}" if prefix else str(v) for prefix in names for v in values]
+        names = [f"{prefix}{separator}{v}" if prefix else str(v)
+                 for prefix in names for v in values]
     return names
 
 

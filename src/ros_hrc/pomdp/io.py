@@ -26,8 +26,9 @@ FORMATS = {".pomdp": ("Cassandra", cassandra), ".pomdpx": ("POMDPX", pomdpx)}
 def _module(path) -> ModuleType:
     suffix = Path(str(path)).suffix.lower()
     if suffix not in FORMATS:
-        raise ModelFormatError(str(path), None, f"unknown model format {suffix or '(no extension)'!r}: "
-                                                "expected .pomdp (Cassandra) or .pomdpx (POMDPX)")
+        raise ModelFormatError(str(path), None,
+                               f"unknown model format {suffix or '(no extension)'!r}: "
+                               "expected .pomdp (Cassandra) or .pomdpx (POMDPX)")
     return FORMATS[suffix][1]
 
 

@@ -129,7 +129,8 @@ def _parse_xml(text: Union[str, bytes], source: str):
     except ParseError as exc:
         line = exc.position[0] if getattr(exc, "position", None) else None
         what = re.sub(r": line \d+, column \d+$", "", str(exc))
-        raise ModelFormatError(source, str(line) if line else None, f"malformed XML: {what}") from None
+        raise ModelFormatError(source, str(line) if line else None,
+                               f"malformed XML: {what}") from None
 
 
 def _local(tag: str) -> str:
@@ -203,7 +204,8 @@ class _SparseTable:
         for pos, k in enumerate(free):
             shape = [1] * len(free)
             shape[pos] = self.shape[k]
-            grids = grids + (np.arange(self.shape[k], dtype=np.int64) * self.strides[k]).reshape(shape)
+            axis = np.arange(self.shape[k], dtype=np.int64) * self.strides[k]
+            grids = grids + axis.reshape(shape)
         values = np.broadcast_to(values, grids.shape)
         self.parts.append((grids.ravel(), np.array(values, dtype=float).ravel()))
 
@@ -442,7 +444,8 @@ class _Reader:
         if var is None:
             self.fail(var_elem, f"unknown variable {names[0]!r}")
         if var.role not in self._VAR_ROLES[kind]:
-            self.fail(var_elem, f"{var.name!r} ({var.role}) cannot be the <Var> of a {kind} function")
+            self.fail(var_elem,
+                      f"{var.name!r} ({var.role}) cannot be the <Var> of a {kind} function")
         parent_elem = self._one(elem, "Parent", required=kind != "initial")
         parent_names = (parent_elem.text or "").split() if parent_elem is not None else []
         if parent_names == ["null"]:
@@ -574,7 +577,8 @@ class _Reader:
                 found[f.var.index] = f
             for i, (prev, curr, _) in enumerate(self.state_vars):
                 if role_of_var == "state" and i not in found:
-                    self.fail(self.root, f"no {what} table for state variable {prev.name}/{curr.name}")
+                    self.fail(self.root,
+                              f"no {what} table for state variable {prev.name}/{curr.name}")
             return [found[i] for i in sorted(found)]
 
         init_f = by_var(init, "initial belief", "state")
