@@ -295,3 +295,14 @@ def test_names_that_would_break_the_xml_are_refused():
     m.actions[0] = "a<b"
     with pytest.raises(ModelFormatError):
         pomdpx.dump(m)
+
+
+def test_the_seeds_printed_figures_read_and_say_what_is_missing():
+    # Figures 3.5-3.8 print only graspAttempt's transitions: the reader parses the seed's own
+    # text and names the first table row that is missing (models/human completes them).
+    with pytest.raises(ModelFormatError) as info:
+        pomdpx.load(ROOT / "test" / "fixtures" / "seed_figures_3_5_to_3_8.pomdpx")
+    err = info.value
+    assert err.where == "51"
+    assert "P(state_1 | action_agent=lookAround, state_0=task_assigned) sums to 0" in err.what
+    assert "32 such row(s)" in err.what            # lookAround, idle, walkAway, warnRobot
