@@ -4,6 +4,7 @@
     ├── ModelFormatError     a model file is malformed: carries the file and the line or element
     ├── ModelError           a model is inconsistent (probabilities, sizes, discount)
     ├── SolverError          a solver or planner could not do what was asked
+    │   └── ZeroProbabilityObservation   Bayes' rule met an observation the belief gives probability 0
     ├── SimulationError      the world could not carry out an action or query
     └── LinkError            the websocket link failed
         └── ProtocolError    a message is malformed, unknown or too large
@@ -32,6 +33,19 @@ class ModelError(HrcError):
 
 class SolverError(HrcError):
     """A solver or planner failed."""
+
+
+class ZeroProbabilityObservation(SolverError):
+    """The observation has probability zero under the belief and action: Bayes' rule is undefined.
+
+    Planners catch it, fall back to a documented belief and report the event.
+    """
+
+    def __init__(self, action: int, observation: int, detail: str = "") -> None:
+        self.action = action
+        self.observation = observation
+        extra = f" ({detail})" if detail else ""
+        super().__init__(f"observation {observation} has probability 0 after action {action}{extra}")
 
 
 class SimulationError(HrcError):

@@ -1,0 +1,359 @@
+"""DESPOT: online POMDP planning with regularization (Ye, Somani, Hsu and Lee, JAIR 2017).
+
+At every step the planner samples K *scenarios* from the current belief: a start state and a
+stream of random numbers, one pair per depth. Simulating a scenario under an action sequence
+with those numbers is deterministic, so the scenarios induce a sparse tree (a DESPOT) whose
+belief nodes hold the scenarios consistent with their action-observation history. The tree is
+built anytime, by trials, within a time budget (and an optional trial cap):
+
+* every belief node b keeps, weighted by |Φ_b|/K·γ^Δ(b) (its share of scenarios, discounted):
+  ℓ0(b) the default policy's value, U(b) an upper bound on its value, and the bounds
+  ℓ(b) <= ν*(b) <= μ(b) on the best *regularized* value, where each policy node costs λ;
+* a trial descends from the root along the action with the largest μ and the observation whose
+  child has the largest weighted excess uncertainty E(b') = ε(b') − ξ·|Φ_b'|/K·ε(root),
+  ε = μ − ℓ; it stops at depth D (the node gets its default value), when E <= 0, or when the
+  node is *blocked*: some ancestor b' cannot repay the regularization of the path to it,
+  |Φ_b'|/K·γ^Δ(b')·(U(b') − ℓ0(b')) <= λ·(Δ(b) − Δ(b')), in which case the blocked nodes get
+  their default values;
+* the path is then backed up (ρ(b,a) = Σ_φ γ^Δ R / K − λ):
+  μ(b) = max(ℓ0(b), max_a ρ(b,a) + Σ μ(b')),  ℓ(b) likewise,  U(b) = max_a ρ(b,a) + λ + Σ U(b'),
+* the action returned is the one with the best lower bound ℓ(b0, a) (or the default action when
+  no expanded action beats it).
+
+Bounds: the upper bound is the fully observable MDP's value ("mdp", default) or the trivial
+max R/(1−γ) ("trivial"). The default-policy lower bound is the best fixed action, valued
+exactly for each scenario's state by the blind-policy values ("blind", default: as if the
+rollout went on forever, at the cost of a table lookup) or simulated along the scenario's own
+random stream down to depth D ("rollout", as in the paper; slower).
+
+Speed: each scenario's random numbers for one depth are drawn once, as a (K, 2) block, the first
+time any node of that depth needs them, so the same (scenario, depth) always gets the same numbers
+within a search. Expanding a node steps all its scenarios under all actions in one vectorised
+call into ``ModelSampler`` (flat cumulative tables and ``np.searchsorted``), groups them by
+observation with one sort, and reads the children's bounds with ``np.add.reduceat``.
+
+Beliefs are exact for small models (scenarios are drawn from the exact belief) and particle
+filters for large ones (``DespotConfig.particles``).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import List, Optional
+
+import numpy as np
+
+from ros_hrc.errors import SolverError
+from ros_hrc.pomdp import mdp
+from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
+from ros_hrc.pomdp.sampling import ModelSampler
+
+#: Above this many states the default belief is a particle filter rather than exact.
+EXACT_BELIEF_MAX_STATES = 5000
+
+#: Particle count of the default particle belief.
+DEFAULT_PARTICLES = 2000
+
+
+@dataclass
+class DespotConfig:
+    """DESPOT's parameters (the paper's names in brackets)."""
+
+    scenarios: int = 500               # [K] scenarios sampled per search
+    depth: int = 90                    # [D] maximum depth of the tree
+    pruning: float = 0.1               # [λ] regularization: the cost of one policy node
+    xi: float = 0.95                   # [ξ] target gap fraction in the excess uncertainty
+    time_per_step: float = 1.0         # seconds of search per act()
+    max_trials: Optional[int] = None   # stop after this many trials too (reproducible tests)
+    upper: str = "mdp"                 # "mdp" | "trivial"
+    lower: str = "blind"               # "blind" | "rollout"
+    particles: Optional[int] = None    # particle belief of this size; None: exact when small
+    gap_tolerance: float = 1e-6        # [ε0] stop early once the root gap is this small
+
+    def validate(self) -> None:
+        """SolverError when a parameter is out of range."""
+        if self.scenarios < 1 or self.depth < 0:
+            raise SolverError("DESPOT needs at least one scenario and a non-negative depth")
+        if self.pruning < 0 or not 0.0 <= self.xi <= 1.0 or self.time_per_step < 0:
+            raise SolverError("DESPOT needs pruning >= 0, 0 <= xi <= 1 and time_per_step >= 0")
+        if self.upper not in ("mdp", "trivial") or self.lower not in ("blind", "rollout"):
+            raise SolverError(f"unknown bound: upper={self.upper!r} (mdp|trivial), "
+                              f"lower={self.lower!r} (blind|rollout)")
+
+
+class DespotTables:
+    """What DESPOT precomputes for a model; build once and share between planners."""
+
+    def __init__(self, model: Model, upper: str = "mdp") -> None:
+        self.model = model
+        self.sampler = ModelSampler(model)
+        gamma = float(model.discount)
+        R = np.asarray(model.R_sa, dtype=float)
+        self.blind = mdp.blind_lower_bound(model)                    # (A, S)
+        if upper == "mdp":
+            sol = mdp.value_iteration(model, epsilon=1e-4)
+            self.v_upper = sol.V + sol.error_bound                    # (S,)
+        else:
+            # Largest reward of any transition, every step forever.
+            rmax = max(float(r.data.max()) if r.nnz else 0.0 for r in model.R)
+            rmax = max(rmax, float(R.max()))
+            if any(r.nnz < r.shape[0] * r.shape[1] for r in model.R):
+                rmax = max(rmax, 0.0)                                 # implicit zero rewards
+            self.v_upper = np.full(model.n_states, rmax / (1.0 - gamma))
+        self.upper = upper
+
+
+class _VNode:
+    """A belief node: the scenarios that reach it and their current states."""
+
+    __slots__ = ("depth", "scen", "states", "frac", "lower0", "default_action", "lower",
+                 "upper", "uupper", "children", "parent", "is_default")
+
+    def __init__(self, depth: int, scen: np.ndarray, states: np.ndarray, frac: float,
+                 lower0: float, default_action: int, upper0: float,
+                 parent: Optional["_QNode"]) -> None:
+        self.depth = depth
+        self.scen = scen
+        self.states = states
+        self.frac = frac                   # |Φ_b| / K
+        self.lower0 = lower0               # weighted default-policy value ℓ0
+        self.default_action = default_action
+        self.lower = lower0                # ℓ
+        self.upper = max(upper0, lower0)   # μ
+        self.uupper = max(upper0, lower0)  # U (weighted, not regularized)
+        self.children: Optional[List[_QNode]] = None
+        self.parent = parent
+        self.is_default = False
+
+
+class _QNode:
+    """An action node: the step reward of its scenarios and a child per observation."""
+
+    __slots__ = ("action", "rho", "children", "lower", "upper", "uupper", "parent")
+
+    def __init__(self, action: int, rho: float, parent: _VNode) -> None:
+        self.action = action
+        self.rho = rho                     # weighted step reward minus λ
+        self.children: List[_VNode] = []
+        self.parent = parent
+        self.lower = self.upper = self.uupper = 0.0
+
+
+class DespotPlanner(BeliefPlanner):
+    """Online planner: ``reset``, then ``act`` / ``update`` in turn (see planner.Planner)."""
+
+    def __init__(self, model: Model, config: Optional[DespotConfig] = None,
+                 seed: Optional[int] = None, tables: Optional[DespotTables] = None) -> None:
+        self.config = config if config is not None else DespotConfig()
+        self.config.validate()
+        particles = self.config.particles
+        if particles is None and model.n_states > EXACT_BELIEF_MAX_STATES:
+            particles = DEFAULT_PARTICLES
+        super().__init__(model, seed, particles)
+        if tables is None or tables.model is not model or tables.upper != self.config.upper:
+            tables = DespotTables(model, self.config.upper)
+        self.tables = tables
+        self.sampler = tables.sampler
+        self._A = model.n_actions
+        self._S = model.n_states
+        self._Z = model.n_observations
+        self._gamma = float(model.discount)
+        self._blind = tables.blind
+        self._v_upper = tables.v_upper
+        self._action_rows = (np.arange(self._A) * self._S)[:, None]
+        self._obs_offsets = (np.arange(self._A) * self._Z)[:, None]
+        self._u: List[np.ndarray] = []
+        self._search_rng = np.random.default_rng(0)
+        self._nodes = 0
+        self._max_depth = 0
+
+    # -- random streams ------------------------------------------------------------------------
+    def _uniforms(self, depth: int) -> np.ndarray:
+        """The (K, 2) uniforms of every scenario at ``depth`` (drawn once per search, in order)."""
+        while len(self._u) <= depth:
+            self._u.append(self._search_rng.random((self.config.scenarios, 2)))
+        return self._u[depth]
+
+    # -- node bounds ---------------------------------------------------------------------------
+    def _default_values(self, depth: int, scen_sorted: np.ndarray, states_sorted: np.ndarray,
+                        starts: np.ndarray):
+        """Weighted ℓ0, the default action and weighted U0 for groups of scenarios."""
+        K = self.config.scenarios
+        w = self._gamma ** depth / K
+        up = np.add.reduceat(self._v_upper[states_sorted], starts) * w
+        if self.config.lower == "blind":
+            sums = np.add.reduceat(self._blind[:, states_sorted], starts, axis=1)   # (A, C)
+            acts = sums.argmax(axis=0)
+            low = sums[acts, np.arange(starts.size)] * w
+        else:
+            acts = np.add.reduceat(self._blind[:, states_sorted], starts, axis=1).argmax(axis=0)
+            per = self._rollout(depth, scen_sorted, states_sorted,
+                                np.repeat(acts, np.diff(np.append(starts, states_sorted.size))))
+            low = np.add.reduceat(per, starts) * w
+        return low, acts, up
+
+    def _rollout(self, depth: int, scen: np.ndarray, states: np.ndarray,
+                 actions: np.ndarray) -> np.ndarray:
+        """Discounted return (from ``depth``) of each scenario repeating its action to depth D."""
+        total = np.zeros(states.size)
+        disc = 1.0
+        rows0 = actions * self._S
+        for d in range(depth, self.config.depth + 1):
+            u = self._uniforms(d)
+            states, _, r = self.sampler.step_rows(rows0 + states, u[scen, 0], u[scen, 1])
+            total += disc * r
+            disc *= self._gamma
+        # Beyond the horizon the blind values stand in for the rest of the rollout.
+        total += disc * self._blind[actions, states]
+        return total
+
+    def _root(self, states: np.ndarray) -> _VNode:
+        K = self.config.scenarios
+        scen = np.arange(K)
+        starts = np.zeros(1, dtype=np.int64)
+        low, acts, up = self._default_values(0, scen, states, starts)
+        self._nodes = 1
+        self._max_depth = 0
+        return _VNode(0, scen, states, 1.0, float(low[0]), int(acts[0]), float(up[0]), None)
+
+    # -- tree ----------------------------------------------------------------------------------
+    def _expand(self, v: _VNode) -> None:
+        """Step every scenario of v under every action; one child per (action, observation)."""
+        A, Z, K = self._A, self._Z, self.config.scenarios
+        n = v.scen.size
+        u = self._uniforms(v.depth)[v.scen]                           # (n, 2)
+        rows = self._action_rows + v.states[None, :]                  # (A, n)
+        # The same two uniforms per scenario for every action: that is the determinized scenario.
+        nxt, obs, rew = self.sampler.step_rows(rows, u[:, 0], u[:, 1])
+        key = (obs + self._obs_offsets).ravel()                       # action * Z + observation
+        order = np.argsort(key, kind="stable")
+        key_s = key[order]
+        starts = np.flatnonzero(np.concatenate(([True], key_s[1:] != key_s[:-1])))
+        ends = np.append(starts[1:], key_s.size)
+        nxt_s = nxt.ravel()[order]
+        scen_s = v.scen[order % n]
+        depth = v.depth + 1
+        low, acts, up = self._default_values(depth, scen_s, nxt_s, starts)
+        rho = rew.sum(axis=1) * (self._gamma ** v.depth / K) - self.config.pruning
+        child_action = (key_s[starts] // Z).tolist()
+        qnodes = [_QNode(a, r, v) for a, r in enumerate(rho.tolist())]
+        low_l, acts_l, up_l = low.tolist(), acts.tolist(), up.tolist()
+        st_l, en_l = starts.tolist(), ends.tolist()
+        for c in range(starts.size):
+            s0, s1 = st_l[c], en_l[c]
+            q = qnodes[child_action[c]]
+            q.children.append(_VNode(depth, scen_s[s0:s1], nxt_s[s0:s1], (s1 - s0) / K,
+                                     low_l[c], acts_l[c], up_l[c], q))
+        lam = self.config.pruning
+        for q in qnodes:
+            q.lower = q.rho + sum(c.lower for c in q.children)
+            q.upper = q.rho + sum(c.upper for c in q.children)
+            q.uupper = q.rho + lam + sum(c.uupper for c in q.children)
+        v.children = qnodes
+        self._nodes += starts.size
+        if depth > self._max_depth:
+            self._max_depth = depth
+
+    @staticmethod
+    def _make_default(v: _VNode) -> None:
+        v.lower = v.upper = v.uupper = v.lower0
+        v.is_default = True
+
+    def _backup(self, v: _VNode) -> None:
+        """Recompute the bounds on the path from v to the root."""
+        lam = self.config.pruning
+        while v.parent is not None:
+            q = v.parent
+            q.lower = q.rho + sum(c.lower for c in q.children)
+            q.upper = q.rho + sum(c.upper for c in q.children)
+            q.uupper = q.rho + lam + sum(c.uupper for c in q.children)
+            v = q.parent
+            if v.is_default:
+                continue
+            qs = v.children
+            lower = max(v.lower0, max(x.lower for x in qs))
+            upper = max(v.lower0, max(x.upper for x in qs))
+            # Monotone updates: the heuristic bounds need not be consistent between levels.
+            if lower > v.lower:
+                v.lower = lower
+            if upper < v.upper:
+                v.upper = upper
+            if v.upper < v.lower:
+                v.upper = v.lower
+            v.uupper = min(v.uupper, max(v.lower0, max(x.uupper for x in qs)))
+
+    def _trial(self, root: _VNode) -> None:
+        cfg = self.config
+        lam, xi, D = cfg.pruning, cfg.xi, cfg.depth
+        v = root
+        path = [root]
+        # keys[i] = min over path[0..i] of weighted (U - ℓ0) + λ·depth: the blocking test for a
+        # node at depth d is min over its ancestors of that key <= λ·d.
+        keys = [root.uupper - root.lower0]
+        while True:
+            if v.depth > D:
+                self._make_default(v)
+                break
+            root_gap = root.upper - root.lower
+            if v is not root and (v.upper - v.lower) - xi * v.frac * root_gap <= 0.0:
+                break
+            if len(path) > 1 and keys[-2] <= lam * v.depth:
+                # Blocked: default values for it and every blocked node above it.
+                for i in range(len(path) - 1, 0, -1):
+                    x = path[i]
+                    if keys[i - 1] <= lam * x.depth:
+                        self._make_default(x)
+                    else:
+                        break
+                break
+            if v.children is None:
+                self._expand(v)
+            q = max(v.children, key=_upper_of)
+            root_gap = root.upper - root.lower
+            target = xi * root_gap
+            best = None
+            best_e = -math.inf
+            for c in q.children:
+                e = (c.upper - c.lower) - target * c.frac
+                if e > best_e:
+                    best_e, best = e, c
+            v = best
+            path.append(v)
+            keys.append(min(keys[-1], v.uupper - v.lower0 + lam * v.depth))
+        self._backup(v)
+
+    # -- the Planner interface -----------------------------------------------------------------
+    def act(self) -> int:
+        cfg = self.config
+        start = time.perf_counter()
+        self._search_rng = np.random.default_rng(int(self.rng.integers(2**63)))
+        self._u = []
+        states = self._belief.sample(self._search_rng, cfg.scenarios)
+        root = self._root(states)
+        trials = 0
+        while True:
+            if cfg.max_trials is not None and trials >= cfg.max_trials:
+                break
+            if root.upper - root.lower <= cfg.gap_tolerance:
+                break
+            if time.perf_counter() - start >= cfg.time_per_step and trials > 0:
+                break
+            self._trial(root)
+            trials += 1
+        action = root.default_action
+        best = root.lower0
+        if root.children is not None:
+            for q in root.children:
+                if q.lower > best:
+                    best, action = q.lower, q.action
+        self.last_stats = PlannerStats(trials=trials, seconds=time.perf_counter() - start,
+                                       lower=root.lower, upper=root.upper, nodes=self._nodes,
+                                       depth=self._max_depth)
+        self.root = root
+        return int(action)
+
+
+def _upper_of(q: _QNode) -> float:
+    return q.upper

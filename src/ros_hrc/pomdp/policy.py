@@ -1,0 +1,138 @@
+"""An offline policy as a set of alpha vectors, and its file format.
+
+A policy is a set of vectors α_i over states, each tagged with an action. At belief b the policy
+takes the action of the vector maximising α_i · b, and that maximum is the policy's value (a lower
+bound on the optimum when the vectors come from a point-based solver). An MDP solved by value
+iteration is stored the same way, one vector Q[a] per action: for the point-mass beliefs of a
+fully observable model, argmax_a Q[a] · b is exactly the greedy MDP action.
+
+File format (``save``/``load``): a numpy ``.npz`` archive (zip of ``.npy`` arrays, no pickles),
+written to exactly the path given, with these arrays:
+
+    format         "ros_hrc-policy"
+    version        1
+    kind           "alpha" (point-based POMDP solver) or "mdp" (value iteration)
+    alphas         float64 (k, S): the vectors
+    actions        int64   (k,):   the action index of each vector
+    state_names    str     (S,)
+    action_names   str     (A,)
+    discount       float64 ()
+    lower, upper   float64 ():     bounds on the optimal value at the model's initial belief
+    model_name     str     ()
+    stats_json     str     ():     solver statistics (seconds, trials, ...) as a JSON object
+
+Read one with ``numpy.load(path)``; the file name's extension does not matter.
+"""
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import dataclass, field
+from typing import List, Optional
+
+import numpy as np
+
+from ros_hrc.errors import SolverError
+from ros_hrc.pomdp.model import Model
+
+FORMAT = "ros_hrc-policy"
+VERSION = 1
+
+
+@dataclass
+class Policy:
+    """Alpha vectors with their actions, plus the bounds the solver proved at the initial belief."""
+
+    alphas: np.ndarray                  # (k, S)
+    actions: np.ndarray                 # (k,)
+    state_names: List[str]
+    action_names: List[str]
+    discount: float
+    lower: float = float("nan")
+    upper: float = float("nan")
+    kind: str = "alpha"
+    model_name: str = ""
+    stats: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.alphas = np.atleast_2d(np.asarray(self.alphas, dtype=float))
+        self.actions = np.asarray(self.actions, dtype=np.int64).ravel()
+        if self.alphas.shape[0] != self.actions.size or self.actions.size == 0:
+            raise SolverError(f"policy has {self.alphas.shape[0]} vectors and "
+                              f"{self.actions.size} actions; need the same, at least one")
+        if self.alphas.shape[1] != len(self.state_names):
+            raise SolverError(f"policy vectors have {self.alphas.shape[1]} entries for "
+                              f"{len(self.state_names)} states")
+
+    @property
+    def n_states(self) -> int:
+        return self.alphas.shape[1]
+
+    def best(self, belief: np.ndarray) -> int:
+        """Index of the vector that is best at ``belief``."""
+        return int(np.argmax(self.alphas @ np.asarray(belief, dtype=float)))
+
+    def action(self, belief: np.ndarray) -> int:
+        """The action the policy takes at ``belief`` (a distribution over states)."""
+        return int(self.actions[self.best(belief)])
+
+    def value(self, belief: np.ndarray) -> float:
+        """The policy's value at ``belief``: max_i α_i · b."""
+        return float(np.max(self.alphas @ np.asarray(belief, dtype=float)))
+
+    def check(self, model: Model) -> None:
+        """Raise SolverError unless the policy was made for a model of this shape."""
+        if self.n_states != model.n_states:
+            raise SolverError(f"policy is for {self.n_states} states, model has {model.n_states}")
+        if self.actions.max() >= model.n_actions:
+            raise SolverError(f"policy uses action {int(self.actions.max())}, "
+                              f"model has {model.n_actions} actions")
+
+    def save(self, path: str) -> None:
+        """Write the policy to ``path`` (npz format above, exactly that file name)."""
+        with open(path, "wb") as fh:
+            np.savez_compressed(
+                fh, format=np.array(FORMAT), version=np.array(VERSION), kind=np.array(self.kind),
+                alphas=self.alphas, actions=self.actions,
+                state_names=np.array(self.state_names, dtype=str),
+                action_names=np.array(self.action_names, dtype=str),
+                discount=np.array(float(self.discount)), lower=np.array(float(self.lower)),
+                upper=np.array(float(self.upper)), model_name=np.array(self.model_name),
+                stats_json=np.array(json.dumps(self.stats, default=float)))
+
+    @classmethod
+    def load(cls, path: str) -> "Policy":
+        """Read a policy written by ``save``; SolverError naming the file when it is not one."""
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                fmt = str(data["format"]) if "format" in data.files else ""
+                if fmt != FORMAT:
+                    raise SolverError(f"{path}: not a ros_hrc policy file")
+                version = int(data["version"])
+                if version != VERSION:
+                    raise SolverError(f"{path}: policy format version {version}, "
+                                      f"this reader knows {VERSION}")
+                return cls(alphas=data["alphas"], actions=data["actions"],
+                           state_names=[str(x) for x in data["state_names"]],
+                           action_names=[str(x) for x in data["action_names"]],
+                           discount=float(data["discount"]), lower=float(data["lower"]),
+                           upper=float(data["upper"]), kind=str(data["kind"]),
+                           model_name=str(data["model_name"]),
+                           stats=json.loads(str(data["stats_json"])))
+        except SolverError:
+            raise
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            raise SolverError(f"{path}: cannot read policy ({exc})") from None
+
+
+def save(policy: Policy, path: str) -> None:
+    """Write ``policy`` to ``path``."""
+    policy.save(path)
+
+
+def load(path: str, model: Optional[Model] = None) -> Policy:
+    """Read a policy; with ``model``, also check it fits that model."""
+    policy = Policy.load(path)
+    if model is not None:
+        policy.check(model)
+    return policy
