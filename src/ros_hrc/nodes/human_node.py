@@ -85,6 +85,7 @@ class HumanNode:
         self._loop_lock = threading.RLock()   # a step or a reset at a time
         self._await_fresh_start = False       # after a reset, only a step 0 is accepted
         self._mdp_connections = 0
+        self._mdp_peer: Optional[int] = None  # the MDP process being served (the newest)
         self._answers = threading.Condition()
         self._answer: Optional[Message] = None
 
@@ -93,13 +94,17 @@ class HumanNode:
         if peer.who != MDP_NAME:
             return
         self._mdp_connections += 1
+        self._mdp_peer = peer.id
         if self._mdp_connections > 1:
-            # A respawned MDP starts at step 0: the world and the robot start over with it.
-            threading.Thread(target=self.reset_all, args=("the MDP process reconnected", False),
+            # A respawned or reconnected MDP: everything starts over together from step 0.
+            threading.Thread(target=self.reset_all, args=("the MDP process reconnected",),
                              daemon=True).start()
 
     def handle(self, msg: Message, peer: Peer) -> Optional[Message]:
         if isinstance(msg, Step):
+            if peer.id != self._mdp_peer:
+                return Error(message="another MDP process is connected and being served",
+                             in_reply_to=msg.type, step=msg.step)
             return self.run_step(msg)
         if isinstance(msg, Reset):
             ok, text = self.reset_all(f"asked by {peer.who}", tell_mdp=False)

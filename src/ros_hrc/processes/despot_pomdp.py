@@ -9,7 +9,7 @@ out, and answer the observer with the same ``action`` message plus the robot's r
 A ``reset`` puts the belief back to the model's initial belief.
 
 An observation of zero probability under the belief cannot be explained by the model: the
-belief is reset to the initial one, the step goes on, and the terminal says so.
+belief keeps the prediction through T without it, the step goes on, and the terminal says so.
 """
 from __future__ import annotations
 
@@ -27,7 +27,9 @@ from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp.io import load_model
 from ros_hrc.pomdp.model import Model
-from ros_hrc.pomdp.planner import Planner, make_planner
+from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
+from ros_hrc.pomdp.planner import Planner, PolicyPlanner
+from ros_hrc.pomdp.policy import load as load_policy
 
 NAME = "despot_pomdp"
 
@@ -51,10 +53,12 @@ class RobotAgent:
         o = self.model.index("observation", observation)
         note = ""
         started = time.perf_counter()
-        if not self.planner.update(self.last_action, o):
+        self.planner.update(self.last_action, o)
+        if self.planner.last_update_zero_probability:
             self.surprises += 1
             note = (f"observation {observation} has probability 0 after "
-                    f"{self.model.actions[self.last_action]}: belief reset to the initial one")
+                    f"{self.model.actions[self.last_action]}: the belief keeps the "
+                    "prediction without it")
         action = self.planner.act()
         decision_ms = (time.perf_counter() - started) * 1000.0
         self.last_action = action
@@ -123,6 +127,21 @@ class PomdpProcess:
         return "\n".join(f"  {s} = {p:.4f}" for s, p in zip(self.agent.model.states, b) if p > 0)
 
 
+def build_planner(model: Model, args: argparse.Namespace) -> Planner:
+    """The planner the command line asks for: DESPOT or a saved offline policy."""
+    if args.planner == "despot":
+        config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.lambda_,
+                              time_per_step=args.time_per_step,
+                              max_trials=args.max_trials or None)
+        return DespotPlanner(model, config, seed=args.seed)
+    if args.planner == "policy":
+        if not args.policy:
+            raise ValueError("--planner policy needs --policy FILE (hrc_pomdp solve -o FILE)")
+        return PolicyPlanner(model, load_policy(args.policy, model), seed=args.seed,
+                             lookahead=True)
+    raise ValueError(f"unknown planner {args.planner!r}: despot or policy")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=NAME, description="The robot's POMDP planner, linked by "
                                 "websocket to the observer (server) and the robot node (client).")
@@ -131,8 +150,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=7070, help="port to serve observations on")
     p.add_argument("--robot-host", default="127.0.0.1", help="robot node's host")
     p.add_argument("--robot-port", type=int, default=8080, help="robot node's websocket port")
-    p.add_argument("--planner", default="despot",
-                   help="despot, policy (needs --policy), or another planner of ros_hrc.pomdp.planner")
+    p.add_argument("--planner", choices=("despot", "policy"), default="despot",
+                   help="online DESPOT, or a saved offline policy (needs --policy)")
     p.add_argument("--policy", help="offline policy file (hrc_pomdp solve -o FILE)")
     p.add_argument("--time-per-step", type=float, default=0.1, help="DESPOT's budget per decision, s")
     p.add_argument("--scenarios", type=int, default=500, help="DESPOT's K sampled scenarios")
@@ -152,10 +171,7 @@ def main(argv: Optional[list] = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         model = load_model(str(resolve_model(args.model, "robot")))
-        planner = make_planner(model, args.planner, policy=args.policy,
-                               time_per_step=args.time_per_step, scenarios=args.scenarios,
-                               depth=args.depth, regularization=args.lambda_,
-                               max_trials=args.max_trials or None, seed=args.seed)
+        planner = build_planner(model, args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr)
         return 2
