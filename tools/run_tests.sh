@@ -5,7 +5,7 @@ set -uo pipefail
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$repo"
 # shellcheck source=/dev/null
-source env.sh
+set +u; source env.sh; set -u
 export ROS_LOG_DIR="$repo/.ws/log"
 
 status=0
