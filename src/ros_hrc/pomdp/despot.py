@@ -20,11 +20,14 @@ built anytime, by trials, within a time budget (and an optional trial cap):
 * the action returned is the one with the best lower bound ℓ(b0, a) (or the default action when
   no expanded action beats it).
 
-Bounds: the upper bound is the fully observable MDP's value ("mdp", default) or the trivial
-max R/(1−γ) ("trivial"). The default-policy lower bound is the best fixed action, valued
-exactly for each scenario's state by the blind-policy values ("blind", default: as if the
-rollout went on forever, at the cost of a table lookup) or simulated along the scenario's own
-random stream down to depth D ("rollout", as in the paper; slower).
+Bounds: the upper bound is the fully observable MDP's value ("mdp", default), the fast informed
+bound max_a of the scenarios' mean Q_FIB(s, a) ("fib", small models), or the trivial
+max R/(1−γ) ("trivial"). The default policy is the best fixed action, valued exactly for each
+scenario's state by the blind-policy values ("blind", default: as if the rollout went on
+forever, at the cost of a table lookup), or simulated along the scenario's own random stream
+down to depth D ("rollout", as in the paper; slower), or the best of the fixed actions and the
+conditional plans of an offline policy's alpha vectors ("policy": pass ``default_policy``, or
+for a small model one is solved in about a second).
 
 Speed: each scenario's random numbers for one depth are drawn once, as a (K, 2) block, the first
 time any node of that depth needs them, so the same (scenario, depth) always gets the same numbers
@@ -48,6 +51,7 @@ from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import mdp
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
+from ros_hrc.pomdp.policy import Policy
 from ros_hrc.pomdp.sampling import ModelSampler
 
 #: Above this many states the default belief is a particle filter rather than exact.
@@ -67,8 +71,8 @@ class DespotConfig:
     xi: float = 0.95                   # [ξ] target gap fraction in the excess uncertainty
     time_per_step: float = 1.0         # seconds of search per act()
     max_trials: Optional[int] = None   # stop after this many trials too (reproducible tests)
-    upper: str = "mdp"                 # "mdp" | "trivial"
-    lower: str = "blind"               # "blind" | "rollout"
+    upper: str = "mdp"                 # "mdp" | "fib" | "trivial"
+    lower: str = "blind"               # "blind" | "policy" | "rollout"
     particles: Optional[int] = None    # particle belief of this size; None: exact when small
     gap_tolerance: float = 1e-6        # [ε0] stop early once the root gap is this small
 
@@ -78,21 +82,46 @@ class DespotConfig:
             raise SolverError("DESPOT needs at least one scenario and a non-negative depth")
         if self.pruning < 0 or not 0.0 <= self.xi <= 1.0 or self.time_per_step < 0:
             raise SolverError("DESPOT needs pruning >= 0, 0 <= xi <= 1 and time_per_step >= 0")
-        if self.upper not in ("mdp", "trivial") or self.lower not in ("blind", "rollout"):
-            raise SolverError(f"unknown bound: upper={self.upper!r} (mdp|trivial), "
-                              f"lower={self.lower!r} (blind|rollout)")
+        if self.upper not in ("fib", "mdp", "trivial") or self.lower not in ("blind", "policy",
+                                                                        "rollout"):
+            raise SolverError(f"unknown bound: upper={self.upper!r} (fib|mdp|trivial), "
+                              f"lower={self.lower!r} (blind|policy|rollout)")
 
 
 class DespotTables:
-    """What DESPOT precomputes for a model; build once and share between planners."""
+    """What DESPOT precomputes for a model; build once and share between planners.
 
-    def __init__(self, model: Model, upper: str = "mdp") -> None:
+    ``plans``/``plan_actions`` are the default policy's candidate plans as value vectors: the
+    blind policies (one per action) and, for ``lower="policy"``, the alpha vectors of an offline
+    policy (each the value of a conditional plan that starts with its action).
+    """
+
+    def __init__(self, model: Model, upper: str = "mdp", lower: str = "blind",
+                 default_policy: Optional[Policy] = None, policy_seconds: float = 1.0) -> None:
         self.model = model
+        self.key = (upper, lower)
         self.sampler = ModelSampler(model)
         gamma = float(model.discount)
         R = np.asarray(model.R_sa, dtype=float)
         self.blind = mdp.blind_lower_bound(model)                    # (A, S)
-        if upper == "mdp":
+        self.plans = self.blind
+        self.plan_actions = np.arange(model.n_actions)
+        if lower == "policy":
+            if default_policy is None:
+                if model.fully_observable or model.n_states > mdp.DENSE_STATE_LIMIT:
+                    raise SolverError('lower="policy" needs a default policy for this model')
+                from ros_hrc.pomdp import hsvi      # only this option needs the offline solver
+                default_policy = hsvi.solve(model, timeout=policy_seconds, precision=1e-2)
+            default_policy.check(model)
+            self.plans = np.vstack([self.blind, default_policy.alphas])
+            self.plan_actions = np.concatenate([self.plan_actions, default_policy.actions])
+        self.q_upper: Optional[np.ndarray] = None                    # (A, S) for "fib"
+        if upper == "fib" and model.n_states > mdp.DENSE_STATE_LIMIT:
+            upper = "mdp"                                             # FIB is for small models
+        if upper == "fib":
+            self.q_upper = mdp.fast_informed_bound(model)
+            self.v_upper = self.q_upper.max(axis=0)
+        elif upper == "mdp":
             sol = mdp.value_iteration(model, epsilon=1e-4)
             self.v_upper = sol.V + sol.error_bound                    # (S,)
         else:
@@ -102,7 +131,6 @@ class DespotTables:
             if any(r.nnz < r.shape[0] * r.shape[1] for r in model.R):
                 rmax = max(rmax, 0.0)                                 # implicit zero rewards
             self.v_upper = np.full(model.n_states, rmax / (1.0 - gamma))
-        self.upper = upper
 
 
 class _VNode:
@@ -145,15 +173,17 @@ class DespotPlanner(BeliefPlanner):
     """Online planner: ``reset``, then ``act`` / ``update`` in turn (see planner.Planner)."""
 
     def __init__(self, model: Model, config: Optional[DespotConfig] = None,
-                 seed: Optional[int] = None, tables: Optional[DespotTables] = None) -> None:
+                 seed: Optional[int] = None, tables: Optional[DespotTables] = None,
+                 default_policy: Optional[Policy] = None) -> None:
         self.config = config if config is not None else DespotConfig()
         self.config.validate()
         particles = self.config.particles
         if particles is None and model.n_states > EXACT_BELIEF_MAX_STATES:
             particles = DEFAULT_PARTICLES
         super().__init__(model, seed, particles)
-        if tables is None or tables.model is not model or tables.upper != self.config.upper:
-            tables = DespotTables(model, self.config.upper)
+        cfg = self.config
+        if tables is None or tables.model is not model or tables.key != (cfg.upper, cfg.lower):
+            tables = DespotTables(model, cfg.upper, cfg.lower, default_policy)
         self.tables = tables
         self.sampler = tables.sampler
         self._A = model.n_actions
@@ -161,7 +191,10 @@ class DespotPlanner(BeliefPlanner):
         self._Z = model.n_observations
         self._gamma = float(model.discount)
         self._blind = tables.blind
+        self._plans = tables.plans
+        self._plan_actions = tables.plan_actions
         self._v_upper = tables.v_upper
+        self._q_upper = tables.q_upper
         self._action_rows = (np.arange(self._A) * self._S)[:, None]
         self._obs_offsets = (np.arange(self._A) * self._Z)[:, None]
         self._u: List[np.ndarray] = []
@@ -182,11 +215,16 @@ class DespotPlanner(BeliefPlanner):
         """Weighted ℓ0, the default action and weighted U0 for groups of scenarios."""
         K = self.config.scenarios
         w = self._gamma ** depth / K
-        up = np.add.reduceat(self._v_upper[states_sorted], starts) * w
-        if self.config.lower == "blind":
-            sums = np.add.reduceat(self._blind[:, states_sorted], starts, axis=1)   # (A, C)
-            acts = sums.argmax(axis=0)
-            low = sums[acts, np.arange(starts.size)] * w
+        if self._q_upper is not None:
+            # max_a of the scenarios' mean Q[a]: a bound on the node's belief, not per scenario.
+            up = np.add.reduceat(self._q_upper[:, states_sorted], starts, axis=1).max(axis=0) * w
+        else:
+            up = np.add.reduceat(self._v_upper[states_sorted], starts) * w
+        if self.config.lower != "rollout":
+            sums = np.add.reduceat(self._plans[:, states_sorted], starts, axis=1)   # (plans, C)
+            best = sums.argmax(axis=0)
+            low = sums[best, np.arange(starts.size)] * w
+            acts = self._plan_actions[best]
         else:
             acts = np.add.reduceat(self._blind[:, states_sorted], starts, axis=1).argmax(axis=0)
             per = self._rollout(depth, scen_sorted, states_sorted,
@@ -330,7 +368,9 @@ class DespotPlanner(BeliefPlanner):
         start = time.perf_counter()
         self._search_rng = np.random.default_rng(int(self.rng.integers(2**63)))
         self._u = []
-        states = self._belief.sample(self._search_rng, cfg.scenarios)
+        # Stratified start states: the scenarios' state mix matches the belief to within one
+        # scenario per state, which removes most of the noise in comparing close actions.
+        states = self._belief.sample_systematic(self._search_rng, cfg.scenarios)
         root = self._root(states)
         trials = 0
         while True:

@@ -1,0 +1,145 @@
+"""DESPOT and the planners sharing its interface."""
+import numpy as np
+import pytest
+
+from conftest import build_chain, build_tiger
+from ros_hrc.errors import SolverError
+from ros_hrc.pomdp import hsvi
+from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
+from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
+
+LISTEN, OPEN_LEFT, OPEN_RIGHT = 0, 1, 2
+HEAR_LEFT, HEAR_RIGHT = 0, 1
+
+#: Trial-capped, time-generous: the same tree on every machine (about what 0.01 s buys).
+CAPPED = DespotConfig(time_per_step=30.0, max_trials=20)
+
+
+@pytest.fixture(scope="module")
+def tiger_policy():
+    return hsvi.solve(build_tiger(), timeout=30, precision=0.01)
+
+
+def test_despot_listens_at_the_uniform_belief(tiger):
+    for seed in range(3):
+        planner = DespotPlanner(tiger, CAPPED, seed=seed)
+        planner.reset()
+        assert planner.act() == LISTEN
+        stats = planner.last_stats
+        assert stats.trials == 20 and stats.nodes > 1 and stats.depth >= 1
+        assert stats.lower <= stats.upper
+
+
+def _after_two_listens(planner, heard):
+    planner.reset()
+    planner.update(LISTEN, heard)
+    planner.update(LISTEN, heard)
+    return planner.act()
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_despot_opens_the_other_door_after_consistent_observations(tiger, seed):
+    planner = DespotPlanner(tiger, CAPPED, seed=seed)
+    assert _after_two_listens(planner, HEAR_LEFT) == OPEN_RIGHT
+    assert planner.belief[0] == pytest.approx(0.85 ** 2 / (0.85 ** 2 + 0.15 ** 2))
+    assert _after_two_listens(planner, HEAR_RIGHT) == OPEN_LEFT
+
+
+def test_despot_with_an_offline_default_policy_decides_like_the_optimum(tiger, tiger_policy):
+    cfg = DespotConfig(time_per_step=30.0, max_trials=50, lower="policy")
+    planner = DespotPlanner(tiger, cfg, seed=0, default_policy=tiger_policy)
+    for b in ([0.5, 0.5], [0.85, 0.15], [0.97, 0.03], [0.15, 0.85], [0.03, 0.97]):
+        planner.reset(np.array(b))
+        assert planner.act() == tiger_policy.action(np.array(b))
+
+
+def test_despot_with_a_trial_cap_is_reproducible_from_its_seed(tiger):
+    def play(seed):
+        planner = DespotPlanner(tiger, DespotConfig(scenarios=100, time_per_step=30.0,
+                                                    max_trials=40), seed=seed)
+        planner.reset()
+        out = []
+        for o in (HEAR_LEFT, HEAR_RIGHT, HEAR_LEFT, HEAR_LEFT):
+            a = planner.act()
+            out.append((a, planner.last_stats.lower, planner.last_stats.upper,
+                        planner.last_stats.nodes))
+            planner.update(a, o)
+        return out
+    assert play(7) == play(7)
+
+
+def test_despot_survives_a_zero_probability_observation():
+    chain = build_chain(4)
+    planner = DespotPlanner(chain, DespotConfig(scenarios=50, max_trials=20), seed=0)
+    planner.reset()
+    planner.update(1, 3)                        # moving right from s0 cannot show s3
+    assert planner.last_update_zero_probability
+    assert planner.zero_probability_events == 1
+    assert np.allclose(planner.belief, [0, 1, 0, 0])   # the prediction through T
+    planner.update(1, 2)                        # a possible one clears the flag
+    assert not planner.last_update_zero_probability
+    assert planner.act() in (0, 1)
+
+
+def test_despot_runs_on_a_particle_belief(tiger):
+    cfg = DespotConfig(time_per_step=30.0, max_trials=20, particles=1000)
+    planner = DespotPlanner(tiger, cfg, seed=4)
+    planner.reset()
+    assert planner.act() == LISTEN
+    for _ in range(3):
+        planner.update(LISTEN, HEAR_LEFT)
+    assert planner.belief[0] > 0.98
+    assert planner.act() == OPEN_RIGHT
+
+
+def test_despot_zero_trials_falls_back_to_the_default_policy(tiger):
+    planner = DespotPlanner(tiger, DespotConfig(max_trials=0), seed=0)
+    planner.reset()
+    assert planner.act() == LISTEN               # the best fixed action of Tiger
+    assert planner.last_stats.trials == 0
+
+
+@pytest.mark.parametrize("bounds", [dict(upper="trivial"), dict(upper="fib"),
+                                    dict(lower="rollout", depth=20)])
+def test_despot_other_bounds_still_choose_sensibly(tiger, bounds):
+    cfg = DespotConfig(scenarios=200, time_per_step=30.0, max_trials=20, **bounds)
+    planner = DespotPlanner(tiger, cfg, seed=3)
+    planner.reset()
+    assert planner.act() == LISTEN
+
+
+def test_despot_config_is_checked(tiger):
+    with pytest.raises(SolverError):
+        DespotPlanner(tiger, DespotConfig(scenarios=0))
+    with pytest.raises(SolverError):
+        DespotPlanner(tiger, DespotConfig(upper="magic"))
+    with pytest.raises(SolverError):
+        DespotPlanner(build_chain(3), DespotConfig(lower="policy"))   # no policy for an MDP
+
+
+def test_policy_planner_follows_the_offline_policy(tiger, tiger_policy):
+    policy = tiger_policy
+    for lookahead in (False, True):
+        planner = PolicyPlanner(tiger, policy, seed=0, lookahead=lookahead)
+        planner.reset()
+        assert planner.act() == LISTEN
+        planner.update(LISTEN, HEAR_RIGHT)
+        planner.update(LISTEN, HEAR_RIGHT)
+        assert planner.act() == OPEN_LEFT
+
+
+def test_mdp_planner_moves_along_the_chain_and_keeps_a_point_mass():
+    chain = build_chain(4)
+    planner = MdpPlanner(chain)
+    planner.reset()
+    for s in range(3):
+        assert planner.act() == 1
+        planner.update(1, s + 1)
+        assert planner.belief[s + 1] == pytest.approx(1.0)
+
+
+def test_mdp_planner_from_a_saved_mdp_policy():
+    chain = build_chain(4)
+    planner = MdpPlanner.from_policy(chain, hsvi.solve(chain))
+    planner.reset()
+    assert planner.act() == 1
