@@ -26,6 +26,7 @@ Read one with ``numpy.load(path)``; the file name's extension does not matter.
 from __future__ import annotations
 
 import json
+import os
 import zipfile
 from dataclasses import dataclass, field
 from typing import List, Optional
@@ -104,6 +105,11 @@ class Policy:
     def load(cls, path: str) -> "Policy":
         """Read a policy written by ``save``; SolverError naming the file when it is not one."""
         try:
+            if not os.path.isfile(path):
+                raise SolverError(f"{path}: no such policy file")
+            if not zipfile.is_zipfile(path):
+                raise SolverError(f"{path}: not a policy file (expected the .npz archive that "
+                                  f"'hrc_pomdp solve -o' writes)")
             with np.load(path, allow_pickle=False) as data:
                 fmt = str(data["format"]) if "format" in data.files else ""
                 if fmt != FORMAT:
