@@ -199,11 +199,15 @@ class MdpProcess:
             self.args.goal_state, self.args.max_steps = None, 0  # keep stepping
             return
         if self.args.on_episode_end == "reset":
-            try:
-                self.client.request(Reset(reason=f"episode over ({why})"),
-                                    timeout=self.args.reply_timeout)
-            except LinkError as exc:
-                self.print(f"(reset not acknowledged: {exc})")
+            # The link's replies arrive through the dispatcher thread, as events.
+            self._send(Reset(reason=f"episode over ({why})"))
+            while True:
+                reply = self._wait_event("reply", self.args.reply_timeout)
+                if reply is None or (isinstance(reply, Ack) and reply.of == "reset") or \
+                        (isinstance(reply, Error) and reply.in_reply_to == "reset"):
+                    break
+            if reply is None:
+                self.print("(the human node did not acknowledge the reset)")
             self.reset(f"episode over ({why})")
             return
         self.print("Press Enter in the ROS terminal (or call /hrc/reset) for a new episode.")
