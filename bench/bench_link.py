@@ -30,6 +30,8 @@ import websockets
 from ros_hrc.link.protocol import Ack, Message, Step, decode, encode
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer
 
+from common import percentile, write_result  # bench/common.py
+
 HUMAN_STATES = ("task_assigned", "success", "failed_to_grasp", "no_attention", "evaluating",
                 "tired", "recovery", "warningTheRobot")
 
@@ -42,10 +44,6 @@ def sample_step(n: int) -> Step:
                 belief=belief, manual=False, extra={"episode": 1})
 
 
-def percentile(sorted_values: List[float], q: float) -> float:
-    """Nearest-rank percentile of already sorted values."""
-    index = min(len(sorted_values) - 1, max(0, round(q / 100 * len(sorted_values)) - 1))
-    return sorted_values[index]
 
 
 def bench_round_trip(count: int, warmup: int) -> Dict[str, float]:
@@ -137,9 +135,7 @@ def main(argv=None) -> int:
             "machine": platform.machine(),
         },
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"  written to {args.out}")
+    write_result(args.out, result)
     return 0
 
 

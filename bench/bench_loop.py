@@ -24,6 +24,8 @@ import threading
 import time
 from pathlib import Path
 
+from common import percentile, write_result  # bench/common.py
+
 
 def free_port() -> int:
     with socket.socket() as s:
@@ -31,9 +33,6 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def percentile(values, q):
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, max(0, round(q / 100 * len(ordered)) - 1))]
 
 
 def main(argv=None) -> int:
@@ -112,9 +111,7 @@ def main(argv=None) -> int:
           f"p99 {result['step_latency_p99_ms']:.1f} ms   mean {result['step_latency_mean_ms']:.1f} ms")
     print(f"  steps per second (headless, real_time_factor 0)  {result['steps_per_s']:.2f}")
     print(f"  DESPOT decision (mean, as reported)  {result['despot_decision_mean_ms']:.1f} ms")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"  written to {args.out}")
+    write_result(args.out, result)
     return 0
 
 

@@ -26,10 +26,9 @@ import sys
 import time
 from pathlib import Path
 
+from common import percentile, write_result  # bench/common.py
 
-def percentile(values, q):
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, max(0, round(q / 100 * len(ordered)) - 1))]
+
 
 
 def free_port() -> int:
@@ -158,9 +157,7 @@ def main(argv=None) -> int:
               f"p99 {result['service_p99_ms']:.2f} ms ({args.calls} calls)")
         print(f"  /human/is_ov with a new connection per call: p50 {result['service_new_connection_p50_ms']:.2f} ms, "
               f"p99 {result['service_new_connection_p99_ms']:.2f} ms")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"  written to {args.out}")
+    write_result(args.out, result)
     return 0
 
 

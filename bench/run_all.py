@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))  # the benchmarks share bench/common.py
 ORDER = ["pomdp", "world", "link", "loop", "experiment"]
 
 
