@@ -142,7 +142,9 @@ class HumanNode:
                 print(format_step(status), flush=True)
                 if not acted:
                     print(f"(human: {action_result})", flush=True)
-            return Ack(step=msg.step, of=msg.type, action=status.robot_action,
+            if not response.success:
+                rospy.logwarn("step %d: %s", msg.step, response.message)
+            return Ack(step=msg.step, of=msg.type, action=status.robot_action or None,
                        success=response.success,
                        result=response.message or action_result,
                        extra={k: v for k, v in msg.extra.items() if k == "episode"})
