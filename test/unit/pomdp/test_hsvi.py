@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from conftest import TIGER_OPTIMUM, build_chain
+# Imported at collection: the name `conftest` later means test/unit/world's.
+from conftest import TIGER_OPTIMUM, build_chain, build_tiger
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import hsvi, policy as policy_mod
 from ros_hrc.pomdp.policy import Policy
@@ -12,7 +13,6 @@ LISTEN, OPEN_LEFT, OPEN_RIGHT = 0, 1, 2
 
 @pytest.fixture(scope="module")
 def tiger_policy():
-    from conftest import build_tiger
     return hsvi.solve(build_tiger(), timeout=30, precision=0.01)
 
 
