@@ -166,7 +166,8 @@ class ExactBelief(Belief):
 
 
 class ParticleBelief(Belief):
-    """Weighted particles (states), propagated by sampling T, weighted by O, resampled when degenerate.
+    """Weighted particles (states): propagated by sampling T, weighted by O, resampled when
+    degenerate.
 
     Resampling is systematic and happens when the effective sample size falls below
     ``resample_threshold`` times the particle count.

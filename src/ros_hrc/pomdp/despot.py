@@ -52,7 +52,7 @@ from ros_hrc.pomdp import mdp
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
 from ros_hrc.pomdp.policy import Policy
-from ros_hrc.pomdp.sampling import ModelSampler
+from ros_hrc.pomdp.sampling import U_MAX, ModelSampler
 
 #: Above this many states the default belief is a particle filter rather than exact.
 EXACT_BELIEF_MAX_STATES = 5000
@@ -204,9 +204,10 @@ class DespotPlanner(BeliefPlanner):
 
     # -- random streams ------------------------------------------------------------------------
     def _uniforms(self, depth: int) -> np.ndarray:
-        """The (K, 2) uniforms of every scenario at ``depth`` (drawn once per search, in order)."""
+        """The (2, K) uniforms of every scenario at ``depth`` (drawn once per search, in order)."""
         while len(self._u) <= depth:
-            self._u.append(self._search_rng.random((self.config.scenarios, 2)))
+            block = self._search_rng.random((2, self.config.scenarios))
+            self._u.append(np.minimum(block, U_MAX, out=block))
         return self._u[depth]
 
     # -- node bounds ---------------------------------------------------------------------------
@@ -240,7 +241,7 @@ class DespotPlanner(BeliefPlanner):
         rows0 = actions * self._S
         for d in range(depth, self.config.depth + 1):
             u = self._uniforms(d)
-            states, _, r = self.sampler.step_rows(rows0 + states, u[scen, 0], u[scen, 1])
+            states, _, r = self.sampler.step_rows(rows0 + states, u[0, scen], u[1, scen])
             total += disc * r
             disc *= self._gamma
         # Beyond the horizon the blind values stand in for the rest of the rollout.
@@ -261,34 +262,40 @@ class DespotPlanner(BeliefPlanner):
         """Step every scenario of v under every action; one child per (action, observation)."""
         A, Z, K = self._A, self._Z, self.config.scenarios
         n = v.scen.size
-        u = self._uniforms(v.depth)[v.scen]                           # (n, 2)
-        rows = self._action_rows + v.states[None, :]                  # (A, n)
+        u = self._uniforms(v.depth)[:, v.scen]                        # (2, n)
         # The same two uniforms per scenario for every action: that is the determinized scenario.
-        nxt, obs, rew = self.sampler.step_rows(rows, u[:, 0], u[:, 1])
+        nxt, obs, rew = self.sampler.step_block(self._action_rows, v.states, u[0], u[1])
         key = (obs + self._obs_offsets).ravel()                       # action * Z + observation
         order = np.argsort(key, kind="stable")
         key_s = key[order]
-        starts = np.flatnonzero(np.concatenate(([True], key_s[1:] != key_s[:-1])))
-        ends = np.append(starts[1:], key_s.size)
+        change = np.empty(key_s.size + 1, dtype=bool)
+        change[0] = change[-1] = True
+        np.not_equal(key_s[1:], key_s[:-1], out=change[1:-1])
+        bounds = np.flatnonzero(change)                               # group starts, then the end
+        starts = bounds[:-1]
         nxt_s = nxt.ravel()[order]
         scen_s = v.scen[order % n]
         depth = v.depth + 1
         low, acts, up = self._default_values(depth, scen_s, nxt_s, starts)
-        rho = rew.sum(axis=1) * (self._gamma ** v.depth / K) - self.config.pruning
-        child_action = (key_s[starts] // Z).tolist()
-        qnodes = [_QNode(a, r, v) for a, r in enumerate(rho.tolist())]
-        low_l, acts_l, up_l = low.tolist(), acts.tolist(), up.tolist()
-        st_l, en_l = starts.tolist(), ends.tolist()
-        for c in range(starts.size):
-            s0, s1 = st_l[c], en_l[c]
-            q = qnodes[child_action[c]]
-            q.children.append(_VNode(depth, scen_s[s0:s1], nxt_s[s0:s1], (s1 - s0) / K,
-                                     low_l[c], acts_l[c], up_l[c], q))
         lam = self.config.pruning
-        for q in qnodes:
-            q.lower = q.rho + sum(c.lower for c in q.children)
-            q.upper = q.rho + sum(c.upper for c in q.children)
-            q.uupper = q.rho + lam + sum(c.uupper for c in q.children)
+        rho = rew.sum(axis=1) * (self._gamma ** v.depth / K) - lam
+        child_action = key_s[starts] // Z
+        up = np.maximum(up, low)                                      # as _VNode sets it
+        q_lower = rho + np.bincount(child_action, weights=low, minlength=A)
+        q_upper = rho + np.bincount(child_action, weights=up, minlength=A)
+        qnodes = []
+        for a, (r, lo_a, up_a) in enumerate(zip(rho.tolist(), q_lower.tolist(),
+                                                q_upper.tolist())):
+            q = _QNode(a, r, v)
+            q.lower, q.upper, q.uupper = lo_a, up_a, up_a + lam
+            qnodes.append(q)
+        bl = bounds.tolist()
+        for c, (a, lo_c, act_c, up_c) in enumerate(zip(child_action.tolist(), low.tolist(),
+                                                       acts.tolist(), up.tolist())):
+            s0, s1 = bl[c], bl[c + 1]
+            q = qnodes[a]
+            q.children.append(_VNode(depth, scen_s[s0:s1], nxt_s[s0:s1], (s1 - s0) / K,
+                                     lo_c, act_c, up_c, q))
         v.children = qnodes
         self._nodes += starts.size
         if depth > self._max_depth:
@@ -304,15 +311,23 @@ class DespotPlanner(BeliefPlanner):
         lam = self.config.pruning
         while v.parent is not None:
             q = v.parent
-            q.lower = q.rho + sum(c.lower for c in q.children)
-            q.upper = q.rho + sum(c.upper for c in q.children)
-            q.uupper = q.rho + lam + sum(c.uupper for c in q.children)
+            lo = up = uu = q.rho
+            for c in q.children:
+                lo += c.lower
+                up += c.upper
+                uu += c.uupper
+            q.lower, q.upper, q.uupper = lo, up, uu + lam
             v = q.parent
             if v.is_default:
                 continue
-            qs = v.children
-            lower = max(v.lower0, max(x.lower for x in qs))
-            upper = max(v.lower0, max(x.upper for x in qs))
+            lower = upper = uupper = v.lower0
+            for x in v.children:
+                if x.lower > lower:
+                    lower = x.lower
+                if x.upper > upper:
+                    upper = x.upper
+                if x.uupper > uupper:
+                    uupper = x.uupper
             # Monotone updates: the heuristic bounds need not be consistent between levels.
             if lower > v.lower:
                 v.lower = lower
@@ -320,9 +335,15 @@ class DespotPlanner(BeliefPlanner):
                 v.upper = upper
             if v.upper < v.lower:
                 v.upper = v.lower
-            v.uupper = min(v.uupper, max(v.lower0, max(x.uupper for x in qs)))
+            if uupper < v.uupper:
+                v.uupper = uupper
 
-    def _trial(self, root: _VNode) -> None:
+    def _trial(self, root: _VNode, deadline: float) -> None:
+        """One trial: descend, expanding leaves, until a stopping rule holds, then back up.
+
+        Past ``deadline`` the descent stops where it is (the path is still backed up), so one
+        deep trial cannot overrun the step's time budget by much.
+        """
         cfg = self.config
         lam, xi, D = cfg.pruning, cfg.xi, cfg.depth
         v = root
@@ -347,6 +368,8 @@ class DespotPlanner(BeliefPlanner):
                         break
                 break
             if v.children is None:
+                if v is not root and time.perf_counter() > deadline:
+                    break
                 self._expand(v)
             q = max(v.children, key=_upper_of)
             root_gap = root.upper - root.lower
@@ -373,14 +396,15 @@ class DespotPlanner(BeliefPlanner):
         states = self._belief.sample_systematic(self._search_rng, cfg.scenarios)
         root = self._root(states)
         trials = 0
+        deadline = start + cfg.time_per_step
         while True:
             if cfg.max_trials is not None and trials >= cfg.max_trials:
                 break
             if root.upper - root.lower <= cfg.gap_tolerance:
                 break
-            if time.perf_counter() - start >= cfg.time_per_step and trials > 0:
+            if time.perf_counter() >= deadline and trials > 0:
                 break
-            self._trial(root)
+            self._trial(root, deadline)
             trials += 1
         action = root.default_action
         best = root.lower0

@@ -1,4 +1,5 @@
-"""HSVI2: heuristic search value iteration (Smith and Simmons 2004, 2005), an anytime offline solver.
+"""HSVI2, heuristic search value iteration (Smith and Simmons 2004, 2005): an anytime offline
+solver.
 
 Two bounds on the optimal value function V* are kept and tightened along sampled belief paths:
 
@@ -114,7 +115,7 @@ class _LowerBound:
         self.actions = np.append(self.actions[keep], action)
 
     def prune(self, beliefs: np.ndarray) -> None:
-        """Keep the vectors that are best at one of ``beliefs`` (the others still bound, but cost)."""
+        """Keep the vectors best at one of ``beliefs`` (the others are valid too, but cost time)."""
         keep = np.unique(self.best(beliefs))
         self.alphas = self.alphas[keep]
         self.actions = self.actions[keep]
@@ -289,7 +290,8 @@ class HsviSolver:
         x = self.b0 if b is None else np.asarray(b, dtype=float)
         return float(self.lower.values(x[None])[0]), float(self.upper.values(x[None])[0])
 
-    def _q_upper(self, b: np.ndarray, p: np.ndarray, B: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    def _q_upper(self, b: np.ndarray, p: np.ndarray,
+                 B: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Upper-bound Q values at b (A,) and the successors' upper bounds (A, Z)."""
         A, Z, S = B.shape
         ub = self.upper.values(B.reshape(A * Z, S)).reshape(A, Z)

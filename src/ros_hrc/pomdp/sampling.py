@@ -1,4 +1,4 @@
-"""Fast sampling of a model's generative step (s, a) -> (s', o, r), shared by simulators and planners.
+"""Fast sampling of a model's generative step (s, a) -> (s', o, r), for simulators and planners.
 
 A planner such as DESPOT calls the step millions of times, so every (action, state) row of T and
 every (action, next state) row of O is turned, once, into a cumulative distribution stored in one
@@ -22,7 +22,8 @@ from ros_hrc.pomdp.model import Model
 
 #: Uniform numbers are clipped below 1 by this much so ``row + u`` never rounds up to the next
 #: row (exact for row indices below about 4e6).
-_U_MAX = 1.0 - 1e-9
+U_MAX = 1.0 - 1e-9
+_U_MAX = U_MAX
 
 
 class _RowTable:
@@ -38,7 +39,7 @@ class _RowTable:
         data = np.clip(stacked.data.astype(float), 0.0, None)
         row_of = np.repeat(np.arange(self.n_rows), np.diff(self.indptr))
         sums = np.bincount(row_of, weights=data, minlength=self.n_rows)
-        # Rows are normalised here (tolerated rounding in printed tables) so each ends at exactly k+1.
+        # Rows are normalised here (printed tables round) so that each ends at exactly k + 1.
         safe = np.where(sums > 0, sums, 1.0)
         cum = np.cumsum(data / safe[row_of])
         starts = self.indptr[:-1]
@@ -52,7 +53,7 @@ class _RowTable:
         self.empty = ~nonempty | (sums <= 0)
         self.values = None
         if extra is not None:
-            # Values of a second matrix at exactly T's nonzero positions (the reward of a transition).
+            # A second matrix read at T's nonzero positions (the reward of each transition).
             ex = sp.vstack(extra, format="csr")
             self.values = np.asarray(ex[row_of, self.cols]).ravel().astype(float)
         # Python lists for the scalar path.
@@ -77,7 +78,7 @@ class _RowTable:
 
 
 class ModelSampler:
-    """The generative model of a POMDP: draws s' ~ T(.|s,a), o ~ O(.|s',a) and the reward R(s,a,s')."""
+    """A POMDP's generative model: draws s' ~ T(.|s,a), o ~ O(.|s',a), and gives R(s,a,s')."""
 
     def __init__(self, model: Model) -> None:
         self.model = model
@@ -92,7 +93,8 @@ class ModelSampler:
              u_obs: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Vectorised step: arrays of states (and actions, array or int) to (s', o, r).
 
-        The same uniforms give the same outcome: that is what makes DESPOT's scenarios deterministic.
+        The same uniforms give the same outcome: this is what makes DESPOT's scenarios
+        deterministic.
         """
         rows = np.asarray(actions) * self.n_states + states
         pos = self.trans.sample(rows, u_trans)
@@ -107,6 +109,19 @@ class ModelSampler:
         pos = self.trans.sample(rows, u_trans)
         nxt = self.trans.cols[pos]
         opos = self.obs.sample(rows - rows % self.n_states + nxt, u_obs)
+        return nxt, self.obs.cols[opos], self.trans.values[pos]
+
+    def step_block(self, action_base: np.ndarray, states: np.ndarray, u_trans: np.ndarray,
+                   u_obs: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every action for every state at once: the fast path of a DESPOT expansion.
+
+        ``action_base`` is ``(actions * n_states)[:, None]``; ``states``, ``u_trans`` and
+        ``u_obs`` have one entry per scenario and the uniforms must already be below
+        ``U_MAX``. Returns (s', o, r), each of shape (actions, scenarios).
+        """
+        pos = np.searchsorted(self.trans.cum, (action_base + states) + u_trans, side="right")
+        nxt = self.trans.cols[pos]
+        opos = np.searchsorted(self.obs.cum, (action_base + nxt) + u_obs, side="right")
         return nxt, self.obs.cols[opos], self.trans.values[pos]
 
     def step1(self, state: int, action: int, u_trans: float,

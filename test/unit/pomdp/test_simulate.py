@@ -32,7 +32,8 @@ def test_a_deterministic_chain_gives_its_exact_discounted_total():
     # Rewards of 1 from the third step (entering the goal) on.
     expected = sum(gamma ** t for t in range(2, length))
     assert result.mean == pytest.approx(expected)
-    assert result.ci95_low == pytest.approx(expected) and result.ci95_high == pytest.approx(expected)
+    assert result.ci95_low == pytest.approx(expected)
+    assert result.ci95_high == pytest.approx(expected)
     assert result.undiscounted_mean == pytest.approx(length - 2)
     assert result.runs == 5 and result.steps == 50 and result.ms_per_step >= 0
 
