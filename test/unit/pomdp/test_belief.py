@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from conftest import build_chain
+from solver_models import build_chain
 from ros_hrc.errors import SolverError, ZeroProbabilityObservation
 from ros_hrc.pomdp import belief
 from ros_hrc.pomdp.belief import ExactBelief, ParticleBelief

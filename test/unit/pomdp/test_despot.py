@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from conftest import build_chain, build_tiger
+from solver_models import build_chain, build_tiger
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import hsvi
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
@@ -143,3 +143,34 @@ def test_mdp_planner_from_a_saved_mdp_policy():
     planner = MdpPlanner.from_policy(chain, hsvi.solve(chain))
     planner.reset()
     assert planner.act() == 1
+
+
+def test_despot_plays_rocksample_on_a_particle_belief(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    from ros_hrc.pomdp.io import load_model
+    from ros_hrc.pomdp.simulate import simulate
+
+    root = Path(__file__).resolve().parents[3]
+    spec = importlib.util.spec_from_file_location(
+        "make_rocksample_pomdpx", root / "bench" / "make_rocksample_pomdpx.py")
+    maker = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(maker)
+    path = tmp_path / "RockSample_4_4.pomdpx"
+    path.write_text(maker.rocksample_pomdpx(4, 4))
+    model = load_model(path)
+    cfg = DespotConfig(scenarios=200, time_per_step=30.0, max_trials=10, particles=300)
+    planners = []
+
+    def factory(seed):
+        planners.append(DespotPlanner(model, cfg, seed))
+        return planners[-1]
+
+    result = simulate(model, factory, sim_len=4, sim_num=1, seed=0)
+    planner = planners[0]
+    assert planner.particles == 300
+    assert planner.belief.shape == (model.n_states,)
+    assert planner.belief.sum() == pytest.approx(1.0)
+    assert planner.last_stats.trials == 10
+    assert np.isfinite(result.mean)

@@ -2,8 +2,7 @@
 import numpy as np
 import pytest
 
-# Imported at collection: the name `conftest` later means test/unit/world's.
-from conftest import TIGER_OPTIMUM, build_chain, build_tiger
+from solver_models import TIGER_OPTIMUM, build_chain, build_tiger
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import hsvi, policy as policy_mod
 from ros_hrc.pomdp.policy import Policy

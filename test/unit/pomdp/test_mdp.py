@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from conftest import TIGER_OPTIMUM, build_chain
+from solver_models import TIGER_OPTIMUM, build_chain
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import mdp
 
