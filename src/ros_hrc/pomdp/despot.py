@@ -387,6 +387,11 @@ class DespotPlanner(BeliefPlanner):
 
     # -- the Planner interface -----------------------------------------------------------------
     def act(self) -> int:
+        """Build a DESPOT from the current belief within the budget and return its best action.
+
+        ``last_stats`` then holds the trials, seconds, the root's regularized bounds, the tree's
+        size and depth; ``root`` the tree itself (until the next call).
+        """
         cfg = self.config
         start = time.perf_counter()
         self._search_rng = np.random.default_rng(int(self.rng.integers(2**63)))
