@@ -16,7 +16,6 @@ import argparse
 import json
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -24,13 +23,9 @@ import threading
 import time
 from pathlib import Path
 
-from common import percentile, write_result  # bench/common.py
+from common import free_port, init_node_when_master_is_up, percentile, write_result  # bench/common.py
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 
@@ -71,15 +66,7 @@ def main(argv=None) -> int:
             done.set()
 
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                rospy.init_node("bench_loop", anonymous=True, disable_signals=True)
-                break
-            except Exception:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.5)
+        init_node_when_master_is_up("bench_loop")
         rospy.Subscriber("/hrc/status", Status, on_status, queue_size=1000)
         print(f"loop benchmark: waiting for {args.steps} steps of {args.human_model} ...",
               flush=True)

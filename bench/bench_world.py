@@ -19,22 +19,17 @@ import argparse
 import json
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-from common import percentile, write_result  # bench/common.py
+from common import free_port, init_node_when_master_is_up, percentile, write_result  # bench/common.py
 
 
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def in_process(seconds: float, calls: int) -> dict:
@@ -90,15 +85,7 @@ def through_ros(calls: int) -> dict:
     from std_srvs.srv import Trigger
 
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                rospy.init_node("bench_world", anonymous=True, disable_signals=True)
-                break
-            except Exception:  # the master is not up yet
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.5)
+        init_node_when_master_is_up("bench_world")
         rospy.wait_for_service("/human/is_ov", timeout=60)
         persistent = rospy.ServiceProxy("/human/is_ov", Trigger, persistent=True)
         for _ in range(20):
