@@ -22,7 +22,9 @@ tests=(test/rostest/*.test)
 if ((${#tests[@]} == 0)); then echo "no rostest files: failing"; status=1; fi
 for t in "${tests[@]}"; do
   echo "--- rostest $t"
-  if rostest --text "$t"; then passed=$((passed+1)); else failed=$((failed+1)); status=1; fi
+  # Not --text: with it rostest exits 0 even when a test fails. Without it the nodes' output
+  # goes to $ROS_LOG_DIR and rostest prints each failure with its traceback.
+  if rostest "$t"; then passed=$((passed+1)); else failed=$((failed+1)); status=1; fi
 done
 echo "rostest: $passed passed, $failed failed"
 exit $status

@@ -4,11 +4,16 @@
 The test starts hrc.launch itself (against rostest's master) so that it holds the launch's
 standard input and can press Enter. It checks an auto-mode run of 20+ steps step by step,
 a reset through /hrc/reset, a reset through Enter, and a manual-mode episode whose human
-states follow the ones injected through /hrc/set_human_state.
+states follow the ones injected through /hrc/set_human_state; that two runs with the same
+seed print the same steps; and that when a solver process is killed, roslaunch restarts it,
+the links reconnect and the run goes on from a reset.
 """
+import itertools
 import os
 import signal
 import subprocess
+import tempfile
+import time
 import sys
 import threading
 import unittest
@@ -28,6 +33,7 @@ ROBOT_STATES = {f"S{i}" for i in range(7)}
 LEGAL_BITS = {0, 1, 2, 3, 7, 10, 11, 16, 17, 18, 19, 32, 33, 34, 35}
 # Generous safety nets, not assertions about speed.
 WAIT = 180.0
+_LAUNCHES = itertools.count(1)
 
 
 class StatusLog:
@@ -64,8 +70,40 @@ def start_stack(*args):
     """roslaunch hrc.launch headless with the given arguments, stdin ours."""
     cmd = ["roslaunch", "ros_hrc", "hrc.launch", "gui:=false", "real_time_factor:=0",
            "step_delay:=0", "time_per_step:=0.05", "max_trials:=200", "seed:=3"] + list(args)
-    return subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=sys.stdout, stderr=sys.stderr,
-                            env=dict(os.environ), start_new_session=True)
+    # rostest captures this process's sys.stdout in memory: the launch writes to a log file.
+    log_dir = os.environ.get("ROS_LOG_DIR") or tempfile.gettempdir()
+    os.makedirs(log_dir, exist_ok=True)
+    log = open(os.path.join(log_dir, f"test_hrc_launch_{time.strftime('%H%M%S')}_{os.getpid()}"
+                                     f"_{next(_LAUNCHES)}.log"), "wb")
+    print(f"hrc.launch output: {log.name}", file=sys.stderr, flush=True)
+    with log:
+        return subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=log, stderr=subprocess.STDOUT,
+                                env=dict(os.environ), start_new_session=True)
+
+
+def solver_pids(proc, name):
+    """PIDs of the solver process ``name`` (despot_mdp or despot_pomdp) of this launch."""
+    out = subprocess.run(["pgrep", "-P", str(proc.pid), "-f", f"{name} --model"],
+                         capture_output=True, text=True).stdout
+    return {int(pid) for pid in out.split()}
+
+
+def wait_for_pids(proc, name, unlike=frozenset()):
+    """The solver's PIDs once there is one that is not in ``unlike``."""
+    deadline = time.monotonic() + WAIT
+    while time.monotonic() < deadline:
+        pids = solver_pids(proc, name)
+        if pids - set(unlike):
+            return pids
+        time.sleep(0.2)
+    return set()
+
+
+def step_record(status):
+    """What a user compares between two runs: everything but timing."""
+    return (status.step, status.human_action, status.human_state, status.human_observation,
+            status.observation_bits, status.robot_state, status.robot_action,
+            tuple(round(p, 9) for p in status.belief))
 
 
 def stop_stack(proc):
@@ -174,6 +212,56 @@ class TestWholeLoop(unittest.TestCase):
         answer = set_state(42)
         self.assertFalse(answer.success)
         self.assertIn("0 to 7", answer.message)
+
+
+    def run_steps(self, count, *args):
+        """Start the stack, take its first ``count`` steps, stop it."""
+        self.log.clear()
+        self.proc = start_stack(*args)
+        ok, statuses = self.log.wait_for(lambda s: len(s) >= count)
+        self.assertTrue(ok, f"only {len(statuses)} steps came")
+        stop_stack(self.proc)
+        self.proc = None
+        rospy.sleep(3.0)
+        return [step_record(s) for s in statuses[:count]]
+
+    def test_same_seed_same_steps(self):
+        # DESPOT is bounded by trials, not time, and the world's clock stands still between
+        # actions, so nothing but the seed decides the run.
+        same = ("seed:=11", "time_per_step:=30", "max_trials:=100", "on_episode_end:=continue")
+        first = self.run_steps(12, *same)
+        second = self.run_steps(12, *same)
+        for a, b in zip(first, second):
+            self.assertEqual(a, b, f"step {a[0]} differs between two runs with one seed")
+        self.assertGreater(len({r[1] for r in first}), 1, "the human did just one thing")
+
+    def kill_and_expect_a_fresh_start(self, name):
+        """Kill solver ``name``: it comes back and the loop steps again from a reset."""
+        ok, statuses = self.log.wait_for(lambda s: len(s) >= 3)
+        self.assertTrue(ok, "the loop is not stepping")
+        old = solver_pids(self.proc, name)
+        self.assertTrue(old, f"no {name} process in the launch")
+        self.log.clear()
+        for pid in old:
+            os.kill(pid, signal.SIGKILL)
+        new = wait_for_pids(self.proc, name, unlike=old)
+        self.assertTrue(new - old, f"roslaunch did not restart {name}")
+        # Steps before the reset may still come in; after it, steps run 0, 1, 2, 3 again.
+        def fresh_run(statuses):
+            steps = [x.step for x in statuses]
+            return any(steps[i:i + 4] == [0, 1, 2, 3] for i in range(len(steps)))
+
+        ok, statuses = self.log.wait_for(fresh_run)
+        self.assertTrue(ok, f"after {name} restarted, no run from a reset; steps seen: "
+                            f"{[x.step for x in statuses][:20]}")
+        for status in statuses:
+            self.check_step(status)
+
+    def test_killed_solver_processes_restart_and_the_run_goes_on_from_a_reset(self):
+        self.log.clear()
+        self.proc = start_stack("mode:=auto", "on_episode_end:=continue")
+        self.kill_and_expect_a_fresh_start("despot_pomdp")
+        self.kill_and_expect_a_fresh_start("despot_mdp")
 
 
 if __name__ == "__main__":

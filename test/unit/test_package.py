@@ -28,3 +28,13 @@ def test_every_script_is_a_thin_installed_shim():
                 if line.strip() and not line.startswith("#")]
         assert len(code) <= 3, f"{script.name} holds logic; move it into src/ros_hrc"
         assert re.match(r"from ros_hrc\.[\w.]+ import main$", code[0])
+
+
+def test_the_test_runner_lets_a_failing_rostest_fail_the_run():
+    # `rostest --text` exits 0 even when its tests fail: CI would stay green on a broken loop.
+    runner = (REPO / "tools" / "run_tests.sh").read_text()
+    calls = [line for line in runner.splitlines()
+             if re.search(r"\brostest\b", line) and not line.lstrip().startswith(("#", "echo"))]
+    assert calls, "tools/run_tests.sh runs no rostest"
+    for line in calls:
+        assert "--text" not in line, line

@@ -22,6 +22,7 @@ Exception tree (the first two live in :mod:`ros_hrc.errors`)::
     ├── ProtocolError          a message is malformed, unknown or too large
     │   └── MessageError       (protocol) a message was rejected; .reason, .msg_type, .step
     ├── LinkTimeout            nothing came before the deadline (also a TimeoutError)
+    ├── LinkDropped            the connection a reply was awaited on broke: it cannot come
     └── LinkClosed             the client was closed (or the server stopped) meanwhile
 
 Threads: every public method of both classes is thread-safe. The server's handler and its
@@ -64,6 +65,11 @@ class LinkTimeout(LinkError, TimeoutError):
 
 class LinkClosed(LinkError):
     """The client was closed, or the server stopped, while waiting."""
+
+
+class LinkDropped(LinkError):
+    """The connection a reply was awaited on broke. The server that would have answered has
+    lost its state (it died, or restarted), so the reply will never come."""
 
 
 def link_url(port: int, host: str = DEFAULT_HOST) -> str:
@@ -407,20 +413,24 @@ class MessageClient:
 
     # -- sending and receiving ---------------------------------------------------------------
 
-    def send(self, msg: Message, timeout: Optional[float] = None) -> None:
+    def send(self, msg: Message, timeout: Optional[float] = None) -> int:
         """Send a message, waiting up to ``timeout`` (default ``send_timeout``) for a
         connection. If the connection breaks during the send, the frame is sent again once on
-        the next connection (a half-written frame is discarded by the server). Raises
-        :class:`MessageError` for an invalid message, :class:`LinkTimeout`, :class:`LinkClosed`."""
+        the next connection (a half-written frame is discarded by the server). Returns the
+        number of the connection it went out on (see :attr:`connections`), for
+        ``receive(connection=...)``. Raises :class:`MessageError` for an invalid message,
+        :class:`LinkTimeout`, :class:`LinkClosed`."""
         text = encode(msg)
         self.start()
         deadline = _deadline(self.send_timeout if timeout is None else timeout)
         for attempt in (1, 2):
             ws = self._wait_connected(deadline)
+            with self._cond:
+                number = self._connections
             try:
                 with self._send_lock:
                     ws.send(text)
-                return
+                return number
             except (websocket.WebSocketException, OSError) as exc:
                 self._log.warning("%s: send failed (%s), reconnecting", self.name, exc)
                 # Make sure the reader notices too, then wait for a new connection.
@@ -430,10 +440,13 @@ class MessageClient:
                     raise LinkError(f"{self.name}: could not send {msg.type}: {exc}") from exc
 
     def receive(self, timeout: Optional[float] = None,
-                match: Optional[Callable[[Message], bool]] = None) -> Message:
+                match: Optional[Callable[[Message], bool]] = None,
+                connection: Optional[int] = None) -> Message:
         """The oldest received message (the oldest one for which ``match`` is true, leaving
         the others in order). Waits up to ``timeout`` seconds (``None``: until one comes or
-        the client is closed). Raises :class:`LinkTimeout` or :class:`LinkClosed`."""
+        the client is closed). With ``connection`` (a number :meth:`send` returned), stop
+        waiting as soon as that connection is gone: raises :class:`LinkDropped`. Raises
+        :class:`LinkTimeout` or :class:`LinkClosed`."""
         deadline = _deadline(timeout)
         with self._cond:
             while True:
@@ -442,6 +455,10 @@ class MessageClient:
                         return self._inbox.pop(i)
                 if self._closed.is_set():
                     raise LinkClosed(f"{self.name}: client closed while receiving")
+                if connection is not None and (self._ws is None or
+                                               self._connections != connection):
+                    raise LinkDropped(f"{self.name}: the connection to {self.url} broke "
+                                      "before the reply came")
                 left = _remaining(deadline)
                 if left == 0.0:
                     raise LinkTimeout(f"{self.name}: no message from {self.url} in {timeout} s")
@@ -450,10 +467,12 @@ class MessageClient:
     def request(self, msg: Message, timeout: Optional[float] = None) -> Message:
         """Send ``msg`` and wait for its answer: the ``ack`` with the same step (and, if the ack
         names ``of``, of the same type) or an ``error`` about it. Other messages stay in the
-        inbox. Returns the ack or the :class:`~ros_hrc.link.protocol.Error` message."""
+        inbox. Returns the ack or the :class:`~ros_hrc.link.protocol.Error` message; raises
+        :class:`LinkDropped` if the connection breaks before the answer comes."""
         deadline = _deadline(self.send_timeout if timeout is None else timeout)
-        self.send(msg, _remaining(deadline))
-        return self.receive(_remaining(deadline), match=lambda reply: is_reply_to(reply, msg))
+        number = self.send(msg, _remaining(deadline))
+        return self.receive(_remaining(deadline), match=lambda reply: is_reply_to(reply, msg),
+                            connection=number)
 
     def drain(self) -> List[Message]:
         """Take every message waiting in the inbox (e.g. stale ones after a reset)."""

@@ -136,6 +136,11 @@ class HumanNode:
                 return Error(message=f"step {msg.step} not carried out: {exc}",
                              in_reply_to=msg.type, step=msg.step)
             status = response.status
+            if not status.robot_action:
+                # Nothing was decided (no POMDP process, or it restarted): no step to report.
+                rospy.logwarn("step %d: %s", msg.step, response.message)
+                return Error(message=f"step {msg.step} not completed: {response.message}",
+                             in_reply_to=msg.type, step=msg.step)
             status.mode = self.config.mode
             self.status_pub.publish(status)
             if self.config.print_steps:

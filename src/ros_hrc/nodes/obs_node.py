@@ -8,10 +8,15 @@ robot model, works out the robot model's true state from the human's state and i
 ``~pomdp_port``, 7070 by default), and waits for the robot's action to be carried out. It
 returns the whole step as a ros_hrc/Status.
 
+If the POMDP process dies, roslaunch respawns it and the link reconnects; a decision under way
+then fails at once (its answer cannot come), and since the new process starts from the initial
+belief, this node refuses observations and calls /hrc/reset so that the whole loop starts over
+together from step 0.
+
 Services offered: /hrc/observe (ros_hrc/Observe), /hrc/obs/reset (std_srvs/Trigger: forget
 the history and reset the POMDP's belief).
 Services used: /human/is_ov, /human/is_oir, /human/is_a0, /human/is_ho, /human/is_h4,
-/human/is_a2.
+/human/is_a2, /hrc/reset (when the POMDP process was restarted).
 Parameters: ~pomdp_host (127.0.0.1), ~pomdp_port (7070), ~reply_timeout (s to wait for the
 POMDP's decision and the robot's motion, 120), ~service_timeout (30).
 """
@@ -55,8 +60,36 @@ class ObsNode:
         self.call = TriggerCaller(config.service_timeout)
         self.tracker = task.RobotStateTracker()
         self.pomdp = MessageClient(link_url(config.pomdp_port, config.pomdp_host), "hrc_obs",
-                                   send_timeout=config.reply_timeout)
+                                   send_timeout=config.reply_timeout,
+                                   on_connect=self._on_pomdp_connect)
         self._lock = threading.Lock()   # one observation (or reset) at a time
+        # The POMDP connection whose belief is in step with the loop (None: not used yet).
+        self._in_step_connection = None
+        self._reset_pending = threading.Event()
+
+    # -- a restarted POMDP process -------------------------------------------------------------
+    def _on_pomdp_connect(self) -> None:
+        if self.pomdp.connections > 1:
+            self.request_loop_reset("the POMDP process reconnected (restarted?)")
+
+    def request_loop_reset(self, reason: str) -> None:
+        """Ask the human node to reset everything (once, however many times this is asked
+        before the reset comes)."""
+        if self._reset_pending.is_set():
+            return
+        self._reset_pending.set()
+        rospy.logwarn("hrc_obs: %s: resetting the whole loop", reason)
+
+        def call_reset() -> None:
+            try:
+                ok, text = self.call("/hrc/reset")
+            except ServiceUnavailable as exc:
+                ok, text = False, str(exc)
+            if not ok:
+                self._reset_pending.clear()   # let the next observation ask again
+                rospy.logerr("hrc_obs: could not reset the loop: %s", text)
+
+        threading.Thread(target=call_reset, name="loop-reset", daemon=True).start()
 
     def read_predicates(self) -> Dict[str, bool]:
         """The six /human/is_* answers; raises ServiceUnavailable if the world is not there."""
@@ -81,17 +114,29 @@ class ObsNode:
                 status.robot_state = self.tracker.update(req.human_state)
             except (ServiceUnavailable, ValueError) as exc:
                 return ObserveResponse(success=False, message=str(exc), status=status)
+            if self._reset_pending.is_set():
+                return ObserveResponse(success=False, status=status, message=(
+                    "the POMDP process restarted: waiting for the loop to reset"))
             try:
                 self.pomdp.drain()  # anything stale from before a reset or a reconnect
-                self.pomdp.send(Observation(step=req.step, observation=status.robot_observation,
-                                            bits=raw_bits, state=status.robot_state))
+                connection = self.pomdp.send(Observation(
+                    step=req.step, observation=status.robot_observation, bits=raw_bits,
+                    state=status.robot_state))
                 reply = self.pomdp.receive(
                     self.config.reply_timeout,
                     match=lambda m: isinstance(m, (Action, Error)) and
-                    getattr(m, "step", None) in (req.step, None))
+                    getattr(m, "step", None) in (req.step, None),
+                    connection=connection)
             except LinkError as exc:
                 return ObserveResponse(success=False, status=status,
                                        message=f"no decision from the POMDP process: {exc}")
+            if self._in_step_connection is None:
+                self._in_step_connection = connection
+            elif connection != self._in_step_connection:
+                # A new process answered from its initial belief, out of step with the loop.
+                self.request_loop_reset("the POMDP process was restarted")
+                return ObserveResponse(success=False, status=status, message=(
+                    "the POMDP process restarted: waiting for the loop to reset"))
             if isinstance(reply, Error):
                 return ObserveResponse(success=False, status=status,
                                        message=f"the POMDP process refused: {reply.message}")
@@ -113,6 +158,8 @@ class ObsNode:
             except LinkError as exc:
                 return TriggerResponse(success=False, message=f"POMDP process not reset: {exc}")
             if isinstance(reply, Ack):
+                self._in_step_connection = self.pomdp.connections
+                self._reset_pending.clear()
                 return TriggerResponse(success=True, message="observer history and robot belief reset")
             return TriggerResponse(success=False, message=f"POMDP process: {reply.message}")
 

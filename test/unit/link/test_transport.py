@@ -9,8 +9,8 @@ import websocket
 from ros_hrc.errors import LinkError, ProtocolError
 from ros_hrc.link.protocol import (MAX_MESSAGE_BYTES, Ack, Action, Error, Hello, Message,
                                    NextState, Observation, Reset, Step, decode, encode)
-from ros_hrc.link.transport import (FRAME_LIMIT_BYTES, LinkClosed, LinkTimeout, MessageClient,
-                                    MessageServer, Peer, is_reply_to, link_url)
+from ros_hrc.link.transport import (FRAME_LIMIT_BYTES, LinkClosed, LinkDropped, LinkTimeout,
+                                    MessageClient, MessageServer, Peer, is_reply_to, link_url)
 
 SAFETY = 10.0  # seconds; only ever reached when something is broken
 FAST_BACKOFF = (0.01, 0.1)
@@ -259,8 +259,59 @@ def test_a_send_while_the_server_is_down_goes_out_once_it_is_back(recorder):
         sender.start()
         with MessageServer(port, recorder, name="second"):
             sender.join(SAFETY)
-            assert outcome == [None]
+            assert outcome == [2]  # the number of the connection it went out on
             recorder.wait_until(lambda: Step(9, "idle", "tired") in recorder.seen)
+    finally:
+        first.stop()
+        cli.close()
+
+
+def test_a_request_whose_server_dies_fails_at_once_instead_of_waiting_out_its_timeout():
+    # As when the POMDP process dies in the middle of a decision: its answer can never come.
+    got_it = threading.Event()
+
+    def swallow(msg, peer):
+        got_it.set()   # and never answer
+        return None
+
+    first = MessageServer(0, swallow, name="dying").start()
+    cli = MessageClient(first.url, "c", backoff=FAST_BACKOFF).connect(SAFETY)
+    outcome = []
+
+    def ask():
+        try:
+            cli.request(Step(4, "idle", "tired"), timeout=600.0)
+        except LinkError as exc:
+            outcome.append(exc)
+
+    asker = threading.Thread(target=ask)
+    try:
+        asker.start()
+        assert got_it.wait(SAFETY)
+        first.stop()
+        asker.join(SAFETY)
+        assert not asker.is_alive(), "the request still waits for an answer that cannot come"
+        assert len(outcome) == 1 and isinstance(outcome[0], LinkDropped)
+    finally:
+        first.stop()
+        cli.close()
+
+
+def test_receive_on_a_connection_that_was_replaced_fails_but_earlier_replies_are_kept(recorder):
+    first = MessageServer(0, recorder, name="first").start()
+    port = first.port
+    cli = MessageClient(first.url, "c", backoff=FAST_BACKOFF).connect(SAFETY)
+    try:
+        number = cli.send(Step(1, "idle", "tired"))
+        assert number == 1
+        # The ack arrived before the drop: it is still given out.
+        assert cli.receive(SAFETY, match=lambda m: isinstance(m, Ack), connection=number).step == 1
+        first.stop()
+        with MessageServer(port, recorder, name="second") as second:
+            assert second.wait_for_client(SAFETY, who="c")  # so the client is on connection 2
+            with pytest.raises(LinkDropped):
+                cli.receive(SAFETY, connection=number)
+            assert cli.send(Step(2, "idle", "tired")) == 2
     finally:
         first.stop()
         cli.close()
