@@ -69,7 +69,14 @@ def format_step(status: Status) -> str:
         f"robot state       : {status.robot_state}",
         f"robot action      : {status.robot_action}",
         f"robot belief      : {belief}",
+        f"object            : {object_text(status)} (t = {status.sim_time:.2f} s simulated)",
     ])
+
+
+def object_text(status: Status) -> str:
+    if status.object_holder in ("human", "robot"):
+        return f"held by the {status.object_holder}"
+    return "missed: it left the belt" if status.object_left_belt else "on the belt"
 
 
 class HumanNode:

@@ -16,7 +16,8 @@ together from step 0.
 Services offered: /hrc/observe (ros_hrc/Observe), /hrc/obs/reset (std_srvs/Trigger: forget
 the history and reset the POMDP's belief).
 Services used: /human/is_ov, /human/is_oir, /human/is_a0, /human/is_ho, /human/is_h4,
-/human/is_a2, /hrc/reset (when the POMDP process was restarted).
+/human/is_a2, /hrc/world/state (where the object ends up after the step), /hrc/reset (when
+the POMDP process was restarted).
 Parameters: ~pomdp_host (127.0.0.1), ~pomdp_port (7070), ~reply_timeout (s to wait for the
 POMDP's decision and the robot's motion, 120), ~service_timeout (30).
 """
@@ -36,7 +37,7 @@ from ros_hrc.link.transport import MessageClient, link_url
 from ros_hrc.msg import Status
 from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
                                   route_python_logging)
-from ros_hrc.srv import Observe, ObserveResponse
+from ros_hrc.srv import GetWorldState, Observe, ObserveResponse
 
 
 @dataclass
@@ -66,6 +67,7 @@ class ObsNode:
         # The POMDP connection whose belief is in step with the loop (None: not used yet).
         self._in_step_connection = None
         self._reset_pending = threading.Event()
+        self._world_state = None   # persistent proxy of /hrc/world/state, made on first use
 
     # -- a restarted POMDP process -------------------------------------------------------------
     def _on_pomdp_connect(self) -> None:
@@ -144,9 +146,27 @@ class ObsNode:
             status.belief = list(reply.belief)
             status.belief_states = list(reply.belief_states or [])
             status.decision_ms = reply.decision_ms or 0.0
+            self.fill_world_outcome(status)
             result = reply.extra.get("result", "")
             ok = bool(reply.extra.get("success", True))
             return ObserveResponse(success=ok, message=result, status=status)
+
+    def fill_world_outcome(self, status: Status) -> None:
+        """Where the object is once both agents have acted: who holds it, whether it was
+        missed, and the world's simulated time (experiments score episodes by these)."""
+        try:
+            if self._world_state is None:
+                rospy.wait_for_service("/hrc/world/state", timeout=self.config.service_timeout)
+                self._world_state = rospy.ServiceProxy("/hrc/world/state", GetWorldState,
+                                                       persistent=True)
+            world = self._world_state().state
+        except (rospy.ROSException, rospy.ServiceException, OSError) as exc:
+            self._world_state = None   # reconnect next time
+            rospy.logwarn("hrc_obs: no world state for step %d: %s", status.step, exc)
+            return
+        status.sim_time = world.sim_time
+        status.object_holder = world.holder
+        status.object_left_belt = world.object_left_belt
 
     def reset(self, _req) -> TriggerResponse:
         with self._lock:

@@ -10,6 +10,7 @@ Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapsho
   MDP's idle action), /human/is_ov, /human/is_oir, /human/is_ho, /human/is_a0, /human/is_a2,
   /human/is_h4, /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset,
   /hrc/world/snapshot (writes a PNG of the scene; ``message`` is its path)
+  /hrc/world/state (ros_hrc/GetWorldState: the state now, as /hrc/world_state publishes it)
 
 Topics published:
   /hrc/world_state (ros_hrc/WorldState)  object pose, holder, both agents' actions, predicates,
@@ -43,6 +44,7 @@ from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
 
 from ros_hrc.errors import SimulationError
 from ros_hrc.msg import WorldState
+from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
 from ros_hrc.world import HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, World, WorldConfig
 
 #: /clock is published at most this often (wall clock): enough for any rospy.Rate, and cheap
@@ -131,6 +133,8 @@ def state_message(state: dict, stamp: rospy.Time) -> WorldState:
     msg.object_position = state["object"]["position"]
     msg.object_orientation = state["object"]["orientation"]
     msg.holder = state["object"]["holder"]
+    msg.object_on_belt = state["object"]["on_belt"]
+    msg.object_left_belt = state["object"]["left_belt"]
     msg.human_action = state["human"]["action"]
     msg.robot_action = state["robot"]["action"]
     msg.belt_speed = state["belt_speed"]
@@ -169,6 +173,7 @@ class WorldNode:
         for action in ROBOT_ACTIONS:
             self._advertise(f"/robot/{action}", action_handler(self.world, "robot", action, c.action_timeout))
         self._advertise("/hrc/world/snapshot", snapshot_handler(self.world, c.snapshot_dir))
+        self._services.append(rospy.Service("/hrc/world/state", GetWorldState, self._state_now))
         # The physics runs in its own thread paced by the wall clock: under /use_sim_time this
         # node is the clock, so nothing here may wait on rospy time.
         self.world.start(c.real_time_factor, c.pause_when_idle)
@@ -179,6 +184,13 @@ class WorldNode:
 
     def _advertise(self, name: str, handler: Callable[[TriggerRequest], TriggerResponse]) -> None:
         self._services.append(rospy.Service(name, Trigger, handler))
+
+    def _stamp(self, state: dict) -> rospy.Time:
+        return rospy.Time.from_sec(state["sim_time"]) if self.config.use_sim_time else rospy.Time.now()
+
+    def _state_now(self, _request: GetWorldStateRequest) -> GetWorldStateResponse:
+        state = self.world.state()   # a SimulationError reaches the caller as a service error
+        return GetWorldStateResponse(state=state_message(state, self._stamp(state)))
 
     def _publish_clock(self, sim_time: float) -> None:
         now = time.monotonic()
@@ -194,8 +206,7 @@ class WorldNode:
             except SimulationError as error:   # the world closed under us: shutting down
                 rospy.logdebug("hrc_world: no state: %s", error)
                 return
-            stamp = rospy.Time.from_sec(state["sim_time"]) if self.config.use_sim_time else rospy.Time.now()
-            self._state_pub.publish(state_message(state, stamp))
+            self._state_pub.publish(state_message(state, self._stamp(state)))
 
     def shutdown(self) -> None:
         """Stop publishing, release every waiting caller, close the world."""

@@ -3,10 +3,13 @@
 It loads the robot POMDP and keeps the robot's belief. It is a websocket **server** on port
 7070 for the observer (``hrc_obs``) and a **client** of the robot node on 8080. For each
 ``observation``: update the belief with the robot's previous action and the observation
-(``rIdle`` before the first step: the robot starts idle), plan (DESPOT by default, or a saved
-offline policy), send the ``action`` to the robot node, wait until the robot has carried it
-out, and answer the observer with the same ``action`` message plus the robot's result.
-A ``reset`` puts the belief back to the model's initial belief.
+(``rIdle`` before the first step: the robot starts idle), plan (DESPOT by default, a saved
+offline policy, or a baseline robot of ``ros_hrc.robot_policies``: the reactive robot or no
+robot, which keep the belief but decide without it), send the ``action`` to the robot node,
+wait until the robot has carried it out, and answer the observer with the same ``action``
+message plus the robot's result.
+A ``reset`` puts the belief back to the model's initial belief (and the reactive robot's step
+count back to 0).
 
 An observation of zero probability under the belief cannot be explained by the model: the
 belief keeps the prediction through T without it, the step goes on, and the terminal says so.
@@ -30,8 +33,11 @@ from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
+from ros_hrc.robot_policies import NoRobotConfig, NoRobotPlanner, ReactiveConfig, ReactivePlanner
 
 NAME = "despot_pomdp"
+#: --planner's choices; build_planner is the one place that turns them into planners.
+PLANNERS = ("despot", "policy", "reactive", "none")
 
 
 class RobotAgent:
@@ -115,8 +121,11 @@ class PomdpProcess:
               f"(bits {msg.bits}); true state (not seen) = {msg.state}", flush=True)
         if note:
             print(f"- NOTE: {note}", flush=True)
+        # The reactive robot says which of its rules chose the action.
+        rule = getattr(self.agent.planner, "last_rule", None)
+        why = f"rule {rule}, " if rule else ""
         print(f"- Belief:\n{self._belief_text()}\n- Action = {model.actions[action]} "
-              f"({decision_ms:.1f} ms)\n- Robot: {result}", flush=True)
+              f"({why}{decision_ms:.1f} ms)\n- Robot: {result}", flush=True)
         return Action(step=msg.step, action=decision.action, belief=decision.belief,
                       belief_states=decision.belief_states, decision_ms=decision_ms,
                       extra={"success": bool(success), "result": result or "",
@@ -128,7 +137,8 @@ class PomdpProcess:
 
 
 def build_planner(model: Model, args: argparse.Namespace) -> Planner:
-    """The planner the command line asks for: DESPOT or a saved offline policy."""
+    """The planner the command line asks for: DESPOT, a saved offline policy, the reactive
+    robot or no robot."""
     if args.planner == "despot":
         config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.lambda_,
                               time_per_step=args.time_per_step,
@@ -139,7 +149,11 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
             raise ValueError("--planner policy needs --policy FILE (hrc_pomdp solve -o FILE)")
         return PolicyPlanner(model, load_policy(args.policy, model), seed=args.seed,
                              lookahead=True)
-    raise ValueError(f"unknown planner {args.planner!r}: despot or policy")
+    if args.planner == "reactive":
+        return ReactivePlanner(model, ReactiveConfig(budget=args.reactive_budget), seed=args.seed)
+    if args.planner == "none":
+        return NoRobotPlanner(model, NoRobotConfig(), seed=args.seed)
+    raise ValueError(f"unknown planner {args.planner!r}: {', '.join(PLANNERS)}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -150,9 +164,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=7070, help="port to serve observations on")
     p.add_argument("--robot-host", default="127.0.0.1", help="robot node's host")
     p.add_argument("--robot-port", type=int, default=8080, help="robot node's websocket port")
-    p.add_argument("--planner", choices=("despot", "policy"), default="despot",
-                   help="online DESPOT, or a saved offline policy (needs --policy)")
+    p.add_argument("--planner", choices=PLANNERS, default="despot",
+                   help="online DESPOT, a saved offline policy (needs --policy), the reactive "
+                        "robot (rules on the current observation) or none (the robot never acts)")
     p.add_argument("--policy", help="offline policy file (hrc_pomdp solve -o FILE)")
+    p.add_argument("--reactive-budget", type=int, default=ReactiveConfig.budget,
+                   help="reactive robot: help after this many steps since the reset without "
+                        "the human getting the object (0: never for that reason)")
     p.add_argument("--time-per-step", type=float, default=0.1, help="DESPOT's budget per decision, s")
     p.add_argument("--scenarios", type=int, default=500, help="DESPOT's K sampled scenarios")
     p.add_argument("--depth", type=int, default=90, help="DESPOT's maximum depth")

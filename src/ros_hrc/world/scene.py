@@ -54,6 +54,8 @@ PREDICATES = ("is_ov", "is_oir", "is_ho", "is_a0", "is_a2", "is_h4")
 _INTERRUPTING = {("human", "reset"), ("robot", "reset"), ("robot", "cancel_action"), ("world", "reset")}
 #: A synchronous run() gives up after this much simulated time (no action lasts that long).
 _MAX_ACTION_TIME = 60.0
+#: An unheld object this close to the belt's end stop has reached the end: it is missed.
+_AT_END_STOP_M = 0.02
 
 
 def default_model_dir() -> Path:
@@ -439,13 +441,17 @@ class World:
         """A snapshot of the world as plain data (JSON-ready)."""
         with self._locked():
             position, orientation = self.object.pose()
+            on_belt = self.conveyor.is_on_belt(position)
+            # Nobody took it before the belt's end (a real belt drops it there), or it fell off.
+            left_belt = self.object.holder == "none" and (
+                not on_belt or position[0] >= self.conveyor.stop_x - _AT_END_STOP_M)
             return {
                 "sim_time": self.sim_time,
                 "step": self.step_count,
                 "belt_speed": self.conveyor.speed,
                 "object": {"position": list(position), "orientation": list(orientation),
                            "holder": self.object.holder,
-                           "on_belt": self.conveyor.is_on_belt(position)},
+                           "on_belt": on_belt, "left_belt": left_belt},
                 "human": {"action": self.human.activity, "moving": self.human.moving,
                           "at_station": self.human.at_station()},
                 "robot": {"action": self.robot.activity, "moving": self.robot.moving,

@@ -1,0 +1,180 @@
+"""Baseline robots that the robot process can run instead of the POMDP planner.
+
+Both keep the exact Bayesian belief over the robot model's states (they are ``BeliefPlanner``
+subclasses, updated like any planner), so experiments can plot every robot's belief that the
+human needs help; only their *decisions* ignore that belief.
+
+``ReactivePlanner``
+    Treats the human's need for help as directly observable in the current observation and
+    decides deterministically, by the first rule that applies (bits of :mod:`ros_hrc.task`):
+
+    1. ``warning``     WARNING (16) set                          -> rStop_all
+    2. ``has_object``  HAS_OBJECT (8) set                        -> rIdle
+    3. ``failed_grasp`` GRASP_ATTEMPT (4) set                    -> help
+       (rule 2 has already excluded HAS_OBJECT: an attempt without the object has failed)
+    4. ``not_detected`` neither VISIBLE (1) nor IN_RANGE (2)     -> help
+    5. ``not_attending`` IN_RANGE (2) set but VISIBLE (1) clear  -> help
+       (the object is within the human's reach and the human does not see it)
+    6. ``budget``      ``budget`` > 0 observations since the last reset, the latest one
+                       included, and none of them showed HAS_OBJECT -> help
+    7. ``nothing``     otherwise                                 -> rIdle
+
+    "help" is one fixed action, ``rGrasp_obj`` by default (``ReactiveConfig.help_action``): the
+    reactive robot takes the object over; telling *which* help the human needs (point or fetch)
+    is what the POMDP adds. Because rule 1 comes first the robot never helps while a warning
+    holds. Before the first observation it idles (rule ``start``).
+
+``NoRobotPlanner``
+    Always ``rIdle``: the human works alone.
+
+Actions and observations are looked up by name in the loaded model; a model that lacks one
+the policy needs is refused with a ValueError naming it. No ROS, no PyBullet.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Dict, Iterable, Optional
+
+import numpy as np
+
+from ros_hrc import task
+from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
+
+IDLE_ACTION = "rIdle"
+STOP_ACTION = "rStop_all"
+DEFAULT_HELP_ACTION = "rGrasp_obj"
+DEFAULT_REACTIVE_BUDGET = 8
+
+
+@dataclass
+class ReactiveConfig:
+    """The reactive robot's parameters.
+
+    ``budget``: observations since the last reset after which a human who has not yet got the
+    object is helped (rule 6); 0 switches the rule off. ``help_action``: the model's action the
+    reactive robot helps with.
+    """
+
+    budget: int = DEFAULT_REACTIVE_BUDGET
+    help_action: str = DEFAULT_HELP_ACTION
+
+    def __post_init__(self) -> None:
+        if isinstance(self.budget, bool) or not isinstance(self.budget, int) or self.budget < 0:
+            raise ValueError(f"reactive budget must be a whole number of steps >= 0, "
+                             f"not {self.budget!r}")
+
+
+@dataclass
+class NoRobotConfig:
+    """The no-robot baseline's one parameter: the model's name for doing nothing."""
+
+    idle_action: str = IDLE_ACTION
+
+
+def _action_indices(model: Model, names: Iterable[str], who: str) -> Dict[str, int]:
+    """Model index of each action name; ValueError naming every missing one."""
+    names = list(dict.fromkeys(names))
+    missing = [n for n in names if n not in model.actions]
+    if missing:
+        raise ValueError(f"{who} needs action(s) {', '.join(missing)}, which model "
+                         f"{model.name or model.source or '?'} lacks (its actions: "
+                         f"{', '.join(model.actions)})")
+    return {n: model.index("action", n) for n in names}
+
+
+def _observation_bits(model: Model, who: str) -> np.ndarray:
+    """Bit sum of each of the model's observations, indexed like ``model.observations``.
+
+    The policy reads every observation, so the model must hold exactly the task's legal
+    observations (named by ``task.observation_name``); ValueError names any it lacks or any
+    it has that the task does not define.
+    """
+    bits_by_name = {task.observation_name(b): b for b in task.LEGAL_BITS}
+    where = model.name or model.source or "?"
+    missing = [n for n in bits_by_name if n not in model.observations]
+    if missing:
+        raise ValueError(f"{who} needs observation(s) {', '.join(missing)}, which model "
+                         f"{where} lacks (its observations: {', '.join(model.observations)})")
+    unknown = [n for n in model.observations if n not in bits_by_name]
+    if unknown:
+        raise ValueError(f"{who} cannot read observation(s) {', '.join(unknown)} of model "
+                         f"{where}: the task defines only {', '.join(bits_by_name)}")
+    return np.array([bits_by_name[n] for n in model.observations], dtype=int)
+
+
+class ReactivePlanner(BeliefPlanner):
+    """Rule-based robot on the current observation; keeps the exact belief (module docstring).
+
+    ``last_rule`` names the rule behind the latest ``act()``; ``steps`` counts observations
+    since the last reset and ``human_succeeded`` says whether one of them showed HAS_OBJECT.
+    """
+
+    def __init__(self, model: Model, config: Optional[ReactiveConfig] = None,
+                 seed: Optional[int] = None) -> None:
+        self.config = config if config is not None else ReactiveConfig()
+        who = "the reactive robot"
+        self._actions = _action_indices(
+            model, (IDLE_ACTION, STOP_ACTION, self.config.help_action), who)
+        self._bits = _observation_bits(model, who)
+        super().__init__(model, seed)  # exact belief: particles stay None
+        self.reset()
+
+    def reset(self, belief: Optional[np.ndarray] = None) -> None:
+        super().reset(belief)
+        self.steps = 0
+        self.human_succeeded = False
+        self.last_bits: Optional[int] = None
+        self.last_rule = "start"
+
+    def update(self, action: int, observation: int) -> None:
+        super().update(action, observation)
+        bits = int(self._bits[observation])
+        self.steps += 1
+        self.last_bits = bits
+        # Success is remembered: the budget is for a human who has never had the object.
+        self.human_succeeded = self.human_succeeded or bool(bits & task.HAS_OBJECT)
+
+    def rule(self) -> str:
+        """Which rule applies to the latest observation (names as in the module docstring)."""
+        bits = self.last_bits
+        if bits is None:
+            return "start"
+        if bits & task.WARNING:
+            return "warning"
+        if bits & task.HAS_OBJECT:
+            return "has_object"
+        if bits & task.GRASP_ATTEMPT:
+            return "failed_grasp"
+        if not bits & (task.VISIBLE | task.IN_RANGE):
+            return "not_detected"
+        if not bits & task.VISIBLE:
+            return "not_attending"
+        budget = self.config.budget
+        if budget and self.steps >= budget and not self.human_succeeded:
+            return "budget"
+        return "nothing"
+
+    def act(self) -> int:
+        self.last_rule = self.rule()
+        self.last_stats = PlannerStats()
+        if self.last_rule == "warning":
+            return self._actions[STOP_ACTION]
+        if self.last_rule in ("start", "has_object", "nothing"):
+            return self._actions[IDLE_ACTION]
+        return self._actions[self.config.help_action]
+
+
+class NoRobotPlanner(BeliefPlanner):
+    """The robot never acts (always the idle action); keeps the exact belief."""
+
+    def __init__(self, model: Model, config: Optional[NoRobotConfig] = None,
+                 seed: Optional[int] = None) -> None:
+        self.config = config if config is not None else NoRobotConfig()
+        self._idle = _action_indices(model, (self.config.idle_action,),
+                                     "the no-robot baseline")[self.config.idle_action]
+        super().__init__(model, seed)
+
+    def act(self) -> int:
+        self.last_stats = PlannerStats()
+        return self._idle
