@@ -3,8 +3,8 @@
 #   1. Debian's ROS 1 Noetic packages (apt),
 #   2. a virtual environment .venv made from /usr/bin/python3 with --system-site-packages,
 #      holding the pinned PyPI packages of requirements.txt,
-#   3. a catkin workspace .ws/ around the repository (.ws/src/ros_hrc -> repository root),
-#      built with catkin_make and the environment's python.
+#   3. a catkin workspace .ws/ around the repository (.ws/src/ros_hrc holds a link to each
+#      top-level entry of the repository), built with catkin_make and the environment's python.
 # Idempotent: each step leaves a stamp holding what it was made from, and is skipped while
 # that input is unchanged, so a second run does no network work and finishes in seconds.
 set -euo pipefail
@@ -59,10 +59,21 @@ fi
 
 # --- 3. catkin workspace ----------------------------------------------------
 mkdir -p .ws/src
-[[ -L .ws/src/ros_hrc ]] || ln -sfn ../.. .ws/src/ros_hrc
+# The package directory links each entry of the repository but not the hidden ones: a link to
+# the whole repository would put .ws inside its own package, and rosrun (find -L) would then
+# list every executable many times over and ask which one to run.
+pkg=.ws/src/ros_hrc
+[[ -L $pkg ]] && rm "$pkg"   # the layout of earlier versions
+mkdir -p "$pkg"
+for entry in "$pkg"/*; do   # entries the repository no longer has
+  [[ -L $entry && ! -e $entry ]] && rm "$entry"
+done
+for entry in *; do
+  [[ -e $pkg/$entry ]] || ln -s "../../../$entry" "$pkg/$entry"
+done
 # The build depends on the package's interface files, not on Python sources (those are
 # used in place from src/ by the devel space).
-build_key=$( (cat package.xml CMakeLists.txt setup.py msg/*.msg srv/*.srv; ls scripts test/rostest) | sha256sum | cut -d' ' -f1)
+build_key=$( (echo layout-2; cat package.xml CMakeLists.txt setup.py msg/*.msg srv/*.srv; ls scripts test/rostest) | sha256sum | cut -d' ' -f1)
 if ! stamp_ok build "$build_key" || [[ ! -f .ws/devel/setup.bash ]]; then
   say "building the workspace with catkin_make"
   (cd .ws && catkin_make -DPYTHON_EXECUTABLE="$repo/.venv/bin/python" -DCATKIN_ENABLE_TESTING=ON \

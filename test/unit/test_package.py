@@ -38,3 +38,19 @@ def test_the_test_runner_lets_a_failing_rostest_fail_the_run():
     assert calls, "tools/run_tests.sh runs no rostest"
     for line in calls:
         assert "--text" not in line, line
+
+
+def test_every_python_package_is_installed_by_setup_py():
+    setup = (REPO / "setup.py").read_text()
+    for init in sorted((REPO / "src").rglob("__init__.py")):
+        package = ".".join(init.parent.relative_to(REPO / "src").parts)
+        assert f"'{package}'" in setup, f"{package} is missing from setup.py's packages"
+
+
+def test_the_workspace_package_does_not_hold_the_workspace():
+    # rosrun searches the package directory with `find -L`: if the workspace were inside it,
+    # every executable would be found many times and rosrun would ask which one to run.
+    package_dir = REPO / ".ws" / "src" / "ros_hrc"
+    if package_dir.exists():
+        assert not (package_dir / ".ws").exists()
+        assert (package_dir / "package.xml").resolve() == (REPO / "package.xml").resolve()

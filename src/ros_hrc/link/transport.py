@@ -72,6 +72,14 @@ class LinkDropped(LinkError):
     lost its state (it died, or restarted), so the reply will never come."""
 
 
+def free_port(host: str = DEFAULT_HOST) -> int:
+    """A TCP port free on ``host`` now: for a stack of one's own (its roscore and links)
+    beside others on the same machine. Another process may take it before it is bound."""
+    with socket.socket() as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
 def link_url(port: int, host: str = DEFAULT_HOST) -> str:
     """The websocket URL of a server of this package."""
     return f"ws://{host}:{port}"

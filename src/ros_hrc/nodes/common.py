@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from dataclasses import fields
 from typing import Dict, Tuple, Type, TypeVar
 
@@ -37,6 +38,20 @@ def route_python_logging(level: int = logging.INFO) -> None:
     logger = logging.getLogger("ros_hrc")
     logger.addHandler(handler)
     logger.setLevel(level)
+
+
+def init_node_when_master_is_up(name: str, wait: float = 60.0) -> None:
+    """rospy.init_node (anonymous, without rospy's signal handlers), retried while the roscore
+    that the caller has just launched is starting."""
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            rospy.init_node(name, anonymous=True, disable_signals=True)
+            return
+        except Exception:  # the master is not up yet
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.5)
 
 
 class ServiceUnavailable(HrcError):

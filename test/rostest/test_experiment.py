@@ -1,0 +1,77 @@
+#!/usr/bin/env python3
+"""`hrc_experiment` on a tiny grid, as a researcher runs it: two robot policies against one
+kind of human, through the real stack; then the same command again resumes and adds nothing."""
+import csv
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import rostest
+
+from ros_hrc.experiment.results import EPISODE_COLUMNS, STEP_COLUMNS
+
+GRID = ["--human-models", "expert", "--policies", "pomdp,no_robot", "--seeds", "0",
+        "--episodes", "2", "--step-limit", "8", "--jobs", "2"]
+
+
+def run_experiment(out):
+    # The devel-space command, as `rosrun ros_hrc hrc_experiment` would start it.
+    cmd = [sys.executable, "-m", "ros_hrc.experiment.cli"] + GRID + ["--out", out]
+    return subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                          timeout=800)
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        return reader.fieldnames, list(reader)
+
+
+class TestExperiment(unittest.TestCase):
+
+    def test_tiny_grid_end_to_end_then_resume(self):
+        out = tempfile.mkdtemp(prefix="hrc_experiment_")
+        first = run_experiment(out)
+        self.assertEqual(first.returncode, 0, first.stdout[-3000:] + first.stderr[-3000:])
+
+        header, episodes = read_csv(os.path.join(out, "episodes.csv"))
+        self.assertEqual(tuple(header), EPISODE_COLUMNS)
+        self.assertEqual(len(episodes), 4, "2 policies x 1 seed x 2 episodes")
+        self.assertEqual({(e["robot_policy"], e["episode"]) for e in episodes},
+                         {("pomdp", "0"), ("pomdp", "1"), ("no_robot", "0"), ("no_robot", "1")})
+        for e in episodes:
+            steps = int(e["steps"])
+            self.assertTrue(1 <= steps <= 8, e)
+            self.assertIn(e["end_reason"], ("success", "object_left_belt", "step_limit"))
+            self.assertEqual(e["success"] == "1", e["end_reason"] == "success", e)
+            self.assertGreater(float(e["sim_seconds"]), 0.0, e)
+            if e["robot_policy"] == "no_robot":
+                self.assertNotEqual(e["succeeded_by"], "robot", "a robot that never acts")
+                self.assertEqual(e["intrusive_actions"], "0")
+
+        header, steps = read_csv(os.path.join(out, "steps.csv"))
+        self.assertEqual(tuple(header), STEP_COLUMNS)
+        self.assertEqual(len(steps), sum(int(e["steps"]) for e in episodes))
+        for s in steps:
+            self.assertTrue(0.0 <= float(s["belief_needs_help"]) <= 1.0 + 1e-9, s)
+        for name in ("summary.csv", "summary.md", "outcomes.png", "belief.png", "run.json"):
+            self.assertTrue(os.path.getsize(os.path.join(out, name)) > 0, name)
+        with open(os.path.join(out, "outcomes.png"), "rb") as f:
+            self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+        summary = open(os.path.join(out, "summary.md")).read()
+        self.assertIn("pomdp", summary)
+        self.assertIn("no_robot", summary)
+        self.assertIn("episodes/min", first.stdout)
+        self.assertIn("speed-up over real time", first.stdout)
+
+        # The same command again: everything is recorded, nothing runs, nothing is doubled.
+        again = run_experiment(out)
+        self.assertEqual(again.returncode, 0, again.stderr[-3000:])
+        self.assertIn("0 to run", again.stdout)
+        self.assertEqual(len(read_csv(os.path.join(out, "episodes.csv"))[1]), 4)
+
+
+if __name__ == "__main__":
+    rostest.rosrun("ros_hrc", "hrc_experiment_tiny_grid", TestExperiment, sys.argv)

@@ -1,0 +1,136 @@
+"""Scoring an episode from its steps, and planning a grid run (what is left to do)."""
+import argparse
+from types import SimpleNamespace
+
+import pytest
+
+from ros_hrc.experiment.cli import build_parser, plan_cells
+from ros_hrc.experiment.episode import (ROBOT_POLICIES, EpisodeId, discounted_robot_reward,
+                                        end_reason, needs_help_mass, score_episode, step_rows)
+from ros_hrc.experiment.stack import (CellSpec, decode_episode, encode_episode,
+                                      launch_arguments)
+from ros_hrc.model_files import resolve_model
+from ros_hrc.pomdp.io import load_model
+
+STATES = ["S0", "S1", "S2", "S3", "S4", "S5", "S6"]
+
+
+@pytest.fixture(scope="module")
+def robot_model():
+    return load_model(str(resolve_model("robot", "robot")))
+
+
+def step(n, robot_state="S0", robot_action="rIdle", bits=35, holder="none", left=False,
+         sim_time=None, belief=None, human_action="idle", human_state="evaluating"):
+    return SimpleNamespace(
+        step=n, human_action=human_action, human_state=human_state, observation_bits=bits,
+        robot_observation=f"O{bits}", robot_state=robot_state, robot_action=robot_action,
+        belief_states=STATES, belief=belief or [1.0, 0, 0, 0, 0, 0, 0], decision_ms=2.0 * (n + 1),
+        sim_time=10.0 + n if sim_time is None else sim_time, object_holder=holder,
+        object_left_belt=left)
+
+
+def test_an_episode_goes_on_until_someone_holds_the_object_it_is_missed_or_steps_run_out():
+    assert end_reason([], 5) is None
+    assert end_reason([step(0)], 5) is None
+    assert end_reason([step(0), step(1, holder="human")], 5) == "success"
+    assert end_reason([step(0, holder="robot")], 5) == "success"
+    assert end_reason([step(0), step(1, left=True)], 5) == "object_left_belt"
+    assert end_reason([step(i) for i in range(5)], 5) == "step_limit"
+    # Success on the last allowed step counts as success.
+    assert end_reason([step(i) for i in range(4)] + [step(4, holder="human")], 5) == "success"
+
+
+def test_scoring_counts_who_succeeded_intrusions_warnings_and_times(robot_model):
+    steps = [step(0, robot_action="rGrasp_obj", robot_state="S0"),       # intrusive
+             step(1, robot_action="rPoint_obj", robot_state="S4"),       # help when needed
+             step(2, robot_action="rStop_all", robot_state="S6", bits=16),  # a warning
+             step(3, robot_action="rPoint_obj", robot_state="S1"),       # intrusive
+             step(4, robot_action="rIdle", robot_state="S1", holder="human")]
+    row = score_episode(EpisodeId("tired", "pomdp", 3, 1), steps, "success", 9.5,
+                        robot_model, wall_seconds=1.25)
+    assert (row.human_model, row.robot_policy, row.seed, row.episode) == ("tired", "pomdp", 3, 1)
+    assert (row.success, row.succeeded_by, row.end_reason) == (1, "human", "success")
+    assert row.steps == 5
+    assert row.intrusive_actions == 2
+    assert row.warnings == 1
+    assert row.sim_seconds == pytest.approx(14.0 - 9.5)
+    assert row.mean_decision_ms == pytest.approx((2 + 4 + 6 + 8 + 10) / 5)
+    assert row.wall_seconds == 1.25
+
+
+def test_a_missed_object_is_no_success_whoever_was_near(robot_model):
+    steps = [step(0), step(1, left=True)]
+    row = score_episode(EpisodeId("beginner", "no_robot", 0, 0), steps, "object_left_belt",
+                        10.0, robot_model, 0.5)
+    assert (row.success, row.succeeded_by, row.end_reason) == (0, "none", "object_left_belt")
+
+
+def test_the_robot_reward_is_discounted_over_the_true_states(robot_model):
+    steps = [step(0, robot_state="S3", robot_action="rGrasp_obj"),
+             step(1, robot_state="S2", robot_action="rIdle"),
+             step(2, robot_state="S6", robot_action="rStop_all")]
+    g = robot_model.discount
+    R = robot_model.R_sa
+    a = robot_model.actions.index
+    s = robot_model.states.index
+    expected = (R[a("rGrasp_obj"), s("S3")] + g * R[a("rIdle"), s("S2")]
+                + g * g * R[a("rStop_all"), s("S6")])
+    assert discounted_robot_reward(steps, robot_model) == pytest.approx(expected)
+    assert expected != 0.0
+
+
+def test_the_step_trace_carries_the_belief_in_needs_help_and_the_truth():
+    belief = [0.1, 0.1, 0.2, 0.3, 0.1, 0.1, 0.1]
+    assert needs_help_mass(step(0, belief=belief)) == pytest.approx(0.7)
+    rows = step_rows(EpisodeId("tired", "reactive", 0, 2),
+                     [step(0, belief=belief, robot_state="S5"), step(1)])
+    assert [r.step for r in rows] == [0, 1]
+    assert rows[0].needs_help == 1 and rows[1].needs_help == 0
+    assert rows[0].belief_needs_help == pytest.approx(0.7)
+    assert rows[0].observation == "O35" and rows[0].episode == 2
+
+
+def test_a_worker_line_carries_a_whole_episode_and_other_lines_are_ignored(robot_model):
+    steps = [step(0), step(1, holder="robot")]
+    key = EpisodeId("expert", "reactive", 1, 0)
+    row = score_episode(key, steps, "success", 10.0, robot_model, 2.0)
+    line = encode_episode(row, step_rows(key, steps))
+    assert "\n" not in line
+    back, trace = decode_episode(line)
+    assert back == row and [t.step for t in trace] == [0, 1]
+    assert decode_episode("[INFO] something else a worker printed") is None
+
+
+def test_each_robot_policy_starts_its_own_planner_on_its_own_ports():
+    spec = CellSpec("tired", "reactive", 4, episodes=[0, 1], reactive_budget=5)
+    args = launch_arguments(spec, {"master": 1, "pomdp": 7071, "robot": 8081, "human": 9091})
+    assert "planner:=reactive" in args and "reactive_budget:=5" in args
+    assert {"pomdp_port:=7071", "robot_port:=8081", "human_port:=9091"} <= set(args)
+    assert {"use_sim_time:=true", "real_time_factor:=0", "gui:=false", "seed:=4"} <= set(args)
+    assert set(ROBOT_POLICIES) == {"pomdp", "reactive", "no_robot"}
+    with pytest.raises(ValueError, match="unknown robot policy"):
+        launch_arguments(CellSpec("tired", "telepathic", 0, episodes=[0]), {
+            "master": 1, "pomdp": 2, "robot": 3, "human": 4})
+
+
+def test_a_resumed_grid_runs_only_the_episodes_not_yet_recorded(tmp_path):
+    args = build_parser().parse_args(["--human-models", "tired,expert", "--policies",
+                                      "pomdp,no_robot", "--seeds", "0,1", "--episodes", "2",
+                                      "--out", str(tmp_path)])
+    assert len(plan_cells(args, set())) == 8
+    done = {("tired", "pomdp", 0, 0), ("tired", "pomdp", 0, 1), ("expert", "no_robot", 1, 0)}
+    cells = plan_cells(args, done)
+    assert len(cells) == 7
+    partial = [c for c in cells if (c.human_model, c.robot_policy, c.seed) ==
+               ("expert", "no_robot", 1)]
+    assert list(partial[0].episodes) == [1]
+
+
+def test_bad_grid_arguments_are_refused_with_a_reason(capsys):
+    from ros_hrc.experiment.cli import main
+    assert main(["--policies", "pomdp,psychic", "--out", "/nonexistent/never"]) == 2
+    assert "psychic" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["--seeds", "one,two"])
+    assert isinstance(build_parser().parse_args([]), argparse.Namespace)

@@ -1,0 +1,302 @@
+"""The results room: rows and their CSV form, the store an interrupted run resumes from,
+confidence intervals against hand-computed values, the summary and the plots."""
+import csv
+import math
+import os
+import subprocess
+import sys
+import warnings
+
+import pytest
+
+from ros_hrc.experiment.results import (EPISODE_COLUMNS, STEP_COLUMNS, SUMMARY_COLUMNS,
+                                        EpisodeRow, ResultsStore, ResultsWarning, StepRow,
+                                        format_ci, mean_ci, plot_belief, plot_outcomes,
+                                        proportion_ci, summarize, write_summary)
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def episode(human="careful", policy="pomdp", seed=0, number=0, outcome="human", **over):
+    """An episode row; outcome is who succeeded, or the end reason of a failure."""
+    success = outcome in ("human", "robot")
+    values = dict(human_model=human, robot_policy=policy, seed=seed, episode=number,
+                  success=int(success), succeeded_by=outcome if success else "none",
+                  end_reason="success" if success else outcome, steps=12, sim_seconds=6.5,
+                  robot_discounted_reward=-3.25, intrusive_actions=1, warnings=0,
+                  mean_decision_ms=4.5, wall_seconds=9.75)
+    values.update(over)
+    return EpisodeRow(**values)
+
+
+def steps_of(row, needs=(0, 1, 1, 0), beliefs=(0.1, 0.4, 0.8, 0.3)):
+    return [StepRow(row.human_model, row.robot_policy, row.seed, row.episode, i, "idle",
+                    "evaluating", "S2" if n else "S0", "rIdle", "O3", b, n)
+            for i, (n, b) in enumerate(zip(needs, beliefs))]
+
+
+def read_lines(path):
+    with open(path, encoding="utf-8") as f:
+        return f.read().splitlines()
+
+
+# ------------------------------------------------------------------------------------ rows
+
+def test_columns_are_in_the_agreed_order_and_match_the_dataclasses():
+    assert EPISODE_COLUMNS == (
+        "human_model", "robot_policy", "seed", "episode", "success", "succeeded_by",
+        "end_reason", "steps", "sim_seconds", "robot_discounted_reward", "intrusive_actions",
+        "warnings", "mean_decision_ms", "wall_seconds")
+    assert STEP_COLUMNS == (
+        "human_model", "robot_policy", "seed", "episode", "step", "human_action",
+        "human_state", "robot_state", "robot_action", "observation", "belief_needs_help",
+        "needs_help")
+    assert tuple(episode().as_dict()) == EPISODE_COLUMNS
+    assert tuple(steps_of(episode())[0].as_dict()) == STEP_COLUMNS
+
+
+def test_rows_round_trip_through_their_csv_cells():
+    row = episode(sim_seconds=0.1 + 0.2, mean_decision_ms=math.nan)
+    cells = row.as_dict()
+    assert all(isinstance(v, str) for v in cells.values())
+    back = EpisodeRow.from_dict(cells)
+    assert back.sim_seconds == 0.1 + 0.2          # full precision survives
+    assert math.isnan(back.mean_decision_ms)
+    assert back.as_dict() == cells
+    step = StepRow("a,b", "p", 1, 2, 3, "graspAttempt", "failed_to_grasp", "S2", "rPoint_obj",
+                   "O35", 0.625, 1)
+    assert StepRow.from_dict(step.as_dict()) == step
+
+
+@pytest.mark.parametrize("column,value", [("seed", "x"), ("steps", "3.5"), ("sim_seconds", "")])
+def test_from_dict_names_the_bad_column_and_value(column, value):
+    cells = episode().as_dict()
+    cells[column] = value
+    with pytest.raises(ValueError) as e:
+        EpisodeRow.from_dict(cells)
+    assert repr(column) in str(e.value) and repr(value) in str(e.value)
+
+
+def test_rows_refuse_values_outside_their_domain():
+    with pytest.raises(ValueError, match="succeeded_by"):
+        episode(succeeded_by="nobody")
+    with pytest.raises(ValueError, match="end_reason"):
+        episode(outcome="object_left_belt", end_reason="timeout")
+    with pytest.raises(ValueError, match="contradicts"):
+        episode(outcome="human", end_reason="step_limit")
+    with pytest.raises(ValueError, match="seed"):
+        episode(seed="3")                          # constructors do not parse strings
+    with pytest.raises(ValueError, match="line breaks"):
+        episode(human="two\nlines")
+    with pytest.raises(ValueError, match="belief_needs_help"):
+        StepRow("h", "p", 0, 0, 0, "idle", "s", "S0", "rIdle", "O0", 1.5, 0)
+    with pytest.raises(ValueError, match="missing column"):
+        EpisodeRow.from_dict({"human_model": "h"})
+
+
+# ----------------------------------------------------------------------------------- store
+
+def test_a_new_store_writes_the_headers(tmp_path):
+    store = ResultsStore(tmp_path / "run")
+    assert read_lines(store.episodes_path) == [",".join(EPISODE_COLUMNS)]
+    assert read_lines(store.steps_path) == [",".join(STEP_COLUMNS)]
+    assert store.done() == set() and store.episodes() == [] and store.steps() == []
+
+
+def test_added_episodes_are_on_disk_and_seen_by_a_new_store(tmp_path):
+    store = ResultsStore(tmp_path)
+    a, b = episode(number=0), episode(number=1, outcome="step_limit")
+    store.add(a, steps_of(a))
+    store.add(b, steps_of(b, needs=(0,), beliefs=(0.5,)))
+    assert len(read_lines(store.episodes_path)) == 3   # written at once, not at close
+    again = ResultsStore(tmp_path)
+    assert again.done() == {a.key, b.key}
+    assert again.episodes() == [a, b]
+    assert again.steps() == steps_of(a) + steps_of(b, needs=(0,), beliefs=(0.5,))
+
+
+def test_add_refuses_a_recorded_episode_and_foreign_steps(tmp_path):
+    store = ResultsStore(tmp_path)
+    a = episode()
+    store.add(a, steps_of(a))
+    with pytest.raises(ValueError, match="already recorded"):
+        store.add(a, [])
+    with pytest.raises(ValueError, match="belongs to episode"):
+        store.add(episode(number=5), steps_of(a))
+    assert ResultsStore(tmp_path).steps() == steps_of(a)   # nothing of the refused adds
+
+
+def test_resume_after_a_kill_in_the_middle_of_a_line(tmp_path):
+    store = ResultsStore(tmp_path)
+    a, b = episode(number=0), episode(number=1)
+    store.add(a, steps_of(a))
+    # Killed while writing b: its steps are complete, its episode row is cut short.
+    with open(store.steps_path, "a", encoding="utf-8") as f:
+        f.write("\n".join(",".join(s.as_dict().values()) for s in steps_of(b)) + "\n")
+        f.write("careful,pomdp,0,1,2,idle")                  # and a partial step row too
+    with open(store.episodes_path, "a", encoding="utf-8") as f:
+        f.write(",".join(b.as_dict().values())[:20])
+    with pytest.warns(ResultsWarning) as record:
+        resumed = ResultsStore(tmp_path)
+    messages = " ".join(str(w.message) for w in record)
+    assert "partially written" in messages and "unfinished episode" in messages
+    assert resumed.done() == {a.key}
+    assert resumed.episodes() == [a] and resumed.steps() == steps_of(a)
+    resumed.add(b, steps_of(b))                              # the rerun appends cleanly
+    assert ResultsStore(tmp_path).steps() == steps_of(a) + steps_of(b)
+
+
+def test_a_partial_header_is_replaced_by_a_whole_one(tmp_path):
+    (tmp_path / "episodes.csv").write_text("human_model,robot_pol")
+    with pytest.warns(ResultsWarning):
+        store = ResultsStore(tmp_path)
+    assert read_lines(store.episodes_path) == [",".join(EPISODE_COLUMNS)]
+
+
+def test_a_file_with_another_header_is_refused_with_file_and_line(tmp_path):
+    (tmp_path / "steps.csv").write_text("human_model,robot_policy,seed\n")
+    with pytest.raises(ValueError) as e:
+        ResultsStore(tmp_path)
+    assert f"{tmp_path / 'steps.csv'}:1:" in str(e.value)
+    assert (tmp_path / "steps.csv").read_text() == "human_model,robot_policy,seed\n"  # untouched
+
+
+def test_a_bad_row_is_refused_with_file_line_and_column(tmp_path):
+    store = ResultsStore(tmp_path)
+    store.add(episode(number=0))
+    cells = episode(number=1).as_dict()
+    cells["warnings"] = "many"
+    with open(store.episodes_path, "a", encoding="utf-8", newline="") as f:
+        csv.writer(f, lineterminator="\n").writerow(cells.values())
+    with pytest.raises(ValueError) as e:
+        ResultsStore(tmp_path)
+    message = str(e.value)
+    assert f"{store.episodes_path}:3:" in message and "'warnings'" in message and "many" in message
+
+
+# ------------------------------------------------------------------------------ statistics
+
+def test_mean_ci_is_the_student_t_interval():
+    mean, low, high = mean_ci([1, 2, 3, 4, 5])
+    half = 2.7764451051977987 * math.sqrt(2.5) / math.sqrt(5)   # t_{0.975, 4} * s / sqrt(n)
+    assert mean == 3
+    assert low == pytest.approx(3 - half, abs=1e-12) and high == pytest.approx(3 + half, abs=1e-12)
+    assert high - mean == pytest.approx(1.963, abs=1e-3)
+    m90, l90, h90 = mean_ci([1, 2, 3, 4, 5], confidence=0.90)   # t_{0.95, 4} = 2.1318
+    assert h90 - m90 == pytest.approx(2.131846786 * math.sqrt(0.5), abs=1e-6)
+
+
+def test_mean_ci_edge_cases():
+    assert all(math.isnan(v) for v in mean_ci([]))
+    mean, low, high = mean_ci([4.0])
+    assert mean == 4.0 and math.isnan(low) and math.isnan(high)   # one value: no spread known
+    assert mean_ci([2, 2, 2]) == (2, 2, 2)
+    with pytest.raises(ValueError):
+        mean_ci([1.0, math.nan])
+    with pytest.raises(ValueError):
+        mean_ci([1, 2], confidence=1.0)
+
+
+def test_proportion_ci_is_the_wilson_interval():
+    p, low, high = proportion_ci(8, 10)
+    assert p == 0.8
+    assert low == pytest.approx(0.4902, abs=1e-4) and high == pytest.approx(0.9433, abs=1e-4)
+    from scipy.stats import binomtest
+    for k, n in [(0, 10), (10, 10), (3, 7), (1, 1), (17, 40)]:
+        expected = binomtest(k, n).proportion_ci(0.95, method="wilson")
+        _, low, high = proportion_ci(k, n)
+        assert (low, high) == pytest.approx((expected.low, expected.high), abs=1e-12)
+    assert proportion_ci(0, 10)[1] == 0.0 and proportion_ci(10, 10)[2] == 1.0
+    assert all(math.isnan(v) for v in proportion_ci(0, 0))
+    with pytest.raises(ValueError):
+        proportion_ci(11, 10)
+
+
+def grid_rows():
+    rows = []
+    for human in ("careful", "distracted"):
+        for policy in ("pomdp", "reactive"):
+            for number, outcome in enumerate(("human", "robot", "object_left_belt", "human")):
+                rows.append(episode(human, policy, 7, number, outcome, steps=10 + number,
+                                    mean_decision_ms=math.nan if policy == "reactive" else 2.0))
+    return rows
+
+
+def test_summarize_groups_in_order_of_first_appearance_and_counts():
+    rows = grid_rows()
+    rows.insert(0, rows.pop(5))                 # ("careful", "reactive") now appears first
+    summary = summarize(rows)
+    assert [(s["human_model"], s["robot_policy"]) for s in summary] == [
+        ("careful", "reactive"), ("careful", "pomdp"), ("distracted", "pomdp"),
+        ("distracted", "reactive")]
+    s = summary[1]
+    assert set(s) == set(SUMMARY_COLUMNS)
+    assert (s["n"], s["successes"], s["human_successes"], s["robot_successes"]) == (4, 3, 2, 1)
+    assert (s["object_left_belt"], s["step_limit"]) == (1, 0)
+    assert (s["success_rate"], s["success_low"], s["success_high"]) == proportion_ci(3, 4)
+    assert (s["steps_mean"], s["steps_low"], s["steps_high"]) == mean_ci([10, 11, 12, 13])
+    assert s["reward_mean"] == -3.25 and s["mean_decision_ms"] == 2.0
+    assert math.isnan(summary[0]["mean_decision_ms"])   # no timed decisions at all
+
+
+def test_write_summary_writes_a_csv_and_a_paper_ready_table(tmp_path):
+    summary = summarize(grid_rows() + [episode("lone", "pomdp")])
+    csv_path, md_path = write_summary(summary, tmp_path / "s.csv", tmp_path / "out" / "s.md")
+    with open(csv_path, encoding="utf-8") as f:
+        table = list(csv.DictReader(f))
+    assert tuple(table[0]) == SUMMARY_COLUMNS and len(table) == 5
+    assert float(table[0]["success_low"]) == summary[0]["success_low"]
+    md = read_lines(md_path)
+    assert md[0].startswith("| Human model | Robot policy | n |") and md[1].startswith("|---")
+    assert f"| careful | pomdp | 4 | {format_ci(*proportion_ci(3, 4))} | 2 / 1 |" in md[2]
+    assert "| lone | pomdp | 1 | 1.00 [0.21, 1.00] |" in md[6]
+    assert "12.0 [n/a]" in md[6]                          # one episode: no t interval
+    assert format_ci(0.85, 0.71, 0.93) == "0.85 [0.71, 0.93]"
+
+
+# ----------------------------------------------------------------------------------- plots
+
+def assert_png(path):
+    with open(path, "rb") as f:
+        data = f.read()
+    assert data[:8] == PNG_SIGNATURE and len(data) > 10_000
+
+
+def test_plot_outcomes_writes_a_png(tmp_path):
+    summary = summarize(grid_rows() + [episode("lone", "pomdp")])   # a missing pair, an n=1
+    path = plot_outcomes(summary, tmp_path / "plots" / "outcomes.png")
+    assert path == str(tmp_path / "plots" / "outcomes.png")
+    assert_png(path)
+    with pytest.raises(ValueError):
+        plot_outcomes([], tmp_path / "empty.png")
+
+
+def test_plot_belief_writes_a_png_and_picks_an_episode_with_need(tmp_path):
+    calm = episode(number=0)
+    rows = steps_of(calm, needs=(0, 0), beliefs=(0.1, 0.2))
+    for policy, beliefs in (("pomdp", (0.2, 0.6, 0.9, 0.4)), ("reactive", (0.0, 0.0, 1.0, 1.0))):
+        rows += steps_of(episode(policy=policy, number=1), beliefs=beliefs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")               # the two runs agree on the truth
+        assert_png(plot_belief(rows, tmp_path / "belief.png"))
+    assert_png(plot_belief(rows, tmp_path / "calm.png", episode=calm.key))
+    with pytest.raises(ValueError, match="no step rows"):
+        plot_belief(rows, tmp_path / "x.png", episode=("careful", "pomdp", 0, 9))
+
+
+def test_plot_belief_warns_when_runs_disagree_on_the_truth(tmp_path):
+    rows = steps_of(episode(policy="pomdp"), needs=(0, 1, 1, 0))
+    rows += steps_of(episode(policy="reactive"), needs=(0, 0, 1, 1))
+    with pytest.warns(ResultsWarning, match="disagree"):
+        assert_png(plot_belief(rows, tmp_path / "b.png"))
+
+
+def test_the_plots_need_no_display_and_leave_pyplot_alone(tmp_path):
+    code = ("import sys; from ros_hrc.experiment import results as r; "
+            "rows = [r.EpisodeRow('h', 'p', 0, 0, 1, 'human', 'success', 3, 1.0, 0.0, 0, 0, 1.0, 1.0)]; "
+            f"r.plot_outcomes(r.summarize(rows), {str(tmp_path / 'o.png')!r}); "
+            "assert 'matplotlib.pyplot' not in sys.modules; "
+            "assert not {'rospy', 'pybullet'} & set(sys.modules)")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MPLBACKEND")}
+    subprocess.run([sys.executable, "-c", code], check=True, env=env)
+    assert_png(tmp_path / "o.png")
