@@ -20,6 +20,10 @@ unit: setup
 bench: setup
 	@source env.sh && python bench/run_all.py $(ARGS)
 
+# A small default grid (README, "Experiments"); ARGS="--episodes 10 --seeds 0,1,2" for more.
+experiment: setup
+	@source env.sh && rosrun ros_hrc hrc_experiment --out results/experiment $(ARGS)
+
 lint: setup
 	@source env.sh && catkin_lint --strict -W2 .ws/src/ros_hrc
 

@@ -19,7 +19,7 @@ APT_PACKAGES=(
   ros-core-dev catkin catkin-lint rosbash ros-message-generation ros-message-runtime
   ros-std-msgs ros-std-srvs ros-rosgraph-msgs
   python3-rospy python3-rostest python3-roslaunch python3-rosservice python3-rostopic
-  python3-rosnode python3-rosmsg python3-std-msgs python3-std-srvs python3-rosgraph-msgs
+  python3-rosnode python3-rosmsg python3-rosbag python3-std-msgs python3-std-srvs python3-rosgraph-msgs
   python3-catkin-pkg python3-venv python3-dev python3-nose
   cmake g++ make xterm
 )

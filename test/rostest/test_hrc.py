@@ -22,6 +22,7 @@ import rospy
 import rostest
 from std_srvs.srv import Trigger
 
+from ros_hrc.experiment.stack import stop_launched
 from ros_hrc.msg import Status, WorldState
 from ros_hrc.srv import SetHumanState
 
@@ -106,14 +107,7 @@ def step_record(status):
             tuple(round(p, 9) for p in status.belief))
 
 
-def stop_stack(proc):
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
-        try:
-            proc.wait(60)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+stop_stack = stop_launched
 
 
 class TestWholeLoop(unittest.TestCase):

@@ -54,10 +54,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--policies", type=_names, default=_names(DEFAULT_POLICIES),
                    help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)}")
     p.add_argument("--seeds", type=_seeds, default=[0, 1], help="seeds, comma-separated (0,1)")
-    p.add_argument("--episodes", type=int, default=4, help="episodes per cell (4)")
-    p.add_argument("--step-limit", type=int, default=20, help="steps before an episode ends (20)")
-    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
-                   help="stacks run side by side (one per core)")
+    p.add_argument("--episodes", type=int, default=3, help="episodes per cell (3)")
+    p.add_argument("--step-limit", type=int, default=15, help="steps before an episode ends (15)")
+    p.add_argument("--jobs", type=int, default=0,
+                   help="stacks run side by side (0: one per core)")
     p.add_argument("--out", default="results/experiment", help="results directory")
     p.add_argument("--robot-model", default="robot", help="robot POMDP for the pomdp policy")
     p.add_argument("--human-choice", default="optimal", choices=("optimal", "softmax", "random"),
@@ -182,7 +182,8 @@ def main(argv: Optional[list] = None) -> int:
     if args.episodes < 1 or args.step_limit < 1:
         print(f"{NAME}: --episodes and --step-limit must be at least 1", file=sys.stderr)
         return 2
-    out = Path(args.out)
+    out = Path(args.out).expanduser()
+    args.jobs = args.jobs or os.cpu_count() or 1
     try:
         store = ResultsStore(out)
     except (OSError, ValueError) as exc:

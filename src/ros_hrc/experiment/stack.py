@@ -108,11 +108,13 @@ class _StatusInbox:
             return list(self.steps)
 
 
-def _stop(proc: subprocess.Popen) -> None:
+def stop_launched(proc: subprocess.Popen, grace: float = 60.0) -> None:
+    """Stop a roslaunch (or rosbag) started with ``start_new_session=True`` as Ctrl-C would:
+    SIGINT to its whole process group, SIGKILL if it is still there after ``grace`` s."""
     if proc.poll() is None:
         os.killpg(proc.pid, signal.SIGINT)
         try:
-            proc.wait(30)
+            proc.wait(grace)
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
@@ -138,7 +140,7 @@ def run_cell(spec: CellSpec, deliver: Callable[[object, list], None]) -> int:
     try:
         return _drive(spec, model, proc, deliver, name, log_dir)
     finally:
-        _stop(proc)
+        stop_launched(proc)
 
 
 def _drive(spec: CellSpec, model, proc, deliver, name: str, log_dir: Path) -> int:
@@ -192,7 +194,7 @@ def _drive(spec: CellSpec, model, proc, deliver, name: str, log_dir: Path) -> in
         return delivered
     finally:
         if bag is not None:
-            _stop(bag)
+            stop_launched(bag)
         rospy.signal_shutdown("cell done")
 
 
