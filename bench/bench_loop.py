@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import statistics
 import subprocess
 import sys
@@ -24,6 +23,8 @@ import time
 from pathlib import Path
 
 from common import free_port, init_node_when_master_is_up, percentile, write_result  # bench/common.py
+
+from ros_hrc.experiment.stack import stop_launched
 
 
 
@@ -74,11 +75,7 @@ def main(argv=None) -> int:
             print(f"only {len(stamps)} steps in {args.timeout} s", file=sys.stderr)
             return 1
     finally:
-        os.killpg(launch.pid, signal.SIGINT)
-        try:
-            launch.wait(30)
-        except subprocess.TimeoutExpired:
-            os.killpg(launch.pid, signal.SIGKILL)
+        stop_launched(launch, grace=30)
 
     timed = stamps[warmup:]
     gaps = [(b - a) * 1000.0 for a, b in zip(timed, timed[1:])]

@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import statistics
 import subprocess
 import sys
@@ -26,6 +25,8 @@ import time
 from pathlib import Path
 
 from common import free_port, init_node_when_master_is_up, percentile, write_result  # bench/common.py
+
+from ros_hrc.experiment.stack import stop_launched
 
 
 
@@ -108,11 +109,7 @@ def through_ros(calls: int) -> dict:
                 "service_new_connection_p50_ms": percentile(fresh, 50),
                 "service_new_connection_p99_ms": percentile(fresh, 99)}
     finally:
-        os.killpg(launch.pid, signal.SIGINT)
-        try:
-            launch.wait(30)
-        except subprocess.TimeoutExpired:
-            os.killpg(launch.pid, signal.SIGKILL)
+        stop_launched(launch, grace=30)
 
 
 def main(argv=None) -> int:

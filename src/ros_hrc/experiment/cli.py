@@ -22,6 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import List, Optional
 
+from ros_hrc.command_line import own_arguments
 from ros_hrc.experiment.episode import ROBOT_POLICIES
 from ros_hrc.experiment.results import (ResultsStore, plot_belief, plot_outcomes, summarize,
                                         write_summary)
@@ -171,9 +172,7 @@ def report(store: ResultsStore, out: Path, plots: bool) -> None:
 
 
 def main(argv: Optional[list] = None) -> int:
-    # roslaunch appends __name:= and __log:= arguments: not ours.
-    argv = [a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("__")]
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(own_arguments(argv))
     unknown = [p for p in args.policies if p not in ROBOT_POLICIES]
     if unknown:
         print(f"{NAME}: unknown robot policies {', '.join(unknown)}; known: "

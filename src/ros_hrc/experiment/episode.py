@@ -7,13 +7,12 @@ object_left_belt``. No ROS here: the experiment's ROS side hands these over.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Dict, Optional, Sequence
 
 import numpy as np
 
 from ros_hrc import task
-from ros_hrc.experiment.results import EpisodeRow, StepRow
+from ros_hrc.experiment.results import EpisodeKey, EpisodeRow, StepRow
 from ros_hrc.pomdp.model import Model
 
 #: Robot policies of a grid -> the robot process's ``--planner``.
@@ -61,18 +60,10 @@ def discounted_robot_reward(steps: Sequence, model: Model) -> float:
     return total
 
 
-@dataclass(frozen=True)
-class EpisodeId:
-    """Which episode of which cell."""
-    human_model: str
-    robot_policy: str
-    seed: int
-    episode: int
-
-
-def score_episode(key: EpisodeId, steps: Sequence, reason: str, start_sim_time: float,
+def score_episode(key: EpisodeKey, steps: Sequence, reason: str, start_sim_time: float,
                   model: Model, wall_seconds: float) -> EpisodeRow:
     """One results row for a finished episode."""
+    human_model, robot_policy, seed, episode = key
     holder = steps[-1].object_holder if steps else "none"
     success = reason == "success"
     intrusive = sum(1 for s in steps if s.robot_action in HELPING_ACTIONS
@@ -80,8 +71,8 @@ def score_episode(key: EpisodeId, steps: Sequence, reason: str, start_sim_time: 
     warnings = sum(1 for s in steps if s.observation_bits & task.WARNING)
     decisions = [s.decision_ms for s in steps]
     return EpisodeRow(
-        human_model=key.human_model, robot_policy=key.robot_policy, seed=key.seed,
-        episode=key.episode, success=int(success),
+        human_model=human_model, robot_policy=robot_policy, seed=seed, episode=episode,
+        success=int(success),
         succeeded_by=holder if success else "none", end_reason=reason, steps=len(steps),
         sim_seconds=(steps[-1].sim_time - start_sim_time) if steps else 0.0,
         robot_discounted_reward=discounted_robot_reward(steps, model),
@@ -90,10 +81,11 @@ def score_episode(key: EpisodeId, steps: Sequence, reason: str, start_sim_time: 
         wall_seconds=wall_seconds)
 
 
-def step_rows(key: EpisodeId, steps: Sequence) -> list:
+def step_rows(key: EpisodeKey, steps: Sequence) -> list:
     """The episode's per-step trace (for the belief plot)."""
-    return [StepRow(human_model=key.human_model, robot_policy=key.robot_policy, seed=key.seed,
-                    episode=key.episode, step=int(s.step), human_action=s.human_action,
+    human_model, robot_policy, seed, episode = key
+    return [StepRow(human_model=human_model, robot_policy=robot_policy, seed=seed,
+                    episode=episode, step=int(s.step), human_action=s.human_action,
                     human_state=s.human_state, robot_state=s.robot_state,
                     robot_action=s.robot_action, observation=s.robot_observation,
                     belief_needs_help=needs_help_mass(s),

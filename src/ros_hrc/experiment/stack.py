@@ -8,8 +8,9 @@ the step limit), score it, and hand the row over. The MDP and the robot run exac
 ``roslaunch ros_hrc hrc.launch``: nothing is simulated around them.
 
 Each cell runs in a process of its own (``python -m ros_hrc.experiment.stack SPEC_JSON``, what
-``hrc_experiment`` starts): rospy allows one node per process, and is imported only once
-``ROS_MASTER_URI`` points at the cell's own master. The process writes one line per episode on
+``hrc_experiment`` starts): rospy allows one node per process. The ROS side of a cell, the node
+that resets and watches the stack, is :mod:`ros_hrc.nodes.experiment_cell`, imported only
+once ``ROS_MASTER_URI`` points at the cell's own master. The process writes one line per episode on
 its standard output, ``EPISODE {json}``, as soon as the episode ends.
 """
 from __future__ import annotations
@@ -19,14 +20,11 @@ import os
 import signal
 import subprocess
 import sys
-import threading
-import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable, List, Optional, Sequence
 
-from ros_hrc.experiment.episode import (ROBOT_POLICIES, EpisodeId, end_reason, score_episode,
-                                        step_rows)
+from ros_hrc.experiment.episode import ROBOT_POLICIES
 from ros_hrc.experiment.results import EpisodeRow, StepRow
 from ros_hrc.link.transport import free_port
 from ros_hrc.model_files import resolve_model
@@ -74,40 +72,6 @@ def launch_arguments(spec: CellSpec, ports: dict) -> List[str]:
     ] + list(spec.extra_args)
 
 
-class _StatusInbox:
-    """The /hrc/status messages of the episode under way."""
-
-    def __init__(self) -> None:
-        self.cond = threading.Condition()
-        self.steps: list = []
-        self.since: Optional[float] = None   # simulated time the episode started at
-        self.last_seen = time.monotonic()
-
-    def begin(self, sim_time: float) -> None:
-        with self.cond:
-            self.steps, self.since = [], sim_time
-
-    def on_status(self, msg) -> None:
-        with self.cond:
-            self.last_seen = time.monotonic()
-            if self.since is None or msg.sim_time < self.since:
-                return   # from before the reset
-            if not self.steps and msg.step != 0:
-                return   # a step under way at the reset, refused or late: not this episode
-            self.steps.append(msg)
-            self.cond.notify_all()
-
-    def wait_for_step(self, count: int, timeout: float) -> list:
-        """The episode's steps once there are at least ``count``; raises CellFailed after
-        ``timeout`` wall seconds without any status."""
-        with self.cond:
-            while len(self.steps) < count:
-                if time.monotonic() - self.last_seen > timeout:
-                    raise CellFailed(f"no step for {timeout:.0f} s")
-                self.cond.wait(1.0)
-            return list(self.steps)
-
-
 def stop_launched(proc: subprocess.Popen, grace: float = 60.0) -> None:
     """Stop a roslaunch (or rosbag) started with ``start_new_session=True`` as Ctrl-C would:
     SIGINT to its whole process group, SIGKILL if it is still there after ``grace`` s."""
@@ -138,64 +102,10 @@ def run_cell(spec: CellSpec, deliver: Callable[[object, list], None]) -> int:
         proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
                                 stderr=subprocess.STDOUT, start_new_session=True)
     try:
-        return _drive(spec, model, proc, deliver, name, log_dir)
+        from ros_hrc.nodes.experiment_cell import drive_cell   # rospy: ROS_MASTER_URI is set
+        return drive_cell(spec, model, proc, deliver, name, log_dir)
     finally:
         stop_launched(proc)
-
-
-def _drive(spec: CellSpec, model, proc, deliver, name: str, log_dir: Path) -> int:
-    import rospy   # only now: ROS_MASTER_URI names this cell's master
-    from std_srvs.srv import Trigger
-
-    from ros_hrc.msg import Status
-    from ros_hrc.nodes.common import init_node_when_master_is_up
-    from ros_hrc.srv import GetWorldState
-
-    init_node_when_master_is_up("hrc_experiment_cell", wait=120.0)
-    inbox = _StatusInbox()
-    rospy.Subscriber("/hrc/status", Status, inbox.on_status, queue_size=1000)
-    bag = None
-    if spec.record_bag:
-        bag = subprocess.Popen(["rosbag", "record", "-q", "-O", str(log_dir / f"{name}.bag"),
-                                "/hrc/status"], stdin=subprocess.DEVNULL,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
-                               start_new_session=True)
-    try:
-        for service in ("/hrc/reset", "/hrc/world/state"):
-            try:
-                rospy.wait_for_service(service, timeout=180.0)
-            except rospy.ROSException as exc:
-                raise CellFailed(f"{name}: the stack did not come up ({exc}); see "
-                                 f"{log_dir / (name + '.log')}") from exc
-        reset = rospy.ServiceProxy("/hrc/reset", Trigger, persistent=True)
-        world = rospy.ServiceProxy("/hrc/world/state", GetWorldState, persistent=True)
-        delivered = 0
-        for episode in spec.episodes:
-            if proc.poll() is not None:
-                raise CellFailed(f"{name}: hrc.launch exited ({proc.returncode})")
-            started = time.monotonic()
-            answer = reset()
-            if not answer.success:
-                raise CellFailed(f"{name}: /hrc/reset failed: {answer.message}")
-            start_sim = world().state.sim_time
-            inbox.begin(start_sim)
-            count = 1
-            while True:
-                steps = inbox.wait_for_step(count, spec.episode_timeout)
-                reason = end_reason(steps, spec.step_limit)
-                if reason is not None:
-                    break
-                count = len(steps) + 1
-            key = EpisodeId(spec.human_model, spec.robot_policy, spec.seed, episode)
-            row = score_episode(key, steps, reason, start_sim, model,
-                                time.monotonic() - started)
-            deliver(row, step_rows(key, steps))
-            delivered += 1
-        return delivered
-    finally:
-        if bag is not None:
-            stop_launched(bag)
-        rospy.signal_shutdown("cell done")
 
 
 #: Prefix of a worker's stdout line carrying a finished episode.

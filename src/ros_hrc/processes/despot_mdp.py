@@ -22,6 +22,7 @@ import threading
 import time
 from typing import Optional, TextIO, Tuple
 
+from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import Ack, Error, Message, NextState, Reset, Step
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
@@ -271,9 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[list] = None) -> int:
-    # roslaunch appends __name:= and __log:= arguments: not ours.
-    argv = [a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("__")]
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(own_arguments(argv))
     try:
         model = load_model(str(resolve_model(args.model, "human")))
         agent = HumanAgent(model, HumanAgentConfig(choice=args.choice, temperature=args.temperature,

@@ -24,6 +24,7 @@ from typing import Optional
 
 import numpy as np
 
+from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import Ack, Action, Error, Message, Observation, Reset
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
@@ -185,8 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[list] = None) -> int:
-    argv = [a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("__")]
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(own_arguments(argv))
     try:
         model = load_model(str(resolve_model(args.model, "robot")))
         planner = build_planner(model, args)

@@ -5,8 +5,8 @@ from types import SimpleNamespace
 import pytest
 
 from ros_hrc.experiment.cli import build_parser, plan_cells
-from ros_hrc.experiment.episode import (ROBOT_POLICIES, EpisodeId, discounted_robot_reward,
-                                        end_reason, needs_help_mass, score_episode, step_rows)
+from ros_hrc.experiment.episode import (ROBOT_POLICIES, discounted_robot_reward, end_reason,
+                                        needs_help_mass, score_episode, step_rows)
 from ros_hrc.experiment.stack import (CellSpec, decode_episode, encode_episode,
                                       launch_arguments)
 from ros_hrc.model_files import resolve_model
@@ -47,7 +47,7 @@ def test_scoring_counts_who_succeeded_intrusions_warnings_and_times(robot_model)
              step(2, robot_action="rStop_all", robot_state="S6", bits=16),  # a warning
              step(3, robot_action="rPoint_obj", robot_state="S1"),       # intrusive
              step(4, robot_action="rIdle", robot_state="S1", holder="human")]
-    row = score_episode(EpisodeId("tired", "pomdp", 3, 1), steps, "success", 9.5,
+    row = score_episode(("tired", "pomdp", 3, 1), steps, "success", 9.5,
                         robot_model, wall_seconds=1.25)
     assert (row.human_model, row.robot_policy, row.seed, row.episode) == ("tired", "pomdp", 3, 1)
     assert (row.success, row.succeeded_by, row.end_reason) == (1, "human", "success")
@@ -61,7 +61,7 @@ def test_scoring_counts_who_succeeded_intrusions_warnings_and_times(robot_model)
 
 def test_a_missed_object_is_no_success_whoever_was_near(robot_model):
     steps = [step(0), step(1, left=True)]
-    row = score_episode(EpisodeId("beginner", "no_robot", 0, 0), steps, "object_left_belt",
+    row = score_episode(("beginner", "no_robot", 0, 0), steps, "object_left_belt",
                         10.0, robot_model, 0.5)
     assert (row.success, row.succeeded_by, row.end_reason) == (0, "none", "object_left_belt")
 
@@ -83,7 +83,7 @@ def test_the_robot_reward_is_discounted_over_the_true_states(robot_model):
 def test_the_step_trace_carries_the_belief_in_needs_help_and_the_truth():
     belief = [0.1, 0.1, 0.2, 0.3, 0.1, 0.1, 0.1]
     assert needs_help_mass(step(0, belief=belief)) == pytest.approx(0.7)
-    rows = step_rows(EpisodeId("tired", "reactive", 0, 2),
+    rows = step_rows(("tired", "reactive", 0, 2),
                      [step(0, belief=belief, robot_state="S5"), step(1)])
     assert [r.step for r in rows] == [0, 1]
     assert rows[0].needs_help == 1 and rows[1].needs_help == 0
@@ -93,7 +93,7 @@ def test_the_step_trace_carries_the_belief_in_needs_help_and_the_truth():
 
 def test_a_worker_line_carries_a_whole_episode_and_other_lines_are_ignored(robot_model):
     steps = [step(0), step(1, holder="robot")]
-    key = EpisodeId("expert", "reactive", 1, 0)
+    key = ("expert", "reactive", 1, 0)
     row = score_episode(key, steps, "success", 10.0, robot_model, 2.0)
     line = encode_episode(row, step_rows(key, steps))
     assert "\n" not in line
