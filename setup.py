@@ -3,6 +3,6 @@ from catkin_pkg.python_setup import generate_distutils_setup
 from setuptools import setup
 
 setup(**generate_distutils_setup(packages=['ros_hrc', 'ros_hrc.pomdp', 'ros_hrc.world',
-                                           'ros_hrc.link', 'ros_hrc.nodes',
+                                           'ros_hrc.link', 'ros_hrc.loop', 'ros_hrc.nodes',
                                            'ros_hrc.processes', 'ros_hrc.experiment'],
                                  package_dir={'': 'src'}))

@@ -20,7 +20,7 @@ from pathlib import Path
 from common import percentile, write_result  # bench/common.py
 
 from ros_hrc.experiment.cli import main as hrc_experiment
-from ros_hrc.experiment.results import ResultsStore
+from ros_hrc.experiment.store import ResultsStore
 
 
 def main(argv=None) -> int:

@@ -2,8 +2,9 @@
 """Benchmark of the websocket link alone (no ROS, no planner, no world).
 
 * round trip: a MessageClient sends a realistic ``step`` (with the MDP's belief) and waits for
-  the server's ``ack`` — the cost the link adds to each hop of one loop step — p50 / p99 /
-  mean / max in ms, and the request/response rate;
+  the server's ``ack`` (matched by correlation id; the server's reply goes out through the
+  peer's outbox and writer thread) — the cost the link adds to each hop of one loop step —
+  p50 / p99 / mean / max in ms, and the request/response rate;
 * one-way throughput: the client sends messages back to back, the server's handler counts
   them: messages per second through the link;
 * codec: encode + decode of the same ``step`` message without a socket (the Sans-I/O share).
@@ -37,18 +38,17 @@ HUMAN_STATES = ("task_assigned", "success", "failed_to_grasp", "no_attention", "
 
 
 def sample_step(n: int) -> Step:
-    """A step as despot_mdp sends it: action, state, reward and an 8-state belief."""
+    """A step as despot_mdp sends it: action, state, reward, an 8-state belief, its epoch."""
     belief = {s: 0.2 / 7 for s in HUMAN_STATES}
     belief["evaluating"] = 0.8
     return Step(step=n, action="graspAttempt", state="evaluating", reward=-1.0, state_index=4,
-                belief=belief, manual=False, extra={"episode": 1})
-
-
+                belief=belief, manual=False, epoch=1)
 
 
 def bench_round_trip(count: int, warmup: int) -> Dict[str, float]:
     def ack(msg: Message, peer: Peer) -> Message:
-        return Ack(step=msg.step, of=msg.type, action="rPoint_obj", success=True, result="ok")
+        return Ack(step=msg.step, of=msg.type, action="rPoint_obj", success=True, result="ok",
+                   episode=1)
 
     with MessageServer(0, ack, name="bench-server") as server, \
             MessageClient(server.url, "bench-client") as client:

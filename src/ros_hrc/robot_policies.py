@@ -6,7 +6,7 @@ human needs help; only their *decisions* ignore that belief.
 
 ``ReactivePlanner``
     Treats the human's need for help as directly observable in the current observation and
-    decides deterministically, by the first rule that applies (bits of :mod:`ros_hrc.task`):
+    decides deterministically, by the first rule that applies (bits of :mod:`ros_hrc.loop.task`):
 
     1. ``warning``     WARNING (16) set                          -> rStop_all
     2. ``has_object``  HAS_OBJECT (8) set                        -> rIdle
@@ -37,7 +37,7 @@ from typing import Dict, Iterable, Optional
 
 import numpy as np
 
-from ros_hrc import task
+from ros_hrc.loop import task
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
 

@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ros_hrc import task
+from ros_hrc.loop import task
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp import belief as belief_mod
 from ros_hrc.pomdp.io import load_model
@@ -13,7 +13,7 @@ from ros_hrc.processes.despot_pomdp import RobotAgent, build_parser, build_plann
 from ros_hrc.robot_policies import (NoRobotConfig, NoRobotPlanner, ReactiveConfig,
                                     ReactivePlanner)
 
-# Observations by what they show (bit sums of ros_hrc.task).
+# Observations by what they show (bit sums of ros_hrc.loop.task).
 NOTHING_WRONG = task.VISIBLE | task.IN_RANGE | task.IDLE              # O35
 WARNING = task.WARNING | task.VISIBLE | task.IN_RANGE                 # O19
 HAS_OBJECT = task.HAS_OBJECT | task.IN_RANGE | task.VISIBLE           # O11

@@ -1,9 +1,13 @@
 """Experiments: the grid of human models x robot policies x seeds x episodes, and its results.
 
-  ros_hrc.experiment.results  rows, the CSV store an interrupted run resumes from,
-                              confidence intervals, summary tables and plots: pure Python,
-                              no ROS, no PyBullet
-  ros_hrc.experiment.runner   runs the grid through the real stack
+  ros_hrc.experiment.store       rows, the CSV store an interrupted run resumes from, the
+                                 lock on the results directory
+  ros_hrc.experiment.statistics  confidence intervals (Wilson, Student's t), summary tables
+  ros_hrc.experiment.plots       the PNG plots
+  ros_hrc.experiment.episode     scoring one episode from its steps
+  ros_hrc.experiment.stack       what a cell's worker runs; starting and stopping its hrc.launch
+  ros_hrc.experiment.cli         hrc_experiment: checks the grid, locks --out, runs the cells
 
-Nothing is imported here, so ``import ros_hrc.experiment.results`` pulls in no runner (and no ROS).
+None of them imports ROS; the worker's node is ``ros_hrc.nodes.experiment_cell``, which imports
+from here (never the reverse). Nothing is imported here, so each module stays cheap to import.
 """

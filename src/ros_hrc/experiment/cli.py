@@ -8,29 +8,54 @@ Running the same command again resumes: recorded episodes are kept and skipped.
 
     hrc_experiment --human-models beginner,tired --policies pomdp,reactive,no_robot \\
                    --seeds 0,1 --episodes 5 --out results/experiment
+
+The whole grid is checked before any stack starts (every model against the task's tables,
+every setting as hrc.launch checks it); a bad one is one line naming the argument or the file,
+exit status 2. ``--out`` is locked for the whole run: a second run on the same directory is
+refused. SIGINT or SIGTERM stops every cell's stack, keeps what was recorded and exits 130 or
+143; the same command then resumes.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shlex
+import signal
 import subprocess
 import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import List, Optional
+from typing import Callable, Dict, List, Optional, Set
 
 from ros_hrc.command_line import own_arguments
+from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import ROBOT_POLICIES
-from ros_hrc.experiment.results import (ResultsStore, plot_belief, plot_outcomes, summarize,
-                                        write_summary)
-from ros_hrc.experiment.stack import CellSpec, decode_episode, worker_command
+from ros_hrc.experiment.plots import plot_belief, plot_outcomes
+from ros_hrc.experiment.stack import (CellSpec, cell_name, check_launch_settings, decode_episode,
+                                      worker_command)
+from ros_hrc.experiment.statistics import summarize, write_summary
+from ros_hrc.experiment.store import DirectoryLocked, ResultsStore, lock_directory
+from ros_hrc.loop import settings
+from ros_hrc.loop.models import ModelNotFound, load_human_model, load_robot_model
+from ros_hrc.loop.settings import SettingError
 
 NAME = "hrc_experiment"
 DEFAULT_HUMANS = "beginner,tired,distracted"
 DEFAULT_POLICIES = ",".join(ROBOT_POLICIES)
+
+
+class GridError(HrcError):
+    """The grid cannot run: one line naming the argument or the file."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse whose errors are one line, ``hrc_experiment: argument --x: ...``, exit 2."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: {' '.join(message.split())}\n")
 
 
 def _names(text: str) -> List[str]:
@@ -41,36 +66,78 @@ def _names(text: str) -> List[str]:
 
 
 def _seeds(text: str) -> List[int]:
-    try:
-        return [int(part) for part in _names(text)]
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"seeds are integers, comma-separated: {exc}") from exc
+    seeds = []
+    for part in _names(text):
+        try:
+            seeds.append(settings.parse("seed", part))
+        except SettingError as exc:
+            raise argparse.ArgumentTypeError(f"seeds are integers >= 0, comma-separated, "
+                                             f"got {part!r}") from exc
+    return seeds
+
+
+def _at_least(minimum: int) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        try:
+            value = int(text.strip())
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, "
+                                             f"got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {text!r}")
+        return value
+
+    parse.__name__ = "int"
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=NAME, description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(prog=NAME, description=__doc__.split("\n\n")[0],
+                      formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--human-models", type=_names, default=_names(DEFAULT_HUMANS),
                    help=f"human scenarios or .pomdpx files, comma-separated ({DEFAULT_HUMANS})")
     p.add_argument("--policies", type=_names, default=_names(DEFAULT_POLICIES),
                    help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)}")
     p.add_argument("--seeds", type=_seeds, default=[0, 1], help="seeds, comma-separated (0,1)")
-    p.add_argument("--episodes", type=int, default=3, help="episodes per cell (3)")
-    p.add_argument("--step-limit", type=int, default=15, help="steps before an episode ends (15)")
-    p.add_argument("--jobs", type=int, default=0,
+    p.add_argument("--episodes", type=_at_least(1), default=3, help="episodes per cell (3)")
+    p.add_argument("--step-limit", type=_at_least(1), default=15,
+                   help="steps before an episode ends (15)")
+    p.add_argument("--jobs", type=_at_least(0), default=0,
                    help="stacks run side by side (0: one per core)")
     p.add_argument("--out", default="results/experiment", help="results directory")
-    p.add_argument("--robot-model", default="robot", help="robot POMDP for the pomdp policy")
-    p.add_argument("--human-choice", default="optimal", choices=("optimal", "softmax", "random"),
-                   help="how the simulated human picks actions")
-    p.add_argument("--time-per-step", type=float, default=0.05, help="DESPOT's budget, s")
-    p.add_argument("--max-trials", type=int, default=0,
-                   help="cap on DESPOT trials per decision (0: time only; set for exact repeats)")
-    p.add_argument("--reactive-budget", type=int, default=8,
-                   help="steps the reactive robot waits for success before it helps")
+    settings.add_argument(p, "robot_model")
+    settings.add_argument(p, "human_choice")
+    settings.add_argument(p, "time_per_step")
+    settings.add_argument(p, "max_trials")
+    settings.add_argument(p, "reactive_budget")
+    settings.add_argument(p, "scenarios")
+    settings.add_argument(p, "depth")
+    settings.add_argument(p, "lambda", dest="lambda_")
     p.add_argument("--bag", action="store_true", help="also record /hrc/status as a rosbag")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     return p
+
+
+def validate_grid(args: argparse.Namespace) -> None:
+    """Check the whole grid before any stack starts: the policies, every human model and the
+    robot model against the task's tables, every cell's launch settings. Raises HrcError with
+    one line naming the argument or the file and the offending names."""
+    unknown = [p for p in args.policies if p not in ROBOT_POLICIES]
+    if unknown:
+        raise GridError(f"--policies: unknown robot policies {', '.join(unknown)}; known: "
+                        f"{', '.join(ROBOT_POLICIES)}")
+    try:
+        load_robot_model(args.robot_model)
+    except ModelNotFound as exc:
+        raise GridError(f"--robot-model: {exc}") from None
+    for human in dict.fromkeys(args.human_models):
+        try:
+            load_human_model(human)
+        except ModelNotFound as exc:
+            raise GridError(f"--human-models: {exc}") from None
+    for spec in plan_cells(args, set()):
+        if spec.seed == args.seeds[0]:   # the settings do not depend on the seed otherwise
+            check_launch_settings(spec)
 
 
 def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
@@ -88,34 +155,102 @@ def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
                         step_limit=args.step_limit, log_dir=log_dir,
                         robot_model=args.robot_model, human_choice=args.human_choice,
                         time_per_step=args.time_per_step, max_trials=args.max_trials,
-                        reactive_budget=args.reactive_budget, record_bag=args.bag))
+                        reactive_budget=args.reactive_budget, scenarios=args.scenarios,
+                        depth=args.depth, lambda_=args.lambda_, record_bag=args.bag))
     return cells
 
 
-def _run_worker(cell: CellSpec, deliver, log) -> None:
+class Stopper:
+    """SIGINT / SIGTERM to hrc_experiment: every worker gets SIGTERM (each stops its own
+    stack), no new cell starts, and the run ends with what was recorded."""
+
+    def __init__(self) -> None:
+        self.signum: Optional[int] = None
+        self._lock = threading.Lock()
+        self._workers: Set[subprocess.Popen] = set()
+        self._previous: Dict[int, object] = {}
+
+    @property
+    def stopping(self) -> bool:
+        return self.signum is not None
+
+    def install(self) -> None:
+        """Catch SIGINT and SIGTERM (main thread only) until :meth:`uninstall`."""
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._previous[sig] = signal.signal(sig, self._on_signal)
+
+    def uninstall(self) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)  # type: ignore[arg-type]
+        self._previous.clear()
+
+    def _on_signal(self, signum: int, frame) -> None:
+        self.stop(signum)
+
+    def stop(self, signum: int) -> None:
+        """Stop the run: SIGTERM to every worker (again on a second signal)."""
+        if self.signum is None:
+            self.signum = signum
+        with self._lock:
+            workers = list(self._workers)
+        for proc in workers:
+            self._terminate(proc)
+
+    @staticmethod
+    def _terminate(proc: subprocess.Popen) -> None:
+        if proc.poll() is None:
+            try:
+                proc.send_signal(signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+
+    def add(self, proc: subprocess.Popen) -> None:
+        with self._lock:
+            self._workers.add(proc)
+        if self.stopping:   # the signal came while it was starting
+            self._terminate(proc)
+
+    def discard(self, proc: subprocess.Popen) -> None:
+        with self._lock:
+            self._workers.discard(proc)
+
+
+def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None) -> None:
     """Run one cell in its own process; ``deliver(row, steps)`` per episode as it ends."""
     proc = subprocess.Popen(worker_command(cell), stdin=subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    errors = []
-    reader = threading.Thread(target=lambda: errors.extend(proc.stderr), daemon=True)
-    reader.start()
-    for line in proc.stdout:
-        episode = decode_episode(line)
-        if episode is not None:
-            deliver(*episode)
-    proc.wait()
-    reader.join(5.0)
+    if stopper is not None:
+        stopper.add(proc)
+    try:
+        errors: List[str] = []
+        reader = threading.Thread(target=lambda: errors.extend(proc.stderr), daemon=True)
+        reader.start()
+        for line in proc.stdout:
+            try:
+                episode = decode_episode(line)
+            except (ValueError, KeyError) as exc:   # a line cut short: the episode reruns
+                errors.append(f"unreadable episode line ({exc}): {line[:80]!r}\n")
+                continue
+            if episode is not None:
+                deliver(*episode)
+        proc.wait()
+        reader.join(5.0)
+    finally:
+        if stopper is not None:
+            stopper.discard(proc)
     if errors:
         log.write("".join(errors))
-    if proc.returncode != 0:
+    if proc.returncode != 0 and not (stopper is not None and stopper.stopping):
         last = errors[-1].strip() if errors else f"exit code {proc.returncode}"
         raise RuntimeError(last)
 
 
-def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int) -> dict:
+def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int,
+             stopper: Optional[Stopper] = None) -> dict:
     """Run the cells side by side; record episodes as they come. Returns run figures."""
     from tqdm import tqdm
 
+    stopper = stopper or Stopper()
     total = sum(len(c.episodes) for c in cells)
     started = time.monotonic()
     figures = {"episodes": 0, "simulated_seconds": 0.0}
@@ -136,10 +271,12 @@ def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int) -> dict:
                 bar.update(1)
 
         def run(cell: CellSpec) -> None:
-            name = f"{cell.human_model}-{cell.robot_policy}-seed{cell.seed}"
+            if stopper.stopping:
+                return
+            name = cell_name(cell)
             with open(logs / f"{name}.worker.log", "a") as log:
                 try:
-                    _run_worker(cell, deliver, log)
+                    _run_worker(cell, deliver, log, stopper)
                 except (RuntimeError, OSError) as exc:
                     with lock:
                         failures.append(f"{name}: {exc}")
@@ -171,23 +308,37 @@ def report(store: ResultsStore, out: Path, plots: bool) -> None:
     print(f"{NAME}: written " + ", ".join(str(p) for p in written))
 
 
+def _error(text: object) -> int:
+    print(f"{NAME}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
+    return 2
+
+
 def main(argv: Optional[list] = None) -> int:
-    args = build_parser().parse_args(own_arguments(argv))
-    unknown = [p for p in args.policies if p not in ROBOT_POLICIES]
-    if unknown:
-        print(f"{NAME}: unknown robot policies {', '.join(unknown)}; known: "
-              f"{', '.join(ROBOT_POLICIES)}", file=sys.stderr)
-        return 2
-    if args.episodes < 1 or args.step_limit < 1:
-        print(f"{NAME}: --episodes and --step-limit must be at least 1", file=sys.stderr)
-        return 2
+    words = own_arguments(argv)
+    try:
+        args = build_parser().parse_args(words)
+        validate_grid(args)
+    except HrcError as exc:
+        return _error(exc)
+    except KeyboardInterrupt:
+        return 130
     out = Path(args.out).expanduser()
     args.jobs = args.jobs or os.cpu_count() or 1
     try:
+        lock = lock_directory(out)
+    except DirectoryLocked as exc:
+        return _error(exc)
+    except OSError as exc:
+        return _error(f"--out {out}: {exc.strerror or exc}")
+    with lock:
+        return _run_locked(args, out, words)
+
+
+def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
+    try:
         store = ResultsStore(out)
     except (OSError, ValueError) as exc:
-        print(f"{NAME}: {exc}", file=sys.stderr)
-        return 2
+        return _error(exc)
     cells = plan_cells(args, store.done())
     total = sum(len(c.episodes) for c in cells)
     grid = len(args.human_models) * len(args.policies) * len(args.seeds) * args.episodes
@@ -197,12 +348,20 @@ def main(argv: Optional[list] = None) -> int:
           "stacks side by side", flush=True)
     figures = None
     if cells:
+        stopper = Stopper()
+        stopper.install()
         try:
-            figures = run_grid(cells, store, args.jobs)
-        except KeyboardInterrupt:
-            print(f"\n{NAME}: interrupted; {len(store.done())} episodes are kept in {out}: "
-                  "run the same command again to resume", file=sys.stderr)
-            return 130
+            figures = run_grid(cells, store, args.jobs, stopper)
+        except KeyboardInterrupt:   # a signal before the handlers were in place
+            stopper.stop(signal.SIGINT)
+        finally:
+            stopper.uninstall()
+        if stopper.stopping:
+            name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
+            print(f"\n{NAME}: stopped by {name}; {len(store.done())} episodes are kept in {out}. "
+                  f"Resume with: {shlex.join([NAME] + list(words))}", file=sys.stderr, flush=True)
+            return 128 + int(stopper.signum)  # type: ignore[arg-type]
+        assert figures is not None
         print(f"{NAME}: {figures['episodes']} episodes in {figures['wall_seconds']:.1f} s: "
               f"{figures['episodes_per_minute']:.1f} episodes/min, "
               f"{figures['simulated_seconds']:.1f} simulated s, "

@@ -7,12 +7,12 @@ object_left_belt``. No ROS here: the experiment's ROS side hands these over.
 """
 from __future__ import annotations
 
-from typing import Dict, Optional, Sequence
+from typing import Dict, Sequence
 
 import numpy as np
 
-from ros_hrc import task
-from ros_hrc.experiment.results import EpisodeKey, EpisodeRow, StepRow
+from ros_hrc.loop import task
+from ros_hrc.experiment.store import EpisodeKey, EpisodeRow, StepRow
 from ros_hrc.pomdp.model import Model
 
 #: Robot policies of a grid -> the robot process's ``--planner``.
@@ -24,22 +24,6 @@ ROBOT_POLICIES: Dict[str, str] = {
 
 #: Robot actions that intrude when the human does not need help.
 HELPING_ACTIONS = frozenset({"rGrasp_obj", "rPoint_obj"})
-
-
-def end_reason(steps: Sequence, step_limit: int) -> Optional[str]:
-    """Why the episode is over after its last step, or None while it goes on: ``success``
-    (someone holds the object), ``object_left_belt`` (nobody took it in time) or
-    ``step_limit``."""
-    if not steps:
-        return None
-    last = steps[-1]
-    if last.object_holder in ("human", "robot"):
-        return "success"
-    if last.object_left_belt:
-        return "object_left_belt"
-    if step_limit and len(steps) >= step_limit:
-        return "step_limit"
-    return None
 
 
 def needs_help_mass(step) -> float:

@@ -1,111 +1,172 @@
-"""One cell of an experiment grid on a whole stack of its own (the ROS side of experiments).
+"""One cell of an experiment grid on a whole stack of its own: what a worker runs, and how it
+starts and stops that stack. No ROS here.
 
-A cell is (human model, robot policy, seed). :func:`run_cell` starts ``hrc.launch`` headless
-on simulated time, as fast as the machine goes, with a roscore and websocket ports of its own
-(so several cells run side by side), then for each episode: ``/hrc/reset``, read the world's
-clock, collect ``/hrc/status`` until the episode is over (success, the object left the belt, or
-the step limit), score it, and hand the row over. The MDP and the robot run exactly as in
-``roslaunch ros_hrc hrc.launch``: nothing is simulated around them.
+A cell is (human model, robot policy, seed). Its worker process (``python -m
+ros_hrc.nodes.experiment_cell SPEC_JSON``, see :func:`worker_command`; rospy allows one node per
+process) starts ``hrc.launch`` headless on simulated time, as fast as the machine goes, with a
+roscore and websocket ports of its own (:func:`start_stack`, so several cells run side by
+side), drives its episodes, and writes one line per episode on its standard output,
+``EPISODE {json}`` (:func:`encode_episode`), as soon as the episode ends. The MDP and the robot
+run exactly as in ``roslaunch ros_hrc hrc.launch``: nothing is simulated around them.
 
-Each cell runs in a process of its own (``python -m ros_hrc.experiment.stack SPEC_JSON``, what
-``hrc_experiment`` starts): rospy allows one node per process. The ROS side of a cell, the node
-that resets and watches the stack, is :mod:`ros_hrc.nodes.experiment_cell`, imported only
-once ``ROS_MASTER_URI`` points at the cell's own master. The process writes one line per episode on
-its standard output, ``EPISODE {json}``, as soon as the episode ends.
+Imports point down: the worker (``ros_hrc.nodes.experiment_cell``) imports this module; nothing
+in ``ros_hrc.experiment`` imports ``ros_hrc.nodes``.
 """
 from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, List, Optional, Sequence
+from typing import Any, Dict, List, Mapping, Sequence
 
 from ros_hrc.experiment.episode import ROBOT_POLICIES
-from ros_hrc.experiment.results import EpisodeRow, StepRow
+from ros_hrc.experiment.store import EpisodeRow, StepRow
 from ros_hrc.link.transport import free_port
-from ros_hrc.model_files import resolve_model
-from ros_hrc.pomdp.io import load_model
+from ros_hrc.loop import settings
+
+#: The module a worker process runs (``python -m``).
+WORKER_MODULE = "ros_hrc.nodes.experiment_cell"
 
 
 @dataclass
 class CellSpec:
-    """What one worker runs."""
+    """What one worker runs. Defaults of the launch settings come from ros_hrc.loop.settings."""
     human_model: str
     robot_policy: str
     seed: int
     episodes: Sequence[int]             # episode numbers still to record (resume skips others)
     step_limit: int = 20
     log_dir: str = "."
-    robot_model: str = "robot"
-    human_choice: str = "optimal"
-    time_per_step: float = 0.05
-    max_trials: int = 0
-    reactive_budget: int = 8
+    robot_model: str = settings.default("robot_model")
+    human_choice: str = settings.default("human_choice")
+    time_per_step: float = settings.default("time_per_step")
+    max_trials: int = settings.default("max_trials")
+    reactive_budget: int = settings.default("reactive_budget")
+    scenarios: int = settings.default("scenarios")
+    depth: int = settings.default("depth")
+    lambda_: float = settings.default("lambda")
     extra_args: List[str] = field(default_factory=list)   # more hrc.launch arguments
     episode_timeout: float = 600.0      # wall seconds without a step before giving up
     record_bag: bool = False            # rosbag of /hrc/status next to the logs
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self))
+
+    @classmethod
+    def from_json(cls, text: str) -> "CellSpec":
+        data = json.loads(text)
+        data["episodes"] = list(data["episodes"])
+        return cls(**data)
 
 
 class CellFailed(RuntimeError):
     """The stack of a cell did not come up or stopped stepping."""
 
 
-def launch_arguments(spec: CellSpec, ports: dict) -> List[str]:
-    """``hrc.launch`` arguments for a cell: headless, simulated time, fastest pace, the
-    driver decides when episodes end (so the MDP never waits for a reset by itself)."""
+def cell_name(spec: CellSpec) -> str:
+    """``<human>-<policy>-seed<seed>``, safe as a file name (a model given as a path keeps its
+    stem), for the cell's log files and messages."""
+    human = spec.human_model
+    if "/" in human or human.endswith((".pomdp", ".pomdpx")):
+        human = Path(human).stem
+    name = f"{human}-{spec.robot_policy}-seed{spec.seed}"
+    return re.sub(r"[^A-Za-z0-9._+-]", "_", name)
+
+
+def _launch_text(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
+    """The ``hrc.launch`` arguments of a cell, name -> text: headless, simulated time, fastest
+    pace; the coordinator ends episodes by the world (someone holds the object, it left the
+    belt) or the step limit, and starts the next one at once.
+    ``spec.extra_args`` (``name:=value``) come last and win."""
     if spec.robot_policy not in ROBOT_POLICIES:
         raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
                          f"{', '.join(ROBOT_POLICIES)}")
-    return [
-        f"human_model:={spec.human_model}", f"robot_model:={spec.robot_model}",
-        f"planner:={ROBOT_POLICIES[spec.robot_policy]}", f"seed:={spec.seed}",
-        "mode:=auto", "gui:=false", "use_sim_time:=true", "real_time_factor:=0",
-        "step_delay:=0", "max_steps:=0", "on_episode_end:=continue", "read_stdin:=false",
-        f"human_choice:={spec.human_choice}", f"time_per_step:={spec.time_per_step}",
-        f"max_trials:={spec.max_trials}", f"reactive_budget:={spec.reactive_budget}",
-        f"pomdp_port:={ports['pomdp']}", f"robot_port:={ports['robot']}",
-        f"human_port:={ports['human']}",
-    ] + list(spec.extra_args)
+    values = {
+        "human_model": spec.human_model, "robot_model": spec.robot_model,
+        "planner": ROBOT_POLICIES[spec.robot_policy], "seed": spec.seed,
+        "mode": "auto", "gui": False, "use_sim_time": True, "real_time_factor": 0,
+        "step_delay": 0, "max_steps": spec.step_limit, "on_episode_end": "reset",
+        "end_on_goal": False, "read_stdin": False,
+        "human_choice": spec.human_choice, "time_per_step": spec.time_per_step,
+        "max_trials": spec.max_trials, "reactive_budget": spec.reactive_budget,
+        "scenarios": spec.scenarios, "depth": spec.depth, "lambda": spec.lambda_,
+        "pomdp_port": ports["pomdp"], "robot_port": ports["robot"], "human_port": ports["human"],
+    }
+    out = {name: _launch_text(value) for name, value in values.items()}
+    for word in spec.extra_args:
+        name, sep, value = word.partition(":=")
+        if not sep or not name:
+            raise ValueError(f"extra launch argument {word!r}: expected name:=value")
+        out[name] = value
+    return out
+
+
+def launch_arguments(spec: CellSpec, ports: Mapping[str, int]) -> List[str]:
+    """``hrc.launch`` arguments for a cell, as ``name:=value`` words."""
+    return [f"{name}:={value}" for name, value in launch_settings(spec, ports).items()]
+
+
+def check_launch_settings(spec: CellSpec) -> Dict[str, Any]:
+    """The cell's launch arguments resolved by ros_hrc.loop.settings (on stand-in ports);
+    raises SettingError (one line) for a bad one, before any stack starts."""
+    stand_in = {"pomdp": settings.default("pomdp_port"), "robot": settings.default("robot_port"),
+                "human": settings.default("human_port")}
+    return settings.resolve(launch_settings(spec, stand_in))
+
+
+def pick_ports() -> Dict[str, int]:
+    """Free ports for a cell's master and its three websocket links."""
+    return {name: free_port() for name in ("master", "pomdp", "robot", "human")}
+
+
+def stack_environment(ports: Mapping[str, int], log_dir: Path) -> Dict[str, str]:
+    """The environment a cell's processes (roslaunch, and the worker's own node) share: the
+    cell's own master, logs under the cell's log folder."""
+    return {"ROS_MASTER_URI": f"http://127.0.0.1:{ports['master']}",
+            "ROS_LOG_DIR": str(Path(log_dir) / "ros")}
+
+
+def start_stack(spec: CellSpec, ports: Mapping[str, int], log_dir: Path) -> subprocess.Popen:
+    """Start the cell's ``hrc.launch`` (with a roscore on ``ports['master']``) in a session of
+    its own, output into ``<log_dir>/<cell>.log``. Stop it with :func:`stop_launched`."""
+    log_dir = Path(log_dir)
+    log_dir.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ)
+    env.update(stack_environment(ports, log_dir))
+    cmd = ["roslaunch", "-p", str(ports["master"]), "ros_hrc", "hrc.launch"]
+    cmd += launch_arguments(spec, ports)
+    with open(log_dir / f"{cell_name(spec)}.log", "wb") as log:
+        return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
+                                stderr=subprocess.STDOUT, start_new_session=True, env=env)
 
 
 def stop_launched(proc: subprocess.Popen, grace: float = 60.0) -> None:
     """Stop a roslaunch (or rosbag) started with ``start_new_session=True`` as Ctrl-C would:
     SIGINT to its whole process group, SIGKILL if it is still there after ``grace`` s."""
     if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            os.killpg(proc.pid, signal.SIGINT)
+        except ProcessLookupError:
+            pass
         try:
             proc.wait(grace)
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
             proc.wait()
-
-
-def run_cell(spec: CellSpec, deliver: Callable[[object, list], None]) -> int:
-    """Run the cell's episodes; ``deliver(episode_row, step_rows)`` for each one as it ends.
-    Returns how many episodes were delivered; raises CellFailed if the stack fails."""
-    if not spec.episodes:
-        return 0
-    model = load_model(str(resolve_model(spec.robot_model, "robot")))
-    ports = {name: free_port() for name in ("master", "pomdp", "robot", "human")}
-    log_dir = Path(spec.log_dir)
-    log_dir.mkdir(parents=True, exist_ok=True)
-    name = f"{spec.human_model}-{spec.robot_policy}-seed{spec.seed}"
-    os.environ["ROS_MASTER_URI"] = f"http://127.0.0.1:{ports['master']}"
-    os.environ["ROS_LOG_DIR"] = str(log_dir / "ros")
-    cmd = ["roslaunch", "-p", str(ports["master"]), "ros_hrc", "hrc.launch"]
-    cmd += launch_arguments(spec, ports)
-    with open(log_dir / f"{name}.log", "wb") as log:
-        proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
-                                stderr=subprocess.STDOUT, start_new_session=True)
-    try:
-        from ros_hrc.nodes.experiment_cell import drive_cell   # rospy: ROS_MASTER_URI is set
-        return drive_cell(spec, model, proc, deliver, name, log_dir)
-    finally:
-        stop_launched(proc)
 
 
 #: Prefix of a worker's stdout line carrying a finished episode.
@@ -128,26 +189,4 @@ def decode_episode(line: str):
 
 def worker_command(spec: CellSpec) -> List[str]:
     """The command that runs ``spec`` in a process of its own."""
-    return [sys.executable, "-m", "ros_hrc.experiment.stack", json.dumps(asdict(spec))]
-
-
-def main(argv: Optional[list] = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    spec_dict = json.loads(argv[0])
-    spec_dict["episodes"] = list(spec_dict["episodes"])
-    spec = CellSpec(**spec_dict)
-
-    def deliver(row, steps) -> None:
-        print(encode_episode(row, steps), flush=True)
-
-    try:
-        run_cell(spec, deliver)
-    except (CellFailed, OSError, ValueError) as exc:
-        print(f"cell {spec.human_model}/{spec.robot_policy}/seed {spec.seed} failed: {exc}",
-              file=sys.stderr, flush=True)
-        return 1
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return [sys.executable, "-m", WORKER_MODULE, spec.to_json()]

@@ -1,4 +1,5 @@
-"""The websocket protocol of DESIGN §6, Sans-I/O: messages, encoding, decoding, validation.
+"""The websocket protocol of DESIGN §6 (version 2), Sans-I/O: messages, encoding, decoding,
+validation, reply matching and dispatch.
 
 No socket here (and no websocket library): every function is pure and tested without a
 network. :mod:`ros_hrc.link.transport` moves the text frames this module produces.
@@ -11,33 +12,50 @@ One text frame carries one JSON object with a ``"type"``. Message types and thei
     step         step, action, state, reward?, state_index?, belief? {state: p}, manual?
                                                            MDP -> human node (9090)
     observation  step, observation, bits, state            observer -> POMDP (7070)
-    action       step, action, belief [p...], belief_states?, decision_ms?
-                                                           POMDP -> robot node (8080)
-    reset        reason?                                   start again from step 0
+    decision     step, action, belief [p...], belief_states?, decision_ms?, surprise?, rule?
+                                                           POMDP -> observer: answers observation
+    action       step, action, belief? [p...], belief_states?, decision_ms?
+                                                           "carry out this action" -> robot node
+    reset        reason?, episode?                         start again from step 0
     next_state   state (int, or null: let the model choose)  human node -> MDP (9090)
-    ack          step, of?, action?, success?, result?     "done"; may carry what was done
-    error        message, in_reply_to?, step?              answer to a rejected message
+    ack          step, of?, action?, success?, result?, episode?, episode_over?, end_reason?
+                                                           "done"; may carry what was done
+    error        message, code?, in_reply_to?, step?       answer to a rejected or failed message
+
+Every message also carries the optional **envelope** (keyword-only, omitted when ``None``):
+``epoch`` (the loop's epoch, minted once per reset by the coordinator), ``id`` (the
+correlation id of a request) and ``reply_to`` (the ``id`` of the request a reply answers).
+Each is an integer in ``0..MAX_ENVELOPE_INT`` (2**53 - 1: exact in every JSON reader).
 
 Names never change; fields may grow: unknown extra fields are kept in ``Message.extra`` and
 sent on again by :func:`encode`. ``docs/protocol.md`` is the full description.
+
+Replies: :func:`is_reply_to` says whether a message answers a request (by ``reply_to`` when
+the request has an ``id``); :func:`as_reply` stamps a reply with its request's ``id`` and
+``epoch``; :func:`reply_error` builds the :class:`Error` answering a request;
+:class:`DispatchTable` routes a message to its handler by type and refuses the types it does
+not take. An ``error`` is never answered with an ``error``.
 
 Exception tree (the first two live in :mod:`ros_hrc.errors`)::
 
     LinkError
     └── ProtocolError          a message is malformed, of an unknown type or too large
-        └── MessageError       raised here; carries .reason, and .msg_type / .step when they
-                               could be read, so an error reply can say what it answers
+        └── MessageError       raised here; carries .reason and .code, and .msg_type / .step /
+                               .msg_id / .epoch when they could be read, so an error reply
+                               can say what it answers
 """
 from __future__ import annotations
 
 import json
 import math
-from dataclasses import MISSING, dataclass, field, fields
-from typing import Any, ClassVar, Dict, List, Mapping, Optional, Sequence, Tuple, Type, Union
+import re
+from dataclasses import MISSING, dataclass, field, fields, replace
+from typing import (Any, Callable, ClassVar, Dict, FrozenSet, List, Mapping, Optional, Sequence,
+                    Tuple, Type, TypeVar, Union)
 
 from ros_hrc.errors import ProtocolError
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 #: Largest encoded message, in UTF-8 bytes. A whole step (a belief over a few dozen states
 #: and its names) is under 2 KiB; 64 KiB leaves room for growth and still bounds memory.
 MAX_MESSAGE_BYTES = 64 * 1024
@@ -46,21 +64,56 @@ MAX_MESSAGE_BYTES = 64 * 1024
 BELIEF_TOLERANCE = 1e-4
 #: Bit patterns of an observation (DESIGN §4: six bits).
 MAX_BITS = 63
+#: Largest ``epoch`` / ``id`` / ``reply_to``: 2**53 - 1, the largest integer every JSON reader
+#: (a double) holds exactly.
+MAX_ENVELOPE_INT = 2 ** 53 - 1
+#: The envelope fields every message type has, in wire order.
+ENVELOPE_FIELDS = ("epoch", "id", "reply_to")
+
+# -- error codes (Error.code): machine-readable, stable; Error.message is for people -------------
+#: The message belongs to an older epoch (sent before the latest reset): dropped, not applied.
+ERR_STALE = "stale"
+#: The receiver is still working on an earlier request and takes one at a time.
+ERR_BUSY = "busy"
+#: The role is already taken by another connected client: this connection is refused.
+ERR_SEAT_TAKEN = "seat_taken"
+#: The frame or message is malformed (not JSON, a missing or bad field, too large, ...).
+ERR_INVALID = "invalid"
+#: The receiver does not take messages of this type (unknown to the protocol, or not for it).
+ERR_UNKNOWN_TYPE = "unknown_type"
+#: Well formed but not acceptable now (an unknown action name, a next_state in auto mode, ...).
+ERR_REFUSED = "refused"
+#: Taking the message failed (an exception in the handler, a world fault, ...).
+ERR_FAILED = "failed"
+#: The peer speaks another protocol version (answers a ``hello``).
+ERR_VERSION = "version"
+#: Every code this module defines (a receiver must accept others too: fields may grow).
+ERROR_CODES: FrozenSet[str] = frozenset((ERR_STALE, ERR_BUSY, ERR_SEAT_TAKEN, ERR_INVALID,
+                                         ERR_UNKNOWN_TYPE, ERR_REFUSED, ERR_FAILED, ERR_VERSION))
+
 # Error texts quote at most this much of an offending value, so a reply stays small.
 _PREVIEW_CHARS = 40
 _MAX_ERROR_CHARS = 1000
+# A JSON escape of a UTF-16 surrogate: the only way a parsed string can hold a lone one.
+_SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
 
 
 class MessageError(ProtocolError):
-    """A frame was rejected. ``reason`` says why; ``msg_type`` and ``step`` say which
-    message it was, when they could be read (else ``None``)."""
+    """A frame was rejected. ``reason`` says why and ``code`` how (:data:`ERR_INVALID`, or
+    :data:`ERR_UNKNOWN_TYPE` for a type this protocol does not have); ``msg_type``, ``step``,
+    ``msg_id`` and ``epoch`` say which message it was, when they could be read (else
+    ``None``)."""
 
     def __init__(self, reason: str, msg_type: Optional[str] = None,
-                 step: Optional[int] = None) -> None:
+                 step: Optional[int] = None, msg_id: Optional[int] = None,
+                 epoch: Optional[int] = None, code: str = ERR_INVALID) -> None:
         super().__init__(reason)
         self.reason = reason
         self.msg_type = msg_type
         self.step = step
+        self.msg_id = msg_id
+        self.epoch = epoch
+        self.code = code
 
 
 def _kind(value: Any) -> str:
@@ -86,8 +139,17 @@ def _preview(value: Any) -> str:
     try:
         text = json.dumps(value, ensure_ascii=False)
     except (TypeError, ValueError):
-        text = repr(value)
+        try:
+            text = repr(value)
+        except ValueError:  # an int too long for str()
+            text = f"<{_kind(value)}>"
     return text if len(text) <= _PREVIEW_CHARS else text[:_PREVIEW_CHARS] + "..."
+
+
+def _is_count(value: Any, maximum: Optional[int] = None) -> bool:
+    """A JSON integer >= 0 (and <= ``maximum``): not a bool, not a float."""
+    return (isinstance(value, int) and not isinstance(value, bool) and value >= 0
+            and (maximum is None or value <= maximum))
 
 
 class _Checker:
@@ -109,23 +171,33 @@ class _Checker:
             raise self.fail(name, f"must be an integer, {self._got(value)}")
         if value < minimum or (maximum is not None and value > maximum):
             bounds = f"in {minimum}..{maximum}" if maximum is not None else f">= {minimum}"
-            raise self.fail(name, f"must be {bounds}, got {value}")
+            raise self.fail(name, f"must be {bounds}, got {_preview(value)}")
         return value
 
     def number(self, name: str, value: Any, minimum: Optional[float] = None) -> float:
         if not isinstance(value, (int, float)) or isinstance(value, bool):
             raise self.fail(name, f"must be a number, {self._got(value)}")
+        try:
+            value = float(value)
+        except OverflowError:  # an integer too large for a double
+            raise self.fail(name, "must be finite, got a number too large") from None
         if not math.isfinite(value):
             raise self.fail(name, f"must be finite, got {value}")
         if minimum is not None and value < minimum:
             raise self.fail(name, f"must be >= {minimum}, got {value}")
-        return float(value)
+        return value
 
     def text(self, name: str, value: Any) -> str:
         if not isinstance(value, str):
             raise self.fail(name, f"must be a string, {self._got(value)}")
         if not value:
             raise self.fail(name, "must not be empty")
+        return value
+
+    def any_text(self, name: str, value: Any) -> str:
+        """A string that may be empty."""
+        if not isinstance(value, str):
+            raise self.fail(name, f"must be a string, {self._got(value)}")
         return value
 
     def flag(self, name: str, value: Any) -> bool:
@@ -160,13 +232,10 @@ class _Checker:
         return probs
 
     def probability(self, name: str, value: Any) -> float:
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise self.fail(name, f"must be a number, {self._got(value)}")
-        if not math.isfinite(value):
-            raise self.fail(name, f"must be finite, got {value}")
+        value = self.number(name, value)
         if value < 0:
             raise self.fail(name, f"must not be negative, got {value}")
-        return float(value)
+        return value
 
     def names(self, name: str, value: Any) -> Tuple[str, ...]:
         if not isinstance(value, (list, tuple)):
@@ -176,17 +245,29 @@ class _Checker:
             raise self.fail(name, "must not repeat a name")
         return items
 
+    def belief_names(self, belief: Optional[Tuple[float, ...]], value: Any) -> Tuple[str, ...]:
+        """``belief_states``: names for the probabilities of ``belief``, same length."""
+        names = self.names("belief_states", value)
+        if belief is None:
+            raise self.fail("belief_states", "is given without a belief")
+        if len(names) != len(belief):
+            raise self.fail("belief_states", f"has {len(names)} names for "
+                                             f"{len(belief)} probabilities")
+        return names
+
 
 _FIELD_CACHE: Dict[type, Tuple[Tuple[str, bool], ...]] = {}
 
 
 def _wire_fields(cls: type) -> Tuple[Tuple[str, bool], ...]:
-    """(name, required) of a message class's wire fields, in order; cached, since
-    ``dataclasses.fields`` is the slowest part of building a message."""
+    """(name, required) of a message class's wire fields in wire order (the type's own fields,
+    then the envelope); cached, since ``dataclasses.fields`` is the slowest part of building
+    a message."""
     cached = _FIELD_CACHE.get(cls)
     if cached is None:
-        cached = tuple((f.name, f.default is MISSING and f.default_factory is MISSING)
-                       for f in fields(cls) if f.name != "extra")
+        own = tuple((f.name, f.default is MISSING and f.default_factory is MISSING)
+                    for f in fields(cls) if f.name != "extra" and f.name not in ENVELOPE_FIELDS)
+        cached = own + tuple((name, False) for name in ENVELOPE_FIELDS)
         _FIELD_CACHE[cls] = cached
     return cached
 
@@ -196,11 +277,20 @@ class Message:
     """Base of every message. ``type`` is the wire name; ``extra`` holds fields this version
     does not know (kept, and sent on again by :func:`encode`).
 
+    The envelope, on every type (keyword-only, optional): ``epoch`` (the loop's epoch: minted
+    once per reset by the coordinator; a message of an older epoch is stale), ``id`` (the
+    correlation id of a request; :meth:`MessageClient.request
+    <ros_hrc.link.transport.MessageClient.request>` stamps a fresh one) and ``reply_to`` (the
+    ``id`` of the request this message answers).
+
     Constructing a message validates it (raising :class:`MessageError`), so an invalid
     message can be neither sent nor received."""
 
     TYPE: ClassVar[str] = ""
     extra: Mapping[str, Any] = field(default_factory=dict, kw_only=True)
+    epoch: Optional[int] = field(default=None, kw_only=True)
+    id: Optional[int] = field(default=None, kw_only=True)
+    reply_to: Optional[int] = field(default=None, kw_only=True)
 
     def __post_init__(self) -> None:
         check = _Checker(self.TYPE)
@@ -211,6 +301,10 @@ class Message:
         if clash:
             raise check.fail(clash[0], "is a named field and cannot also be an extra field")
         object.__setattr__(self, "extra", dict(self.extra))
+        for name in ENVELOPE_FIELDS:
+            value = getattr(self, name)
+            if value is not None:
+                check.integer(name, value, maximum=MAX_ENVELOPE_INT)
         self._validate(check)
 
     @property
@@ -226,7 +320,8 @@ class Message:
 
     def to_dict(self) -> Dict[str, Any]:
         """The JSON object of this message: ``type`` first, then required fields (even a null
-        ``next_state.state``), optional fields only when set, then the extras."""
+        ``next_state.state``), optional fields only when set, the envelope when set, then the
+        extras."""
         out: Dict[str, Any] = {"type": self.TYPE}
         for name, required in _wire_fields(type(self)):
             value = getattr(self, name)
@@ -284,7 +379,8 @@ class Step(Message):
 class Observation(Message):
     """Observer -> POMDP: the robot's observation after step ``step`` (its name, e.g. ``O35``,
     and the raw predicate ``bits`` 0..63, which may differ when the pattern was mapped to the
-    nearest legal one) and the robot model's true ``state`` (e.g. ``S2``, for reporting)."""
+    nearest legal one) and the robot model's true ``state`` (e.g. ``S2``, for reporting).
+    Answered with a :class:`Decision` (or an :class:`Error`)."""
 
     TYPE: ClassVar[str] = "observation"
     step: int
@@ -300,42 +396,77 @@ class Observation(Message):
 
 
 @dataclass(frozen=True)
-class Action(Message):
-    """POMDP -> robot node: the robot's ``action`` for step ``step`` and its ``belief`` (a
+class Decision(Message):
+    """The robot planner's answer to an :class:`Observation` (observer <- POMDP): the
+    ``action`` it chose for step ``step`` and its ``belief`` after the observation (a
     probability per model state, in model order). Optional: ``belief_states`` (the states'
-    names, same length) and ``decision_ms`` (planning time)."""
+    names, same length), ``decision_ms`` (planning time), ``surprise`` (the observation had
+    probability 0 under the belief: the planner fell back to a documented belief) and
+    ``rule`` (which rule of a baseline robot chose the action). A reply: it carries
+    ``reply_to`` and ``epoch`` of the observation."""
 
-    TYPE: ClassVar[str] = "action"
+    TYPE: ClassVar[str] = "decision"
     step: int
     action: str
     belief: Sequence[float]
     belief_states: Optional[Sequence[str]] = None
     decision_ms: Optional[float] = None
+    surprise: Optional[bool] = None
+    rule: Optional[str] = None
 
     def _validate(self, check: _Checker) -> None:
         self._set("step", check.integer("step", self.step))
         self._set("action", check.text("action", self.action))
         self._set("belief", check.belief_list("belief", self.belief))
         if self.belief_states is not None:
-            names = check.names("belief_states", self.belief_states)
-            if len(names) != len(self.belief):
-                raise check.fail("belief_states", f"has {len(names)} names for "
-                                                  f"{len(self.belief)} probabilities")
-            self._set("belief_states", names)
+            self._set("belief_states", check.belief_names(self.belief, self.belief_states))
+        if self.decision_ms is not None:
+            self._set("decision_ms", check.number("decision_ms", self.decision_ms, minimum=0.0))
+        if self.surprise is not None:
+            self._set("surprise", check.flag("surprise", self.surprise))
+        if self.rule is not None:
+            self._set("rule", check.text("rule", self.rule))
+
+
+@dataclass(frozen=True)
+class Action(Message):
+    """"Carry out this action": the coordinator's order to the robot node, the robot's
+    ``action`` for step ``step``. Optional: the ``belief`` it was chosen with (a probability
+    per model state, in model order; the robot node needs none), ``belief_states`` (the
+    states' names, same length, only with a belief) and ``decision_ms`` (planning time)."""
+
+    TYPE: ClassVar[str] = "action"
+    step: int
+    action: str
+    belief: Optional[Sequence[float]] = None
+    belief_states: Optional[Sequence[str]] = None
+    decision_ms: Optional[float] = None
+
+    def _validate(self, check: _Checker) -> None:
+        self._set("step", check.integer("step", self.step))
+        self._set("action", check.text("action", self.action))
+        if self.belief is not None:
+            self._set("belief", check.belief_list("belief", self.belief))
+        if self.belief_states is not None:
+            self._set("belief_states", check.belief_names(self.belief, self.belief_states))
         if self.decision_ms is not None:
             self._set("decision_ms", check.number("decision_ms", self.decision_ms, minimum=0.0))
 
 
 @dataclass(frozen=True)
 class Reset(Message):
-    """Start again: world, beliefs and step counter go back to step 0. ``reason`` is for logs."""
+    """Start again: world, beliefs and step counter go back to step 0. ``reason`` is for logs;
+    ``episode`` is the number of the episode that starts."""
 
     TYPE: ClassVar[str] = "reset"
     reason: Optional[str] = None
+    episode: Optional[int] = None
 
     def _validate(self, check: _Checker) -> None:
         if self.reason is not None:
             self._set("reason", check.text("reason", self.reason))
+        if self.episode is not None:
+            self._set("episode", check.integer("episode", self.episode))
 
 
 @dataclass(frozen=True)
@@ -355,7 +486,9 @@ class NextState(Message):
 class Ack(Message):
     """Step ``step`` is done. ``of`` names the acknowledged type when it is not obvious (a
     reset is acknowledged with ``step=0, of="reset"``); ``action``, ``success`` and ``result``
-    carry what was done (the human node acks the MDP with the robot's action)."""
+    carry what was done (the human node acks the MDP with the robot's action); ``episode``
+    (the episode's number), ``episode_over`` (the step ended the episode) and ``end_reason``
+    (why it ended) tell where the loop stands."""
 
     TYPE: ClassVar[str] = "ack"
     step: int
@@ -363,6 +496,9 @@ class Ack(Message):
     action: Optional[str] = None
     success: Optional[bool] = None
     result: Optional[str] = None
+    episode: Optional[int] = None
+    episode_over: Optional[bool] = None
+    end_reason: Optional[str] = None
 
     def _validate(self, check: _Checker) -> None:
         self._set("step", check.integer("step", self.step))
@@ -372,20 +508,29 @@ class Ack(Message):
             self._set("action", check.text("action", self.action))
         if self.success is not None:
             self._set("success", check.flag("success", self.success))
-        if self.result is not None and not isinstance(self.result, str):
-            raise check.fail("result", f"must be a string, got {_kind(self.result)}")
+        if self.result is not None:
+            self._set("result", check.any_text("result", self.result))
+        if self.episode is not None:
+            self._set("episode", check.integer("episode", self.episode))
+        if self.episode_over is not None:
+            self._set("episode_over", check.flag("episode_over", self.episode_over))
+        if self.end_reason is not None:
+            self._set("end_reason", check.text("end_reason", self.end_reason))
 
 
 @dataclass(frozen=True)
 class Error(Message):
-    """The answer to a message that was rejected or failed: ``message`` says why;
-    ``in_reply_to`` is the rejected message's type and ``step`` its step, when known.
-    A message, not an exception: :class:`MessageError` is the exception."""
+    """The answer to a message that was rejected or failed: ``message`` says why, for a person;
+    ``code`` says it for a program (``ERR_*``: ``stale``, ``busy``, ``seat_taken``,
+    ``invalid``, ``unknown_type``, ``refused``, ``failed``, ``version``); ``in_reply_to`` is
+    the answered message's type and ``step`` its step, when known (and ``reply_to`` its
+    ``id``). A message, not an exception: :class:`MessageError` is the exception."""
 
     TYPE: ClassVar[str] = "error"
     message: str
     in_reply_to: Optional[str] = None
     step: Optional[int] = None
+    code: Optional[str] = None
 
     def _validate(self, check: _Checker) -> None:
         self._set("message", check.text("message", self.message))
@@ -393,41 +538,53 @@ class Error(Message):
             self._set("in_reply_to", check.text("in_reply_to", self.in_reply_to))
         if self.step is not None:
             self._set("step", check.integer("step", self.step))
+        if self.code is not None:
+            self._set("code", check.text("code", self.code))
 
 
 #: Wire name -> message class.
 MESSAGE_TYPES: Dict[str, Type[Message]] = {
-    cls.TYPE: cls for cls in (Hello, Step, Observation, Action, Reset, NextState, Ack, Error)
+    cls.TYPE: cls for cls in (Hello, Step, Observation, Decision, Action, Reset, NextState, Ack,
+                              Error)
 }
+#: The types that answer a request (what :func:`is_reply_to` can match).
+REPLY_TYPES: Tuple[Type[Message], ...] = (Ack, Error, Decision)
 
 
 def from_dict(obj: Any) -> Message:
     """Validate a decoded JSON value and build its message; raises :class:`MessageError`."""
     if not isinstance(obj, dict):
         raise MessageError(f"a message must be a JSON object, got {_kind(obj)}")
+    # What the rejection can name, read before anything else can fail.
+    step = obj.get("step")
+    step = step if _is_count(step) else None
+    msg_id = obj.get("id")
+    msg_id = msg_id if _is_count(msg_id, MAX_ENVELOPE_INT) else None
+    epoch = obj.get("epoch")
+    epoch = epoch if _is_count(epoch, MAX_ENVELOPE_INT) else None
     if "type" not in obj:
-        raise MessageError('missing field "type"')
+        raise MessageError('missing field "type"', None, step, msg_id, epoch)
     msg_type = obj["type"]
     if not isinstance(msg_type, str):
         raise MessageError(f'field "type" must be a string, got {_kind(msg_type)} '
-                           f"{_preview(msg_type)}")
-    step = obj.get("step")
-    step = step if isinstance(step, int) and not isinstance(step, bool) and step >= 0 else None
+                           f"{_preview(msg_type)}", None, step, msg_id, epoch)
     cls = MESSAGE_TYPES.get(msg_type)
     if cls is None:
         raise MessageError(f"unknown message type {_preview(msg_type)} (known: "
-                           f"{', '.join(sorted(MESSAGE_TYPES))})", msg_type, step)
+                           f"{', '.join(sorted(MESSAGE_TYPES))})", msg_type, step, msg_id, epoch,
+                           code=ERR_UNKNOWN_TYPE)
     kwargs: Dict[str, Any] = {}
     for name, required in _wire_fields(cls):
         if name in obj:
             kwargs[name] = obj[name]
         elif required:
-            raise MessageError(f'{msg_type} message: missing field "{name}"', msg_type, step)
+            raise MessageError(f'{msg_type} message: missing field "{name}"', msg_type, step,
+                               msg_id, epoch)
     extra = {k: v for k, v in obj.items() if k != "type" and k not in kwargs}
     try:
         return cls(**kwargs, extra=extra)
     except MessageError as exc:
-        exc.step = step
+        exc.step, exc.msg_id, exc.epoch = step, msg_id, epoch
         raise
 
 
@@ -446,14 +603,29 @@ def _no_duplicates(pairs: List[Tuple[str, Any]]) -> Dict[str, Any]:
 
 def decode(frame: Union[str, bytes, bytearray, memoryview]) -> Message:
     """Decode one websocket frame into a validated message; raises :class:`MessageError`
-    (a :class:`~ros_hrc.errors.ProtocolError`) with a precise reason."""
+    (a :class:`~ros_hrc.errors.ProtocolError`) with a precise reason, and nothing else,
+    whatever it is given."""
+    try:
+        return _decode(frame)
+    except MessageError:
+        raise
+    except Exception as exc:  # a safety net: no input may raise anything but MessageError
+        raise MessageError(f"cannot decode the frame: {type(exc).__name__}: "
+                           f"{str(exc)[:_MAX_ERROR_CHARS]}") from None
+
+
+def _decode(frame: Any) -> Message:
     if isinstance(frame, (bytes, bytearray, memoryview)):
         raise MessageError(f"binary frame of {len(frame)} bytes: this protocol uses text "
                            "frames, one JSON object each")
     if not isinstance(frame, str):
         raise MessageError(f"a frame must be text, got {type(frame).__name__}")
     # The transport bounds a frame's size, so measuring its UTF-8 length is cheap.
-    size = len(frame.encode("utf-8", "surrogatepass"))
+    try:
+        size = len(frame.encode("utf-8"))
+    except UnicodeEncodeError as exc:
+        raise MessageError(f"the frame is not valid Unicode text: a lone surrogate at "
+                           f"character {exc.start}") from None
     if size > MAX_MESSAGE_BYTES:
         raise MessageError(f"message too large: {size} bytes, the limit is {MAX_MESSAGE_BYTES}")
     try:
@@ -463,6 +635,19 @@ def decode(frame: Union[str, bytes, bytearray, memoryview]) -> Message:
             from None
     except RecursionError:
         raise MessageError("invalid JSON: nested too deeply") from None
+    except ValueError as exc:
+        # int() refuses literals of more than 4300 digits (CPython's guard against
+        # quadratic-time conversion).
+        what = "a number has too many digits" if "digits" in str(exc) else str(exc)
+        raise MessageError(f"invalid JSON: {what}"[:_MAX_ERROR_CHARS]) from None
+    if _SURROGATE_ESCAPE.search(frame):
+        # An escaped surrogate that is not half of a pair leaves a string no UTF-8 frame can
+        # carry: the message could never be sent on. Rare, so only then check the whole value.
+        try:
+            json.dumps(obj, ensure_ascii=False).encode("utf-8")
+        except UnicodeEncodeError:
+            raise MessageError("invalid JSON: a \\u escape of a lone surrogate "
+                               "(not valid Unicode)") from None
     return from_dict(obj)
 
 
@@ -471,46 +656,197 @@ def encode(msg: Message) -> str:
     :class:`MessageError` if it is not a message, holds a non-JSON extra value, or is too large."""
     if not isinstance(msg, Message) or type(msg) is Message:
         raise MessageError(f"only protocol messages can be encoded, got {type(msg).__name__}")
+    step = getattr(msg, "step", None)
     try:
         text = json.dumps(msg.to_dict(), separators=(",", ":"), ensure_ascii=False,
                           allow_nan=False)
-    except (TypeError, ValueError) as exc:
-        raise MessageError(f"{msg.TYPE} message cannot be encoded: {exc}", msg.TYPE,
-                           getattr(msg, "step", None)) from None
-    size = len(text.encode("utf-8"))
+        size = len(text.encode("utf-8"))
+    except (TypeError, ValueError) as exc:  # UnicodeEncodeError is a ValueError
+        raise MessageError(f"{msg.TYPE} message cannot be encoded: {exc}"[:_MAX_ERROR_CHARS],
+                           msg.TYPE, step, msg.id, msg.epoch) from None
     if size > MAX_MESSAGE_BYTES:
         raise MessageError(f"{msg.TYPE} message too large: {size} bytes, the limit is "
-                           f"{MAX_MESSAGE_BYTES}", msg.TYPE, getattr(msg, "step", None))
+                           f"{MAX_MESSAGE_BYTES}", msg.TYPE, step, msg.id, msg.epoch)
     return text
 
 
+# -- replies ---------------------------------------------------------------------------------
+
+def is_reply_to(reply: Message, request: Message) -> bool:
+    """Whether ``reply`` answers ``request``.
+
+    When the request has an ``id``: iff ``reply.reply_to == request.id`` and the reply is an
+    ``ack``, ``error`` or ``decision``. Without an id (a peer that does not stamp one), a
+    reply with a ``reply_to`` answers something else; otherwise the version 1 rules hold: an
+    ``ack`` of its step (and type, when the ack names one; a request without a step, such as
+    ``reset``, needs an ack naming its type), a ``decision`` of its step answering an
+    ``observation``, or an ``error`` naming its step or, lacking a step, its type."""
+    if not isinstance(reply, REPLY_TYPES):
+        return False
+    if request.id is not None:
+        return reply.reply_to == request.id
+    if reply.reply_to is not None:
+        return False
+    step = getattr(request, "step", None)
+    if isinstance(reply, Ack):
+        if step is None:  # e.g. a reset: only an ack that names it answers it
+            return reply.of == request.type
+        return reply.step == step and reply.of in (None, request.type)
+    if isinstance(reply, Decision):
+        return isinstance(request, Observation) and reply.step == step
+    if reply.in_reply_to is not None and reply.in_reply_to != request.type:
+        return False
+    if reply.step is not None:
+        return reply.step == step
+    return reply.in_reply_to == request.type
+
+
+M = TypeVar("M", bound=Message)
+
+
+def as_reply(reply: M, request: Message) -> M:
+    """``reply`` stamped as the answer to ``request``: its ``reply_to`` and ``epoch`` filled in
+    from the request's ``id`` and ``epoch`` where ``reply`` leaves them ``None`` (a value the
+    reply already has is kept). Returns ``reply`` itself when there is nothing to fill."""
+    changes: Dict[str, Any] = {}
+    if reply.reply_to is None and request.id is not None:
+        changes["reply_to"] = request.id
+    if reply.epoch is None and request.epoch is not None:
+        changes["epoch"] = request.epoch
+    return replace(reply, **changes) if changes else reply
+
+
+def _clean_text(text: str, limit: int) -> str:
+    """Cut to ``limit`` characters and make sure it encodes as UTF-8 (no lone surrogate)."""
+    if len(text) > limit:
+        text = text[:limit] + "..."
+    return text.encode("utf-8", "replace").decode("utf-8")
+
+
+def reply_error(request: Message, message: str, code: str) -> Error:
+    """The :class:`Error` answering ``request``: ``message`` for a person, ``code`` (an
+    ``ERR_*`` constant) for a program; ``reply_to``, ``epoch``, ``in_reply_to`` and ``step``
+    come from the request."""
+    step = getattr(request, "step", None)
+    return Error(message=_clean_text(str(message), _MAX_ERROR_CHARS) or code or "error",
+                 code=code, in_reply_to=request.type or None,
+                 step=step if _is_count(step) else None,
+                 reply_to=request.id, epoch=request.epoch)
+
+
 def error_message(exc: BaseException, in_reply_to: Optional[str] = None,
-                  step: Optional[int] = None) -> Error:
+                  step: Optional[int] = None, *, reply_to: Optional[int] = None,
+                  epoch: Optional[int] = None, code: Optional[str] = None) -> Error:
     """The :class:`Error` answering ``exc``. A :class:`MessageError` fills in the rejected
-    message's type and step itself; other exceptions are named by their class."""
+    message's type, step, id (as ``reply_to``), epoch and code itself; another
+    :class:`~ros_hrc.errors.ProtocolError` gets :data:`ERR_INVALID` and any other exception
+    :data:`ERR_FAILED`, named by its class. Arguments given win. Never raises: values that
+    cannot be sent are cut short or left out."""
     if isinstance(exc, MessageError):
         text = exc.reason
         in_reply_to = in_reply_to if in_reply_to is not None else exc.msg_type
         step = step if step is not None else exc.step
+        reply_to = reply_to if reply_to is not None else exc.msg_id
+        epoch = epoch if epoch is not None else exc.epoch
+        code = code if code is not None else exc.code
     elif isinstance(exc, ProtocolError):
         text = str(exc)
+        code = code if code is not None else ERR_INVALID
     else:
         text = f"{type(exc).__name__}: {exc}"
-    text = text or type(exc).__name__
-    if len(text) > _MAX_ERROR_CHARS:
-        text = text[:_MAX_ERROR_CHARS] + "..."
+        code = code if code is not None else ERR_FAILED
+    text = _clean_text(str(text) or type(exc).__name__, _MAX_ERROR_CHARS)
     # An echoed type name is whatever the peer sent: keep it short, and drop it if unusable,
     # so that building the reply can never fail.
     if not isinstance(in_reply_to, str) or not in_reply_to:
         in_reply_to = None
-    elif len(in_reply_to) > _PREVIEW_CHARS:
-        in_reply_to = in_reply_to[:_PREVIEW_CHARS] + "..."
-    if not isinstance(step, int) or isinstance(step, bool) or step < 0:
-        step = None
-    return Error(message=text, in_reply_to=in_reply_to, step=step)
+    else:
+        in_reply_to = _clean_text(in_reply_to, _PREVIEW_CHARS)
+    if not isinstance(code, str) or not code:
+        code = None
+    else:
+        code = _clean_text(code, _PREVIEW_CHARS)
+    return Error(message=text, in_reply_to=in_reply_to,
+                 step=step if _is_count(step) else None,
+                 code=code,
+                 reply_to=reply_to if _is_count(reply_to, MAX_ENVELOPE_INT) else None,
+                 epoch=epoch if _is_count(epoch, MAX_ENVELOPE_INT) else None)
 
 
 def error_reply(exc: BaseException, in_reply_to: Optional[str] = None,
-                step: Optional[int] = None) -> str:
+                step: Optional[int] = None, *, reply_to: Optional[int] = None,
+                epoch: Optional[int] = None, code: Optional[str] = None) -> str:
     """The encoded ``error`` frame answering ``exc`` (see :func:`error_message`); never raises."""
-    return encode(error_message(exc, in_reply_to, step))
+    return encode(error_message(exc, in_reply_to, step, reply_to=reply_to, epoch=epoch,
+                                code=code))
+
+
+# -- dispatch --------------------------------------------------------------------------------
+
+#: ``handler(message, peer) -> reply or None``; ``peer`` is whatever the caller passes (the
+#: transport's :class:`~ros_hrc.link.transport.Peer`, or ``None`` in a test).
+MessageHandler = Callable[[Any, Any], Optional[Message]]
+
+
+class DispatchTable:
+    """Routes each message to the handler registered for its exact type: one table per
+    adapter, and the adapter's whole contract in one place. Pure: no I/O, no locks (the
+    server serialises its calls).
+
+    ::
+
+        table = DispatchTable("hrc_robot")
+        table.on(Action, carry_out)          # or: @table.on(Action) above a function
+        server = MessageServer(8080, table, name="hrc_robot")
+
+    Calling ``table(msg, peer)`` runs ``handler(msg, peer)`` and returns its reply stamped
+    with :func:`as_reply` (``reply_to`` and ``epoch`` of ``msg``). A type with no handler is
+    refused with an :class:`Error` of code :data:`ERR_UNKNOWN_TYPE` (``"<name> does not take
+    <type> messages"``), except an ``error``: an error is never answered with an error, so an
+    unhandled one is dropped (``None``), and so is an ``error`` a handler returns for one. A
+    handler's exception propagates (the server turns it into an ``error`` reply)."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self._handlers: Dict[Type[Message], MessageHandler] = {}
+
+    def on(self, cls: Type[Message], handler: Optional[MessageHandler] = None) -> Any:
+        """Register ``handler`` for messages of type ``cls`` (a :class:`Message` subclass);
+        without ``handler``, a decorator. One handler per type: registering a second raises
+        ``ValueError``. Returns the handler."""
+        if not (isinstance(cls, type) and issubclass(cls, Message) and cls is not Message):
+            raise TypeError(f"{self.name}: handlers are registered for message classes, "
+                            f"got {cls!r}")
+        if handler is None:
+            return lambda fn: self.on(cls, fn)
+        if not callable(handler):
+            raise TypeError(f"{self.name}: the handler for {cls.TYPE} must be callable")
+        if cls in self._handlers:
+            raise ValueError(f"{self.name}: a handler for {cls.TYPE} messages is already "
+                             "registered")
+        self._handlers[cls] = handler
+        return handler
+
+    def handles(self, cls: Type[Message]) -> bool:
+        """Whether a handler is registered for ``cls``."""
+        return cls in self._handlers
+
+    @property
+    def types(self) -> Tuple[str, ...]:
+        """The wire names of the types this table takes, sorted."""
+        return tuple(sorted(cls.TYPE for cls in self._handlers))
+
+    def __call__(self, msg: Message, peer: Any = None) -> Optional[Message]:
+        handler = self._handlers.get(type(msg))
+        if handler is None:
+            if isinstance(msg, Error):
+                return None
+            return reply_error(msg, f"{self.name} does not take {msg.type} messages",
+                               ERR_UNKNOWN_TYPE)
+        reply = handler(msg, peer)
+        if reply is None or (isinstance(msg, Error) and isinstance(reply, Error)):
+            return None
+        return as_reply(reply, msg)
+
+    def __repr__(self) -> str:
+        return f"DispatchTable({self.name!r}: {', '.join(self.types) or 'nothing'})"

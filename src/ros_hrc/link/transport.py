@@ -1,15 +1,23 @@
 """The websocket I/O of the protocol: a server that runs in a background thread and a client
-that reconnects by itself. :mod:`ros_hrc.link.protocol` does all encoding and validation.
+that reconnects by itself. :mod:`ros_hrc.link.protocol` does all encoding, validation, reply
+matching and dispatch.
 
 * :class:`MessageServer` (websockets' threaded server): the robot node on 8080, the human node
-  on 9090 and the POMDP process on 7070. It calls ``handler(message, peer)`` for each
-  well-formed message; a malformed or unknown frame is answered with an ``error`` and the
-  handler never sees it; an exception in the handler is caught at the dispatch point, logged
-  and answered with an ``error``. The connection and the process stay up either way.
+  on 9090 and the POMDP process on 7070. It calls ``handler(message, peer)`` (a function, or a
+  :class:`~ros_hrc.link.protocol.DispatchTable`) for each well-formed message; a malformed or
+  unknown frame is answered with an ``error`` and the handler never sees it; an exception in
+  the handler is caught at the dispatch point, logged and answered with an ``error``
+  (``code: "failed"``, ``reply_to`` the message's ``id``). An ``error`` is never answered
+  with an ``error``. The connection and the process stay up either way.
+* Sends never block the server: each :class:`Peer` has a bounded outbox drained by a writer
+  thread of its own. A peer that does not read (its outbox fills up, or one frame stays stuck
+  in its socket longer than ``send_timeout``) is disconnected, with one warning, and everybody
+  else is served as before.
 * :class:`MessageClient` (websocket-client): the MDP process, the observer node and the POMDP
   process's link to the robot node. It retries with backoff until the server is up (servers
   may start later), says ``hello``, and reconnects whenever the connection drops (roslaunch
-  respawns a process that dies: the links reconnect).
+  respawns a process that dies: the links reconnect). :meth:`MessageClient.request` stamps a
+  fresh correlation ``id`` and waits for the reply with that ``reply_to``.
 
 Size limits: a message larger than :data:`~ros_hrc.link.protocol.MAX_MESSAGE_BYTES` is refused
 by ``encode`` before it is sent, and answered with an ``error`` when received (the connection
@@ -20,7 +28,7 @@ Exception tree (the first two live in :mod:`ros_hrc.errors`)::
 
     LinkError                  the link failed: cannot bind, connection lost while sending
     ├── ProtocolError          a message is malformed, unknown or too large
-    │   └── MessageError       (protocol) a message was rejected; .reason, .msg_type, .step
+    │   └── MessageError       (protocol) a message was rejected; .reason, .code, .msg_type, ...
     ├── LinkTimeout            nothing came before the deadline (also a TimeoutError)
     ├── LinkDropped            the connection a reply was awaited on broke: it cannot come
     └── LinkClosed             the client was closed (or the server stopped) meanwhile
@@ -28,25 +36,30 @@ Exception tree (the first two live in :mod:`ros_hrc.errors`)::
 Threads: every public method of both classes is thread-safe. The server's handler and its
 ``on_connect`` / ``on_disconnect`` callbacks run on the server's connection threads, one call
 at a time (a lock serialises them, so a handler need not guard its own state against
-itself). The client's ``on_connect`` runs on its reader thread: it may ``send`` but must not
-``receive``.
+itself); they may call ``peer.send`` / ``server.send``, which only queue. The client's
+``on_connect`` and ``on_disconnect`` run on its reader thread: they may ``send`` but must not
+``receive`` or ``request``.
 """
 from __future__ import annotations
 
+import collections
 import itertools
 import logging
 import socket
 import threading
 import time
-from typing import Any, Callable, Dict, List, Optional, Tuple
+from dataclasses import replace
+from typing import Any, Callable, Deque, Dict, List, Optional, Set, Tuple
 
 import websocket  # websocket-client
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.server import Server, ServerConnection, serve
 
 from ros_hrc.errors import LinkError
-from ros_hrc.link.protocol import (MAX_MESSAGE_BYTES, PROTOCOL_VERSION, Ack, Error, Hello,
-                                   Message, MessageError, decode, encode, error_reply)
+from ros_hrc.link.protocol import (ERR_FAILED, ERR_VERSION, MAX_MESSAGE_BYTES, PROTOCOL_VERSION,
+                                   REPLY_TYPES, Error, Hello, Message, MessageError, as_reply,
+                                   decode, encode, error_reply)
+from ros_hrc.link.protocol import is_reply_to  # noqa: F401  (its home is the protocol module)
 
 DEFAULT_HOST = "127.0.0.1"
 #: Frames above this size are not read at all (close code 1009). Between the protocol's limit
@@ -55,6 +68,16 @@ FRAME_LIMIT_BYTES = 4 * MAX_MESSAGE_BYTES
 #: Seconds a closing connection may take to finish its handshake. A local peer answers in
 #: microseconds; one that does not should not hold up stop() (websockets' default is 10 s).
 CLOSE_TIMEOUT = 2.0
+#: Frames a peer's outbox holds; one more and the peer is disconnected as not reading.
+OUTBOX_FRAMES = 1024
+#: Seconds one frame may stay blocked in a peer's socket before the peer is disconnected.
+SEND_TIMEOUT = 5.0
+#: Close code of :meth:`Peer.close` by default: policy violation (e.g. "this seat is taken").
+CLOSE_REFUSED = 1008
+# A websocket close reason is at most 123 bytes of UTF-8.
+_MAX_CLOSE_REASON = 123
+# How many request ids that timed out are remembered, so their late replies are dropped.
+_ABANDONED_IDS = 1024
 
 _log = logging.getLogger("ros_hrc.link")
 
@@ -93,38 +116,163 @@ def _remaining(deadline: Optional[float]) -> Optional[float]:
     return None if deadline is None else max(0.0, deadline - time.monotonic())
 
 
+def _close_reason(reason: str) -> str:
+    data = reason.encode("utf-8", "replace")[:_MAX_CLOSE_REASON]
+    return data.decode("utf-8", "ignore")
+
+
 class Peer:
     """One client connected to a :class:`MessageServer`, as its handler sees it.
 
     ``who`` is the name the client gave in its hello (``"?"`` before that), ``address`` its
-    (host, port). Calling the peer, or :meth:`send`, replies to that client only."""
+    (host, port). Calling the peer, or :meth:`send`, queues a frame for that client only and
+    returns at once: a writer thread of the peer's own sends the queue in order. A peer that
+    does not read is disconnected (its outbox is full, or a send stayed blocked longer than
+    the server's ``send_timeout``)."""
 
     _ids = itertools.count(1)
 
-    def __init__(self, connection: ServerConnection) -> None:
+    def __init__(self, connection: ServerConnection, *, server_name: str = "server",
+                 outbox_frames: int = OUTBOX_FRAMES, log: logging.Logger = _log,
+                 on_writer_exit: Optional[Callable[["Peer"], None]] = None) -> None:
         self.id = next(Peer._ids)
         self.who = "?"
         self.address: Tuple[Any, ...] = tuple(connection.remote_address or ())
         self._connection = connection
-        self._lock = threading.Lock()
+        self._server_name = server_name
+        self._limit = max(1, int(outbox_frames))
+        self._log = log
+        self._on_writer_exit = on_writer_exit
+        self._cond = threading.Condition()     # guards the five below
+        self._outbox: Deque[str] = collections.deque()
+        self._open = True                      # takes new frames
+        self._close_args: Optional[Tuple[int, str]] = None  # close() was called
+        self._gone = False                     # connection lost or aborted: send nothing more
+        self._aborted = False
+        self._sending_since: Optional[float] = None  # monotonic start of the send under way
+        self._writer = threading.Thread(target=self._write_loop, daemon=True,
+                                        name=f"link-{server_name}-peer{self.id}")
+
+    @property
+    def connected(self) -> bool:
+        """Whether frames can still be queued for this client (not closed, not gone)."""
+        with self._cond:
+            return self._open and not self._gone
+
+    @property
+    def queued(self) -> int:
+        """Frames waiting in the outbox now."""
+        with self._cond:
+            return len(self._outbox)
 
     def send(self, msg: Message) -> bool:
-        """Send a message to this client; ``False`` if its connection is already closed."""
+        """Queue a message for this client; ``False`` if it is gone or closing (the message is
+        then dropped). Never blocks. Raises :class:`MessageError` if ``msg`` cannot be
+        encoded."""
         return self.send_text(encode(msg))
 
     __call__ = send
 
     def send_text(self, text: str) -> bool:
-        """Send an already encoded frame; ``False`` if the connection is closed."""
-        try:
-            with self._lock:
-                self._connection.send(text)
-            return True
-        except ConnectionClosed:
-            return False
+        """Queue an already encoded frame; ``False`` if the client is gone or closing. A full
+        outbox disconnects the client (it does not read) and also gives ``False``."""
+        with self._cond:
+            if not self._open:
+                return False
+            if len(self._outbox) < self._limit:
+                self._outbox.append(text)
+                self._cond.notify()
+                return True
+        self.abort(f"its outbox is full ({self._limit} frames unsent): it does not read")
+        return False
+
+    def close(self, code: int = CLOSE_REFUSED, reason: str = "") -> None:
+        """Send what is queued (e.g. an ``error`` refusing this client), then close this
+        connection with ``code`` (default 1008, policy violation) and ``reason``. Returns at
+        once; later sends to this peer give ``False``. Idempotent."""
+        with self._cond:
+            if not self._open:
+                return
+            self._open = False
+            self._close_args = (int(code), _close_reason(reason))
+            self._cond.notify()
+
+    def abort(self, why: str) -> None:
+        """Disconnect this client now, dropping what is queued (its socket is shut down, so a
+        send blocked in it fails at once); logs ``why`` once, as a warning."""
+        with self._cond:
+            if self._aborted or self._gone:
+                self._open, self._gone = False, True
+                return
+            self._aborted, self._open, self._gone = True, False, True
+            dropped = len(self._outbox)
+            self._outbox.clear()
+            self._cond.notify()
+        self._log.warning("%s: disconnecting %r: %s (%d queued frames dropped)",
+                          self._server_name, self, why, dropped)
+        sock = getattr(self._connection, "socket", None)
+        if sock is not None:
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
 
     def __repr__(self) -> str:
         return f"Peer({self.who!r} #{self.id} at {self.address})"
+
+    # -- for the server ----------------------------------------------------------------------
+
+    def _start(self) -> None:
+        self._writer.start()
+
+    def _lost(self) -> None:
+        """The connection ended: drop what is queued and let the writer go."""
+        with self._cond:
+            self._open, self._gone = False, True
+            self._outbox.clear()
+            self._cond.notify()
+
+    def _stuck_for(self, now: float) -> float:
+        """Seconds the send under way has been blocked (0 if none)."""
+        since = self._sending_since
+        return 0.0 if since is None else now - since
+
+    def _write_loop(self) -> None:
+        try:
+            while True:
+                with self._cond:
+                    while not self._outbox and self._open and not self._gone:
+                        self._cond.wait()
+                    if self._gone:
+                        return
+                    if not self._outbox:  # closing, and everything queued went out
+                        assert self._close_args is not None
+                        code, reason = self._close_args
+                        break
+                    text = self._outbox.popleft()
+                    self._sending_since = time.monotonic()
+                try:
+                    self._connection.send(text)
+                except ConnectionClosed:
+                    return
+                except Exception as exc:  # e.g. OSError after abort(): the socket is shut
+                    if not self._aborted:
+                        self._log.warning("%s: sending to %r failed: %s", self._server_name,
+                                          self, exc)
+                    return
+                finally:
+                    self._sending_since = None
+            # The close handshake is bounded by the connection's close_timeout.
+            try:
+                self._connection.close(code, reason)
+            except Exception as exc:
+                self._log.debug("%s: closing %r: %s", self._server_name, self, exc)
+        finally:
+            with self._cond:
+                self._open, self._gone = False, True
+                self._outbox.clear()
+            if self._on_writer_exit is not None:
+                self._on_writer_exit(self)
 
 
 Handler = Callable[[Message, Peer], Optional[Message]]
@@ -134,24 +282,41 @@ PeerCallback = Callable[[Peer], None]
 class MessageServer:
     """A protocol server on ``host:port`` (``port=0``: any free port, see :attr:`port`).
 
-    ``handler(message, peer)`` is called for each well-formed message other than ``hello``;
-    it replies by calling ``peer(reply)`` or by returning the reply (``None``: no reply).
-    ``on_connect(peer)`` runs once a client said hello (or sent its first message without
-    one), ``on_disconnect(peer)`` when it is gone. Use :meth:`start` / :meth:`stop`, or
-    ``with``."""
+    ``handler(message, peer)`` (a function or a
+    :class:`~ros_hrc.link.protocol.DispatchTable`) is called for each well-formed message
+    other than ``hello``; it replies by calling ``peer(reply)`` or by returning the reply
+    (``None``: no reply). A returned ``ack`` / ``error`` / ``decision`` is stamped with the
+    message's ``id`` (as ``reply_to``) and ``epoch`` where it has none. ``on_connect(peer)``
+    runs once a client said hello (or sent its first message without one),
+    ``on_disconnect(peer)`` when it is gone. Use :meth:`start` / :meth:`stop`, or ``with``.
+
+    Sends never block: ``send_timeout`` (seconds) and ``outbox_frames`` bound how far a peer
+    may fall behind before it is disconnected."""
 
     def __init__(self, port: int, handler: Handler, *, host: str = DEFAULT_HOST,
                  name: str = "server", on_connect: Optional[PeerCallback] = None,
-                 on_disconnect: Optional[PeerCallback] = None) -> None:
+                 on_disconnect: Optional[PeerCallback] = None,
+                 send_timeout: float = SEND_TIMEOUT,
+                 outbox_frames: int = OUTBOX_FRAMES) -> None:
+        if not send_timeout > 0:
+            raise ValueError(f"{name}: send_timeout must be > 0, got {send_timeout}")
+        if outbox_frames < 1:
+            raise ValueError(f"{name}: outbox_frames must be >= 1, got {outbox_frames}")
         self.host = host
         self.name = name
+        self.send_timeout = float(send_timeout)
+        self.outbox_frames = int(outbox_frames)
         self._port = port
         self._handler = handler
         self._on_connect = on_connect
         self._on_disconnect = on_disconnect
         self._server: Optional[Server] = None
         self._thread: Optional[threading.Thread] = None
+        self._watchdog: Optional[threading.Thread] = None
+        self._stopping = threading.Event()
+        self._accepting = False
         self._peers: Dict[int, Peer] = {}
+        self._live: Set[Peer] = set()  # peers whose writer thread runs
         self._greeted: set = set()
         self._peers_changed = threading.Condition()
         self._dispatch_lock = threading.Lock()
@@ -181,31 +346,59 @@ class MessageServer:
             # can bind again while old connections linger in TIME_WAIT.
             self._server = serve(self._serve_connection, self.host, self._port,
                                  compression=None, max_size=FRAME_LIMIT_BYTES, logger=ws_log,
-                                 close_timeout=CLOSE_TIMEOUT)
+                                 close_timeout=CLOSE_TIMEOUT,
+                                 process_request=self._admit)
         except OSError as exc:
             raise LinkError(f"{self.name}: cannot listen on {self.host}:{self._port}: {exc}") \
                 from exc
         self._port = self._server.socket.getsockname()[1]
+        self._stopping.clear()
+        self._accepting = True
         self._thread = threading.Thread(target=self._server.serve_forever,
                                         name=f"link-{self.name}", daemon=True)
         self._thread.start()
+        self._watchdog = threading.Thread(target=self._watch, name=f"link-{self.name}-watchdog",
+                                          daemon=True)
+        self._watchdog.start()
         self._log.info("%s listening on %s", self.name, self.url)
         return self
 
     def stop(self) -> None:
-        """Close every connection (code 1001, going away) and stop listening. Waits for a
-        running handler call to finish, so never call it from the handler. Idempotent."""
+        """Send what is queued, close every connection (code 1001, going away) and stop
+        listening; a peer that does not take its frames within :data:`CLOSE_TIMEOUT` is cut.
+        Waits for a running handler call to finish, so never call it from the handler.
+        Idempotent."""
         server, self._server = self._server, None
         if server is None:
             return
+        # From now on an opening handshake gets HTTP 503, so a client that reconnects at once
+        # does not land on this server again while its connections are closed one by one.
+        self._accepting = False
+        with self._peers_changed:
+            live = list(self._live)
+        for peer in live:
+            peer.close(1001, "server stopping")
+        deadline = _deadline(CLOSE_TIMEOUT)
+        for peer in live:
+            peer._writer.join(_remaining(deadline))
+        for peer in live:
+            if peer._writer.is_alive():
+                peer.abort("it was still sending when the server stopped")
         server.shutdown()
         if self._thread is not None:
             self._thread.join()
             self._thread = None
+        self._stopping.set()
+        if self._watchdog is not None:
+            self._watchdog.join()
+            self._watchdog = None
         with self._peers_changed:
+            writers = [peer._writer for peer in self._live]
             self._peers.clear()
             self._greeted.clear()
             self._peers_changed.notify_all()
+        for writer in writers:  # all are ending: their connections are closed
+            writer.join(CLOSE_TIMEOUT)
         self._log.info("%s stopped", self.name)
 
     def __enter__(self) -> "MessageServer":
@@ -240,18 +433,44 @@ class MessageServer:
             return True
 
     def send(self, msg: Message, who: Optional[str] = None) -> int:
-        """Send a message to every connected client (or only those that said hello as
-        ``who``); returns how many got it."""
+        """Queue a message for every connected client (or only those that said hello as
+        ``who``); returns for how many it was queued. Never blocks."""
         text = encode(msg)
         return sum(peer.send_text(text) for peer in self.clients()
                    if who is None or peer.who == who)
 
-    # -- on the connection threads ----------------------------------------------------------
+    # -- on the server's threads -------------------------------------------------------------
+
+    def _watch(self) -> None:
+        """Disconnect a peer whose socket took no data for longer than ``send_timeout``."""
+        interval = min(0.5, max(0.01, self.send_timeout / 4))
+        while not self._stopping.wait(interval):
+            now = time.monotonic()
+            with self._peers_changed:
+                live = list(self._live)
+            for peer in live:
+                stuck = peer._stuck_for(now)
+                if stuck > self.send_timeout:
+                    peer.abort(f"a send has been blocked for {stuck:.1f} s (send_timeout "
+                               f"{self.send_timeout:g} s): it does not read")
+
+    def _admit(self, connection: ServerConnection, request: Any) -> Any:
+        """websockets' ``process_request``: refuse the handshake while stopping."""
+        if not self._accepting:
+            return connection.respond(503, f"{self.name} is stopping\n")
+        return None
+
+    def _writer_done(self, peer: Peer) -> None:
+        with self._peers_changed:
+            self._live.discard(peer)
 
     def _serve_connection(self, connection: ServerConnection) -> None:
-        peer = Peer(connection)
+        peer = Peer(connection, server_name=self.name, outbox_frames=self.outbox_frames,
+                    log=self._log, on_writer_exit=self._writer_done)
         with self._peers_changed:
             self._peers[peer.id] = peer
+            self._live.add(peer)
+            peer._start()  # under the lock: stop() never sees a writer not yet started
             self._peers_changed.notify_all()
         self._log.info("%s: client connected from %s", self.name, peer.address)
         try:
@@ -259,8 +478,11 @@ class MessageServer:
                 self._dispatch(peer, frame)
         except ConnectionClosed as exc:
             # Abnormal closes only (normal ones end the loop); 1009 is a frame over the limit.
-            self._log.warning("%s: connection of %r closed: %s", self.name, peer, exc)
+            # A peer this server cut off was already reported, in one line.
+            self._log.log(logging.INFO if peer._aborted else logging.WARNING,
+                          "%s: connection of %r closed: %s", self.name, peer, exc)
         finally:
+            peer._lost()
             with self._peers_changed:
                 self._peers.pop(peer.id, None)
                 greeted = peer.id in self._greeted
@@ -275,12 +497,17 @@ class MessageServer:
         try:
             msg = decode(frame)
         except MessageError as exc:
+            if exc.msg_type == Error.TYPE:  # an error is never answered, even a malformed one
+                self._log.warning("%s: dropped a malformed error from %r: %s", self.name, peer,
+                                  exc)
+                return
             self._log.warning("%s: rejected a frame from %r: %s", self.name, peer, exc)
             peer.send_text(error_reply(exc))
             return
         if isinstance(msg, Hello):
             self._greet(peer, msg)
             return
+        step = getattr(msg, "step", None)
         with self._dispatch_lock:
             if peer.id not in self._greeted:
                 self._mark_greeted(peer)
@@ -289,15 +516,26 @@ class MessageServer:
             except Exception as exc:  # the dispatch point: one bad message never kills us
                 self._log.exception("%s: handler failed on %s from %r", self.name, msg.type,
                                     peer)
-                peer.send_text(error_reply(exc, msg.type, getattr(msg, "step", None)))
+                if not isinstance(msg, Error):
+                    peer.send_text(error_reply(exc, msg.type, step, reply_to=msg.id,
+                                               epoch=msg.epoch, code=ERR_FAILED))
                 return
-            if reply is not None:
-                try:
-                    peer.send(reply)
-                except MessageError as exc:
-                    self._log.error("%s: handler returned an unsendable reply: %s",
-                                    self.name, exc)
-                    peer.send_text(error_reply(exc, msg.type, getattr(msg, "step", None)))
+            if reply is None:
+                return
+            if isinstance(msg, Error) and isinstance(reply, Error):
+                self._log.warning("%s: the handler answered an error from %r with an error; "
+                                  "not sent (an error is never answered with an error): %s",
+                                  self.name, peer, reply.message)
+                return
+            if isinstance(reply, REPLY_TYPES):
+                reply = as_reply(reply, msg)
+            try:
+                peer.send(reply)
+            except MessageError as exc:
+                self._log.error("%s: handler returned an unsendable reply: %s", self.name, exc)
+                if not isinstance(msg, Error):
+                    peer.send_text(error_reply(exc, msg.type, step, reply_to=msg.id,
+                                               epoch=msg.epoch, code=ERR_FAILED))
 
     def _greet(self, peer: Peer, hello: Hello) -> None:
         peer.who = hello.who
@@ -306,8 +544,8 @@ class MessageServer:
                             hello.version, PROTOCOL_VERSION)
             peer.send(Error(message=f"protocol version {hello.version} is not supported; "
                                     f"{self.name} speaks {PROTOCOL_VERSION}",
-                            in_reply_to=Hello.TYPE))
-        peer.send(Hello(who=self.name))
+                            in_reply_to=Hello.TYPE, code=ERR_VERSION, reply_to=hello.id))
+        peer.send(Hello(who=self.name, reply_to=hello.id))
         with self._dispatch_lock:
             if peer.id not in self._greeted:
                 self._mark_greeted(peer)
@@ -335,28 +573,41 @@ class MessageClient:
 
     It connects in a background thread, retrying with exponential backoff (``backoff`` =
     first and longest pause, in seconds) until :meth:`close`; after a drop it reconnects the
-    same way and says hello again, then calls ``on_connect()``. Received messages wait in an
-    inbox until :meth:`receive` takes them; the server's hello is kept in
+    same way and says hello again, then calls ``on_connect()``. ``on_disconnect()`` is called
+    when a connection is lost (not when :meth:`close` ends it); :attr:`last_close` tells the
+    close code and reason the server gave, if any. A server that refuses the client (close
+    code 1008) is retried with growing pauses.
+
+    Received messages wait in an inbox until :meth:`receive` takes them (a reply that a
+    :meth:`request` in flight waits for is kept for it); the server's hello is kept in
     :attr:`server_hello` instead. A malformed frame from the server is answered with an
-    ``error`` and dropped. Use :meth:`connect` / :meth:`close`, or ``with`` (which connects)."""
+    ``error`` and dropped; an ``error`` is never answered. Use :meth:`connect` /
+    :meth:`close`, or ``with`` (which connects)."""
 
     def __init__(self, url: str, name: str, *, connect_timeout: float = 30.0,
                  send_timeout: float = 10.0, backoff: Tuple[float, float] = (0.05, 1.0),
-                 on_connect: Optional[Callable[[], None]] = None) -> None:
+                 on_connect: Optional[Callable[[], None]] = None,
+                 on_disconnect: Optional[Callable[[], None]] = None) -> None:
         self.url = url
         self.name = name
         self.connect_timeout = connect_timeout
         self.send_timeout = send_timeout
         self._backoff = backoff
         self._on_connect = on_connect
+        self._on_disconnect = on_disconnect
         self._cond = threading.Condition()  # guards everything below
         self._ws: Optional[websocket.WebSocket] = None
         self._connections = 0
         self._inbox: List[Message] = []
+        self._next_id = itertools.count(1)
+        self._pending: Dict[int, int] = {}  # id of a request in flight -> how many wait on it
+        self._abandoned: "collections.OrderedDict[int, None]" = collections.OrderedDict()
         self._closed = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._send_lock = threading.Lock()
         self.server_hello: Optional[Hello] = None
+        #: (code, reason) of the last connection the server closed (code None: no close frame).
+        self.last_close: Optional[Tuple[Optional[int], str]] = None
         self._log = _log.getChild(name)
 
     # -- connection state --------------------------------------------------------------------
@@ -446,19 +697,74 @@ class MessageClient:
                 self._forget(ws)
                 if attempt == 2:
                     raise LinkError(f"{self.name}: could not send {msg.type}: {exc}") from exc
+        raise AssertionError("unreachable")  # pragma: no cover
 
     def receive(self, timeout: Optional[float] = None,
                 match: Optional[Callable[[Message], bool]] = None,
                 connection: Optional[int] = None) -> Message:
         """The oldest received message (the oldest one for which ``match`` is true, leaving
-        the others in order). Waits up to ``timeout`` seconds (``None``: until one comes or
-        the client is closed). With ``connection`` (a number :meth:`send` returned), stop
-        waiting as soon as that connection is gone: raises :class:`LinkDropped`. Raises
-        :class:`LinkTimeout` or :class:`LinkClosed`."""
+        the others in order); a reply that a :meth:`request` in flight waits for is left to
+        it. Waits up to ``timeout`` seconds (``None``: until one comes or the client is
+        closed). With ``connection`` (a number :meth:`send` returned), stop waiting as soon as
+        that connection is gone: raises :class:`LinkDropped`. Raises :class:`LinkTimeout` or
+        :class:`LinkClosed`."""
+        return self._receive(timeout, match, connection, None)
+
+    def request(self, msg: Message, timeout: Optional[float] = None) -> Message:
+        """Send ``msg`` and wait for its answer, all within ``timeout`` (default
+        ``send_timeout``). A message without an ``id`` gets a fresh one (a per-client
+        counter); the answer is the ``ack``, ``error`` or ``decision`` whose ``reply_to`` is
+        that id (:func:`~ros_hrc.link.protocol.is_reply_to`). Other messages stay in the
+        inbox; several threads may request at once, each gets its own answer. Returns the
+        answer; raises :class:`LinkTimeout`, :class:`LinkClosed`, or :class:`LinkDropped` at
+        once when the connection breaks before the answer comes. A late answer to a request
+        that failed is dropped when it arrives."""
+        if not isinstance(msg, Message):
+            encode(msg)  # raises MessageError, as send() would
+        deadline = _deadline(self.send_timeout if timeout is None else timeout)
+        with self._cond:
+            if msg.id is None:
+                msg = replace(msg, id=next(self._next_id))
+            self._pending[msg.id] = self._pending.get(msg.id, 0) + 1
+        answered = False
+        try:
+            number = self.send(msg, _remaining(deadline))
+            reply = self._receive(_remaining(deadline), lambda r: is_reply_to(r, msg), number,
+                                  msg.id)
+            answered = True
+            return reply
+        finally:
+            with self._cond:
+                left = self._pending.pop(msg.id) - 1
+                if left:
+                    self._pending[msg.id] = left
+                elif not answered:
+                    self._abandoned[msg.id] = None
+                    while len(self._abandoned) > _ABANDONED_IDS:
+                        self._abandoned.popitem(last=False)
+
+    def next_id(self) -> int:
+        """A fresh correlation id of this client (the counter :meth:`request` uses)."""
+        with self._cond:
+            return next(self._next_id)
+
+    def drain(self) -> List[Message]:
+        """Take every message waiting in the inbox (e.g. stale ones after a reset)."""
+        with self._cond:
+            taken, self._inbox = self._inbox, []
+            return taken
+
+    # -- the reader thread -------------------------------------------------------------------
+
+    def _receive(self, timeout: Optional[float], match: Optional[Callable[[Message], bool]],
+                 connection: Optional[int], own_id: Optional[int]) -> Message:
         deadline = _deadline(timeout)
         with self._cond:
             while True:
                 for i, msg in enumerate(self._inbox):
+                    if (msg.reply_to is not None and msg.reply_to in self._pending
+                            and msg.reply_to != own_id):
+                        continue  # kept for the request that waits for it
                     if match is None or match(msg):
                         return self._inbox.pop(i)
                 if self._closed.is_set():
@@ -471,24 +777,6 @@ class MessageClient:
                 if left == 0.0:
                     raise LinkTimeout(f"{self.name}: no message from {self.url} in {timeout} s")
                 self._cond.wait(left)
-
-    def request(self, msg: Message, timeout: Optional[float] = None) -> Message:
-        """Send ``msg`` and wait for its answer: the ``ack`` with the same step (and, if the ack
-        names ``of``, of the same type) or an ``error`` about it. Other messages stay in the
-        inbox. Returns the ack or the :class:`~ros_hrc.link.protocol.Error` message; raises
-        :class:`LinkDropped` if the connection breaks before the answer comes."""
-        deadline = _deadline(self.send_timeout if timeout is None else timeout)
-        number = self.send(msg, _remaining(deadline))
-        return self.receive(_remaining(deadline), match=lambda reply: is_reply_to(reply, msg),
-                            connection=number)
-
-    def drain(self) -> List[Message]:
-        """Take every message waiting in the inbox (e.g. stale ones after a reset)."""
-        with self._cond:
-            taken, self._inbox = self._inbox, []
-            return taken
-
-    # -- the reader thread -------------------------------------------------------------------
 
     def _wait_connected(self, deadline: Optional[float]) -> websocket.WebSocket:
         with self._cond:
@@ -528,13 +816,33 @@ class MessageClient:
                 self._closed.wait(pause)
                 pause = min(pause * 2, self._backoff[1])
                 continue
-            pause, failures = self._backoff[0], 0
-            self._read(ws)
+            close_code = self._read(ws)
             self._forget(ws)
             ws.shutdown()
-            if not self._closed.is_set():
+            if self._closed.is_set():
+                break
+            if close_code == CLOSE_REFUSED:
+                # Refused (e.g. the seat is taken): try again, but slower each time.
+                self._log.log(logging.DEBUG if failures else logging.WARNING,
+                              "%s: %s refused the connection (%s); retrying", self.name,
+                              self.url, self.last_close[1] if self.last_close else "")
+                failures += 1
+            else:
                 self._log.warning("%s: lost the connection to %s; reconnecting", self.name,
                                   self.url)
+                pause, failures = self._backoff[0], 0
+            self._call(self._on_disconnect, "on_disconnect")
+            if close_code == CLOSE_REFUSED:
+                self._closed.wait(pause)
+                pause = min(pause * 2, self._backoff[1])
+
+    def _call(self, callback: Optional[Callable[[], None]], what: str) -> None:
+        if callback is None:
+            return
+        try:
+            callback()
+        except Exception:  # a failing callback must not stop the reader
+            self._log.exception("%s: %s failed", self.name, what)
 
     def _open(self, quiet: bool) -> Optional[websocket.WebSocket]:
         try:
@@ -556,21 +864,22 @@ class MessageClient:
             self._connections += 1
             self._cond.notify_all()
         self._log.info("%s: connected to %s", self.name, self.url)
-        if self._on_connect is not None:
-            try:
-                self._on_connect()
-            except Exception:  # a failing callback must not stop the reader
-                self._log.exception("%s: on_connect failed", self.name)
+        self._call(self._on_connect, "on_connect")
         return ws
 
-    def _read(self, ws: websocket.WebSocket) -> None:
+    def _read(self, ws: websocket.WebSocket) -> Optional[int]:
+        """Read frames until the connection ends; the close code the server gave, if any."""
         while True:
             try:
                 opcode, data = ws.recv_data()
             except (websocket.WebSocketException, OSError):
-                return
+                self.last_close = (None, "")
+                return None
             if opcode == websocket.ABNF.OPCODE_CLOSE:
-                return
+                code = int.from_bytes(data[:2], "big") if len(data) >= 2 else None
+                reason = data[2:].decode("utf-8", "replace") if len(data) > 2 else ""
+                self.last_close = (code, reason)
+                return code
             if opcode == websocket.ABNF.OPCODE_TEXT:
                 try:
                     data = data.decode("utf-8") if isinstance(data, bytes) else data
@@ -580,11 +889,14 @@ class MessageClient:
                 msg = decode(data)
             except MessageError as exc:
                 self._log.warning("%s: rejected a frame from %s: %s", self.name, self.url, exc)
+                if exc.msg_type == Error.TYPE:
+                    continue  # an error is never answered, even a malformed one
                 try:
                     with self._send_lock:
                         ws.send(error_reply(exc))
                 except (websocket.WebSocketException, OSError):
-                    return
+                    self.last_close = (None, "")
+                    return None
                 continue
             if isinstance(msg, Hello):
                 self.server_hello = msg
@@ -593,23 +905,10 @@ class MessageClient:
                                     msg.who, msg.version, PROTOCOL_VERSION)
                 continue
             with self._cond:
+                if msg.reply_to is not None and msg.reply_to in self._abandoned:
+                    del self._abandoned[msg.reply_to]
+                    self._log.debug("%s: dropped a late %s answering request %d", self.name,
+                                    msg.type, msg.reply_to)
+                    continue
                 self._inbox.append(msg)
                 self._cond.notify_all()
-
-
-def is_reply_to(reply: Message, request: Message) -> bool:
-    """Whether ``reply`` answers ``request``: an ``ack`` of its step (and type, when the ack
-    names one; a request without a step, such as ``reset``, needs an ack naming its type),
-    or an ``error`` naming its step or, lacking a step, its type."""
-    step = getattr(request, "step", None)
-    if isinstance(reply, Ack):
-        if step is None:  # e.g. a reset: only an ack that names it answers it
-            return reply.of == request.type
-        return reply.step == step and reply.of in (None, request.type)
-    if isinstance(reply, Error):
-        if reply.in_reply_to is not None and reply.in_reply_to != request.type:
-            return False
-        if reply.step is not None:
-            return reply.step == step
-        return reply.in_reply_to == request.type
-    return False

@@ -6,7 +6,7 @@ import logging
 import threading
 import time
 from dataclasses import fields
-from typing import Dict, Tuple, Type, TypeVar
+from typing import Any, Dict, Tuple, Type, TypeVar
 
 import rospy
 from std_srvs.srv import Trigger
@@ -17,13 +17,19 @@ C = TypeVar("C")
 
 
 def read_config(config_type: Type[C]) -> C:
-    """Build a config dataclass from the node's private parameters (``~name``), taking the
-    dataclass defaults (the launch defaults) for the ones not set; types are coerced."""
+    """Build a config dataclass from the node's private parameters (``~name``). A field that
+    is one of the launch settings (:mod:`ros_hrc.loop.settings`) is parsed and checked there,
+    and an empty value takes the setting's default: the one source of defaults. Other fields
+    take the dataclass default when unset; types are coerced."""
+    from ros_hrc.loop import settings
+
     values = {}
     for f in fields(config_type):
         default = f.default
         value = rospy.get_param(f"~{f.name}", default)
-        if isinstance(default, bool) and isinstance(value, str):
+        if f.name in settings.SETTINGS:
+            value = settings.parse(f.name, value)
+        elif isinstance(default, bool) and isinstance(value, str):
             value = value.strip().lower() in ("1", "true", "yes", "on")
         elif isinstance(default, (int, float)) and not isinstance(default, bool):
             value = type(default)(value)
@@ -59,8 +65,12 @@ class ServiceUnavailable(HrcError):
 
 
 class TriggerCaller:
-    """Calls std_srvs/Trigger services by name over persistent connections (the world's
-    predicates are asked every step), one lock per service so calls never interleave."""
+    """Calls std_srvs/Trigger services by name over persistent connections (one per service,
+    made on first use), one lock per service so calls never interleave.
+
+    A call is never repeated: an action may have run before its answer was lost. When a call
+    fails its connection is dropped (the next call makes a new one, e.g. to a respawned
+    node) and :class:`ServiceUnavailable` says which service and why."""
 
     def __init__(self, wait_timeout: float = 30.0) -> None:
         self.wait_timeout = wait_timeout
@@ -69,32 +79,37 @@ class TriggerCaller:
         self._guard = threading.Lock()
 
     def __call__(self, name: str) -> Tuple[bool, str]:
-        """(success, message) of the service; raises ServiceUnavailable (saying which and
-        why) when it cannot be reached."""
+        """(success, message) of the service; raises ServiceUnavailable when it cannot be
+        reached, or when its handler failed (a service error: a fault, not a ``false``)."""
+        response = self.call(name, Trigger)
+        return bool(response.success), response.message
+
+    def call(self, name: str, service_type: type, *args: Any) -> Any:
+        """The response of any service type, with the same connection handling."""
         with self._guard:
             lock = self._locks.setdefault(name, threading.Lock())
         with lock:
-            for attempt in (1, 2):
-                try:
-                    proxy = self._proxies.get(name)
-                    if proxy is None:
-                        rospy.wait_for_service(name, timeout=self.wait_timeout)
-                        proxy = self._proxies[name] = rospy.ServiceProxy(name, Trigger,
-                                                                         persistent=True)
-                    response = proxy()
-                    return bool(response.success), response.message
-                except rospy.ROSException as exc:   # wait_for_service timed out
-                    raise ServiceUnavailable(f"service {name} is not available: {exc}") from exc
-                except (rospy.ServiceException, OSError) as exc:
-                    # A persistent link breaks when the server restarts: try once anew.
-                    stale = self._proxies.pop(name, None)
-                    if stale is not None:
-                        stale.close()
-                    if attempt == 2:
-                        raise ServiceUnavailable(f"service {name} failed: {exc}") from exc
-        raise ServiceUnavailable(f"service {name} failed")
+            try:
+                proxy = self._proxies.get(name)
+                if proxy is None:
+                    rospy.wait_for_service(name, timeout=self.wait_timeout)
+                    proxy = self._proxies[name] = rospy.ServiceProxy(name, service_type,
+                                                                     persistent=True)
+                return proxy(*args)
+            except rospy.ROSException as exc:   # wait_for_service timed out, or shutdown
+                self._drop(name)
+                raise ServiceUnavailable(f"service {name} is not available: {exc}") from exc
+            except (rospy.ServiceException, OSError) as exc:
+                self._drop(name)
+                raise ServiceUnavailable(f"service {name} failed: {exc}") from exc
+
+    def _drop(self, name: str) -> None:
+        stale = self._proxies.pop(name, None)
+        if stale is not None:
+            stale.close()
 
     def close(self) -> None:
-        for proxy in self._proxies.values():
+        with self._guard:
+            proxies, self._proxies = list(self._proxies.values()), {}
+        for proxy in proxies:
             proxy.close()
-        self._proxies.clear()

@@ -1,110 +1,238 @@
-"""The ROS side of one experiment cell: the node that resets the cell's stack and watches it.
+"""The ROS side of one experiment cell, and the worker process that runs it.
 
-:func:`drive_cell` is called by :func:`ros_hrc.experiment.stack.run_cell` in the cell's own
-process, once ``hrc.launch`` has been started against the cell's own master. For each episode
-it calls ``/hrc/reset``, reads the world's clock (``/hrc/world/state``), collects
-``/hrc/status`` until the episode is over, scores it and hands the row over.
+``python -m ros_hrc.nodes.experiment_cell SPEC_JSON`` is what ``hrc_experiment`` starts, one
+process per cell (rospy allows one node per process, and each cell has a master of its own).
+:func:`run_cell` checks the robot model, starts the cell's ``hrc.launch``
+(:func:`ros_hrc.experiment.stack.start_stack`), in which the coordinator ends each episode
+and starts the next (``on_episode_end:=reset``), and :func:`drive_cell` collects each
+episode's ``/hrc/status`` messages, scores it and hands the row over. The process writes one line per
+episode on its standard output, ``EPISODE {json}``, as soon as the episode ends.
+
+SIGINT or SIGTERM stops the cell: the stack (roslaunch runs in a session of its own, so no
+signal reaches it by itself) is stopped as Ctrl-C would, and the process exits 128 + the
+signal's number. Episodes already written are kept by the parent.
+
+This module imports ``ros_hrc.experiment`` (pointing down); nothing there imports it.
 """
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
+import sys
 import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable, List, Optional
 
 import rospy
-from std_srvs.srv import Trigger
 
-from ros_hrc.experiment.episode import end_reason, score_episode, step_rows
-from ros_hrc.experiment.results import EpisodeRow
-from ros_hrc.experiment.stack import CellFailed, CellSpec, stop_launched
+from ros_hrc.errors import HrcError
+from ros_hrc.experiment.episode import score_episode, step_rows
+from ros_hrc.experiment.stack import (CellFailed, CellSpec, cell_name, encode_episode,
+                                      pick_ports, stack_environment, start_stack, stop_launched)
+from ros_hrc.experiment.store import EpisodeRow
+from ros_hrc.loop.models import load_robot_model
 from ros_hrc.msg import Status
 from ros_hrc.nodes.common import init_node_when_master_is_up
 from ros_hrc.pomdp.model import Model
-from ros_hrc.srv import GetWorldState
+
+#: Seconds a stopped stack gets to shut down (roslaunch stops its nodes) before SIGKILL.
+STOP_GRACE = 60.0
+#: The same when the cell is stopped by a signal: the user is waiting.
+INTERRUPT_GRACE = 20.0
 
 
-class StatusInbox:
-    """The /hrc/status messages of the episode under way."""
+class CellStopped(BaseException):
+    """SIGINT or SIGTERM arrived: unwind, stopping the stack on the way out. A BaseException,
+    so that no ``except Exception`` on the way (retry loops) swallows it."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+        self.signum = signum
+
+
+class _Signals:
+    """The worker's SIGINT / SIGTERM: the first one raises CellStopped in the main thread,
+    unless the cell is already cleaning up (then it is only remembered)."""
+
+    def __init__(self) -> None:
+        self.signum: Optional[int] = None
+        self.armed = False
+
+    def install(self) -> None:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._on_signal)
+        self.armed = True
+
+    def _on_signal(self, signum: int, frame) -> None:
+        if self.signum is not None:
+            return
+        self.signum = signum
+        if self.armed:
+            self.armed = False
+            raise CellStopped(signum)
+
+    @contextmanager
+    def deferred(self):
+        """A section no signal may cut in two (writing an episode's line): a signal that
+        comes meanwhile raises CellStopped once the section is over."""
+        was, self.armed = self.armed, False
+        try:
+            yield
+        finally:
+            if was:
+                if self.signum is not None:
+                    raise CellStopped(self.signum)
+                self.armed = True
+
+    def disarm(self) -> None:
+        """From here on (stopping the stack), a signal must not cut the cleanup short."""
+        self.armed = False
+
+    def grace(self) -> float:
+        return INTERRUPT_GRACE if self.signum is not None else STOP_GRACE
+
+
+SIGNALS = _Signals()
+
+
+class EpisodeInbox:
+    """Whole episodes from /hrc/status, as the stack's coordinator ends them.
+
+    The coordinator numbers epochs and episodes and ends each episode itself (success, the
+    object left the belt, the step limit); with ``on_episode_end:=reset`` it starts the next
+    one at once. An episode is the steps of one epoch up to the one marked ``episode_over``.
+    An epoch cut short by a failed step (``fault``: a process died, the loop reset itself) is
+    no episode: it is counted in ``abandoned`` and its steps are dropped."""
 
     def __init__(self) -> None:
         self.cond = threading.Condition()
-        self.steps: list = []
-        self.since: Optional[float] = None   # simulated time the episode started at
+        self.current: list = []
+        self.done: list = []         # finished episodes (lists of steps), oldest first
+        self.abandoned: list = []    # the faults that cut epochs short
         self.last_seen = time.monotonic()
-
-    def begin(self, sim_time: float) -> None:
-        with self.cond:
-            self.steps, self.since = [], sim_time
 
     def on_status(self, msg) -> None:
         with self.cond:
             self.last_seen = time.monotonic()
-            if self.since is None or msg.sim_time < self.since:
-                return   # from before the reset
-            if not self.steps and msg.step != 0:
-                return   # a step under way at the reset, refused or late: not this episode
-            self.steps.append(msg)
+            if self.current and msg.epoch != self.current[0].epoch:
+                self.current = []    # an epoch ended without its episode (a reset)
+            if msg.fault:
+                self.abandoned.append(msg.fault)
+                self.current = []
+            elif self.current or msg.step == 0:
+                self.current.append(msg)
+                if msg.episode_over:
+                    self.done.append(self.current)
+                    self.current = []
             self.cond.notify_all()
 
-    def wait_for_step(self, count: int, timeout: float) -> list:
-        """The episode's steps once there are at least ``count``; raises CellFailed after
-        ``timeout`` wall seconds without any status."""
+    def next_episode(self, timeout: float) -> list:
+        """The oldest finished episode not taken yet; raises CellFailed after ``timeout``
+        wall seconds without any status."""
         with self.cond:
-            while len(self.steps) < count:
+            while not self.done:
                 if time.monotonic() - self.last_seen > timeout:
                     raise CellFailed(f"no step for {timeout:.0f} s")
                 self.cond.wait(1.0)
-            return list(self.steps)
+            return self.done.pop(0)
+
+
+#: An epoch cut short by a fault is retried, but not forever.
+MAX_ABANDONED = 5
 
 
 def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
                deliver: Callable[[EpisodeRow, list], None], name: str, log_dir: Path) -> int:
-    """Run ``spec``'s episodes on the stack ``proc`` (``hrc.launch``, already started):
-    reset, watch, score, ``deliver`` each. Returns how many were delivered."""
+    """Record ``spec``'s episodes from the stack ``proc`` (``hrc.launch``, already started,
+    ending and resetting episodes itself): score and ``deliver`` each. Returns how many were
+    delivered."""
     init_node_when_master_is_up("hrc_experiment_cell", wait=120.0)
-    inbox = StatusInbox()
+    inbox = EpisodeInbox()
     rospy.Subscriber("/hrc/status", Status, inbox.on_status, queue_size=1000)
     bag = None
-    if spec.record_bag:
-        bag = subprocess.Popen(["rosbag", "record", "-q", "-O", str(log_dir / f"{name}.bag"),
-                                "/hrc/status"], stdin=subprocess.DEVNULL,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
-                               start_new_session=True)
     try:
-        for service in ("/hrc/reset", "/hrc/world/state"):
-            try:
-                rospy.wait_for_service(service, timeout=180.0)
-            except rospy.ROSException as exc:
-                raise CellFailed(f"{name}: the stack did not come up ({exc}); see "
-                                 f"{log_dir / (name + '.log')}") from exc
-        reset = rospy.ServiceProxy("/hrc/reset", Trigger, persistent=True)
-        world = rospy.ServiceProxy("/hrc/world/state", GetWorldState, persistent=True)
+        if spec.record_bag:
+            with SIGNALS.deferred():   # started means stopped in the finally, even on a signal
+                bag = subprocess.Popen(["rosbag", "record", "-q", "-O",
+                                        str(log_dir / f"{name}.bag"), "/hrc/status"],
+                                       stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                       stderr=subprocess.STDOUT, start_new_session=True)
         delivered = 0
+        started = time.monotonic()
         for episode in spec.episodes:
             if proc.poll() is not None:
-                raise CellFailed(f"{name}: hrc.launch exited ({proc.returncode})")
-            started = time.monotonic()
-            answer = reset()
-            if not answer.success:
-                raise CellFailed(f"{name}: /hrc/reset failed: {answer.message}")
-            start_sim = world().state.sim_time
-            inbox.begin(start_sim)
-            count = 1
-            while True:
-                steps = inbox.wait_for_step(count, spec.episode_timeout)
-                reason = end_reason(steps, spec.step_limit)
-                if reason is not None:
-                    break
-                count = len(steps) + 1
+                raise CellFailed(f"{name}: hrc.launch exited ({proc.returncode}); see "
+                                 f"{log_dir / (name + '.log')}")
+            steps = inbox.next_episode(spec.episode_timeout)
+            if len(inbox.abandoned) > MAX_ABANDONED:
+                raise CellFailed(f"{name}: {len(inbox.abandoned)} episodes cut short by "
+                                 f"failed steps, the last: {inbox.abandoned[-1]}")
             key = (spec.human_model, spec.robot_policy, spec.seed, episode)
-            row = score_episode(key, steps, reason, start_sim, model,
-                                time.monotonic() - started)
+            row = score_episode(key, steps, steps[-1].end_reason, steps[0].episode_start_time,
+                                model, time.monotonic() - started)
+            started = time.monotonic()
             deliver(row, step_rows(key, steps))
             delivered += 1
         return delivered
     finally:
+        SIGNALS.disarm()
         if bag is not None:
-            stop_launched(bag)
+            stop_launched(bag, SIGNALS.grace())
         rospy.signal_shutdown("cell done")
+
+
+def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int:
+    """Run the cell's episodes on a stack of its own; ``deliver(episode_row, step_rows)`` for
+    each one as it ends. Returns how many episodes were delivered; raises CellFailed if the
+    stack fails, ModelError if the robot model does not fit the task."""
+    if not spec.episodes:
+        return 0
+    model = load_robot_model(spec.robot_model)
+    ports = pick_ports()
+    log_dir = Path(spec.log_dir)
+    # This process's own node talks to the cell's master too.
+    os.environ.update(stack_environment(ports, log_dir))
+    proc = None
+    try:
+        with SIGNALS.deferred():   # started means stopped in the finally, even on a signal
+            proc = start_stack(spec, ports, log_dir)
+        return drive_cell(spec, model, proc, deliver, cell_name(spec), log_dir)
+    finally:
+        SIGNALS.disarm()
+        if proc is not None:
+            stop_launched(proc, SIGNALS.grace())
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 1:
+        print("usage: python -m ros_hrc.nodes.experiment_cell SPEC_JSON", file=sys.stderr)
+        return 2
+    spec = CellSpec.from_json(argv[0])
+    label = f"cell {spec.human_model}/{spec.robot_policy}/seed {spec.seed}"
+
+    def deliver(row, steps) -> None:
+        with SIGNALS.deferred():
+            print(encode_episode(row, steps), flush=True)
+
+    SIGNALS.install()
+    try:
+        run_cell(spec, deliver)
+    except CellStopped:
+        pass
+    except (CellFailed, HrcError, OSError, ValueError) as exc:
+        if SIGNALS.signum is None:
+            print(f"{label} failed: {exc}", file=sys.stderr, flush=True)
+            return 1
+    if SIGNALS.signum is not None:
+        print(f"{label}: stopped by {signal.Signals(SIGNALS.signum).name}; its stack is down",
+              file=sys.stderr, flush=True)
+        return 128 + SIGNALS.signum
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,76 +1,104 @@
-"""hrc_human: carries out the human MDP's steps in the world and runs the loop's lockstep.
+"""hrc_human: hosts the loop's episode coordinator and adapts it to ROS and the links.
 
-A websocket server (``~port``, 9090 by default, bound to ``~host``) that the MDP process
-(``despot_mdp``) connects to. For each ``step`` message it
+The coordinator (:mod:`ros_hrc.loop.coordinator`) owns the step; this node only carries out
+what it asks, through four adapters:
 
-1. carries out the human's action through the world's /human/* services
-   (graspAttempt -> /human/grasp when the MDP's next state is ``success``, else
-   /human/attempt_grasp; lookAround -> /human/look_around; idle -> /human/idle;
-   walkAway -> /human/walk_away; warnRobot -> /human/warn_robot),
-2. asks hrc_obs (``/hrc/observe``) to observe, let the POMDP decide and the robot act,
-3. prints one block in the terminal, publishes ros_hrc/Status on ``/hrc/status``, and
-4. answers the MDP with an ``ack`` carrying the robot's action.
+* the **human MDP**: a websocket server (``~port``, 9090 by default, bound to ``~host``). The
+  first client is the served MDP; a second one is refused with one line and disconnected.
+  ``step`` messages go to the coordinator; its answers go back as ``ack`` / ``error``, and a
+  ``reset`` (with the new epoch) starts each episode.
+* the **world**: ``/human/<action>`` (the seed's Table 3.2), ``/hrc/world/state`` (one
+  atomic snapshot: the six predicates and where the object is) and ``/hrc/world/reset``.
+* the **robot planner**: ``/hrc/obs/decide`` and ``/hrc/obs/reset_planner`` of hrc_obs, which
+  speaks to the POMDP process.
+* the **robot executor**: a websocket client of hrc_robot (``~robot_port``, 8080).
 
-Resetting (``/hrc/reset``, Enter on the terminal, or a ``reset`` from the MDP) puts the world
-back (/human/reset, /robot/reset), resets the observer and the POMDP's belief
-(/hrc/obs/reset) and the MDP's belief and step counter (a ``reset`` message). Steps of the
-MDP that were under way before a reset are refused until it starts again from step 0.
+Each step prints one block in the terminal and is published on ``/hrc/status`` (also a step
+that failed: its ``fault`` says what failed, and the loop starts again from a reset).
 
 Topics: /hrc/status (ros_hrc/Status), one message per step.
-Services offered: /hrc/reset (std_srvs/Trigger), /hrc/set_human_state (ros_hrc/SetHumanState:
-the human's next state, for manual mode without a terminal).
-Services used: /human/*, /hrc/observe, /hrc/obs/reset.
-Parameters: ~host (127.0.0.1), ~port (9090), ~mode (auto|manual, for the printout),
-~read_stdin (true: Enter on this node's terminal resets everything), ~print_steps (true),
-~service_timeout (30), ~reply_timeout (10: wait for the MDP's answer to a next state).
+Services offered: /hrc/reset (std_srvs/Trigger: reset everything and wait until it is done),
+/hrc/set_human_state (ros_hrc/SetHumanState: the human's next state, for manual mode without
+a terminal).
+Parameters: ~host, ~port, ~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episode_end,
+~end_on_goal, ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
+~service_timeout (s to wait for a world service to appear), ~action_timeout (s a world or
+robot action may take), ~decide_timeout (s to wait for a decision), ~reset_timeout.
 """
 from __future__ import annotations
 
+import os
 import sys
 import threading
 from dataclasses import dataclass
-from typing import Optional
+from typing import Dict, Optional
 
 import rospy
 from std_srvs.srv import Trigger, TriggerResponse
 
-from ros_hrc import task
-from ros_hrc.link.protocol import Ack, Error, Message, NextState, Reset, Step
-from ros_hrc.link.transport import MessageServer, Peer
+from ros_hrc.errors import HrcError, LinkError
+from ros_hrc.link.protocol import (Ack, Action, DispatchTable, Error, Message, NextState,
+                                   Reset, Step)
+from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
+from ros_hrc.loop import task
+from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, MdpRefused,
+                                      MdpReset, MdpStepDone, Outcome, SeatRefused, Snapshot,
+                                      StepReport, StepRequest)
+from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
+                                 WorldPort)
 from ros_hrc.msg import Status
 from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
                                   route_python_logging)
-from ros_hrc.srv import (Observe, ObserveRequest, SetHumanState, SetHumanStateResponse)
-
-MDP_NAME = "despot_mdp"
+from ros_hrc.srv import (Decide, GetWorldState, ResetPlanner, SetHumanState,
+                         SetHumanStateResponse)
 
 
 @dataclass
 class HumanNodeConfig:
     host: str = "127.0.0.1"
-    port: int = 9090
+    human_port: int = 9090
+    robot_port: int = 8080
     mode: str = "auto"
+    max_steps: int = 0
+    on_episode_end: str = "wait"
+    end_on_goal: bool = True
     read_stdin: bool = True
     print_steps: bool = True
     service_timeout: float = 30.0
+    action_timeout: float = 120.0
+    decide_timeout: float = 120.0
+    reset_timeout: float = 120.0
     reply_timeout: float = 10.0
 
 
+# -- what the terminal shows ----------------------------------------------------------------------
+
 def format_step(status: Status) -> str:
     """The block the ROS terminal prints for one step."""
+    lines = [f"------------------------------ step {status.step} ------------------------------",
+             f"human action      : {status.human_action}"]
+    if status.fault and not status.robot_observation:
+        lines += [f"human state       : {status.human_state} ({status.human_state_index})",
+                  f"STEP FAILED       : {status.fault}"]
+        return "\n".join(lines)
     bits = status.observation_bits
     belief = " | ".join(f"{name} {p:.3f}" for name, p in zip(status.belief_states, status.belief))
-    return "\n".join([
-        f"------------------------------ step {status.step} ------------------------------",
-        f"human action      : {status.human_action}",
+    lines += [
         f"human observation : {status.human_observation}",
         f"robot observation : {status.robot_observation} ({task.describe_bits(bits)})",
         f"human state       : {status.human_state} ({status.human_state_index})",
         f"robot state       : {status.robot_state}",
-        f"robot action      : {status.robot_action}",
-        f"robot belief      : {belief}",
-        f"object            : {object_text(status)} (t = {status.sim_time:.2f} s simulated)",
-    ])
+        f"robot action      : {status.robot_action or '-'}",
+        f"robot belief      : {belief or '-'}",
+    ]
+    if status.fault:
+        lines.append(f"STEP FAILED       : {status.fault}")
+    else:
+        lines.append(f"object            : {object_text(status)} (t = {status.sim_time:.2f} s "
+                     "simulated)")
+    if status.episode_over:
+        lines.append(f"episode           : {status.episode} over ({status.end_reason})")
+    return "\n".join(lines)
 
 
 def object_text(status: Status) -> str:
@@ -79,120 +107,208 @@ def object_text(status: Status) -> str:
     return "missed: it left the belt" if status.object_left_belt else "on the belt"
 
 
+def status_message(report: StepReport, mode: str) -> Status:
+    """The coordinator's step report as ``ros_hrc/Status``."""
+    status = Status()
+    status.header.stamp = rospy.Time.now()
+    status.mode = mode
+    for name in ("epoch", "episode", "step", "human_action", "human_state", "human_state_index",
+                 "human_reward", "human_observation", "observation_bits", "robot_observation",
+                 "robot_state", "robot_action", "decision_ms", "sim_time", "object_holder",
+                 "object_left_belt", "episode_start_time", "human_result", "robot_result",
+                 "surprise", "episode_over", "end_reason", "fault"):
+        setattr(status, name, getattr(report, name))
+    status.belief = list(report.belief)
+    status.belief_states = list(report.belief_states)
+    return status
+
+
+# -- the four adapters ------------------------------------------------------------------------
+
+class RosWorld(WorldPort):
+    """The world's services."""
+
+    def __init__(self, call: TriggerCaller) -> None:
+        self.call = call
+
+    def act_human(self, service: str) -> Outcome:
+        ok, message = self.call(f"/human/{service}")
+        return Outcome(ok, message)
+
+    def snapshot(self) -> Snapshot:
+        state = self.call.call("/hrc/world/state", GetWorldState).state
+        return Snapshot(predicates={
+            "is_ov": state.object_visible, "is_oir": state.object_in_reach,
+            "is_a0": state.human_attempting_grasp, "is_ho": state.human_has_object,
+            "is_h4": state.human_warning, "is_a2": state.human_idle},
+            sim_time=state.sim_time, holder=state.holder, left_belt=state.object_left_belt)
+
+    def reset(self, interrupt: bool) -> Outcome:
+        ok, message = self.call("/hrc/world/reset")
+        return Outcome(ok, message)
+
+
+class RosPlanner(PlannerPort):
+    """The robot planner behind hrc_obs."""
+
+    def __init__(self, call: TriggerCaller) -> None:
+        self.call = call
+
+    def decide(self, epoch: int, step: int, observation: str, bits: int, state: str) -> Decision:
+        answer = self.call.call("/hrc/obs/decide", Decide, epoch, step, observation, bits, state)
+        if not answer.success:
+            raise ServiceUnavailable(answer.message)
+        return Decision(action=answer.action, belief=tuple(answer.belief),
+                        belief_states=tuple(answer.belief_states),
+                        decision_ms=answer.decision_ms, surprise=answer.surprise,
+                        rule=answer.rule)
+
+    def reset(self, epoch: int, episode: int) -> Outcome:
+        answer = self.call.call("/hrc/obs/reset_planner", ResetPlanner, epoch, episode)
+        return Outcome(answer.success, answer.message)
+
+
+class LinkExecutor(ExecutorPort):
+    """The robot executor: hrc_robot's websocket server."""
+
+    def __init__(self, client: MessageClient, timeout: float) -> None:
+        self.client = client
+        self.timeout = timeout
+
+    def act(self, epoch: int, step: int, action: str) -> Outcome:
+        reply = self.client.request(Action(step=step, action=action, epoch=epoch), self.timeout)
+        if isinstance(reply, Error):
+            raise LinkError(f"hrc_robot refused {action}: {reply.message}")
+        return Outcome(reply.success is not False, reply.result or "")
+
+
+class LinkMdp(MdpPort):
+    """The served MDP's connection: answers are queued by the server, never block."""
+
+    def reset(self, effect: MdpReset) -> None:
+        effect.peer.send(Reset(reason=effect.reason, episode=effect.episode,
+                               epoch=effect.epoch))
+
+    def step_done(self, effect: MdpStepDone) -> None:
+        effect.peer.send(Ack(step=effect.step, of=Step.TYPE, action=effect.robot_action,
+                             success=effect.success, result=effect.result,
+                             episode=effect.episode, episode_over=effect.episode_over,
+                             end_reason=effect.end_reason or None, epoch=effect.epoch,
+                             reply_to=effect.reply))
+
+    def refused(self, effect: MdpRefused) -> None:
+        effect.peer.send(Error(message=effect.message, code=effect.code, in_reply_to=Step.TYPE,
+                               step=effect.step, epoch=effect.epoch, reply_to=effect.reply))
+
+    def refuse_seat(self, effect: SeatRefused) -> None:
+        rospy.logwarn("hrc_human: a second MDP client (%r) was refused", effect.peer)
+        effect.peer.send(Error(message=effect.message, code="seat_taken"))
+        effect.peer.close(reason="an MDP process is already served")
+
+
+class Terminal(ReportPort):
+    """Steps to the terminal and /hrc/status; the coordinator's lines to rosout."""
+
+    def __init__(self, publisher: rospy.Publisher, mode: str, print_steps: bool) -> None:
+        self.publisher = publisher
+        self.mode = mode
+        self.print_steps = print_steps
+
+    def step(self, report: StepReport) -> None:
+        status = status_message(report, self.mode)
+        self.publisher.publish(status)
+        if self.print_steps:
+            print(format_step(status), flush=True)
+
+    def note(self, level: str, text: str) -> None:
+        if text.startswith("RESET"):
+            print(f"=============== {text} ===============", flush=True)
+            return
+        {"error": rospy.logerr, "warn": rospy.logwarn}.get(level, rospy.loginfo)(
+            "hrc_human: %s", text)
+
+
+# -- the node ---------------------------------------------------------------------------------
+
 class HumanNode:
-    """The loop's coordinator on the ROS side."""
+    """The coordinator, its runner and the adapters."""
 
     def __init__(self, config: HumanNodeConfig) -> None:
         self.config = config
         self.call = TriggerCaller(config.service_timeout)
-        self.server = MessageServer(config.port, self.handle, host=config.host, name="hrc_human",
-                                    on_connect=self.on_connect)
+        # A random first epoch: a respawned node never mints an epoch its predecessor used.
+        first_epoch = int.from_bytes(os.urandom(3), "big") << 4
+        coordinator = Coordinator(CoordinatorConfig(
+            max_steps=config.max_steps, end_on_goal=config.end_on_goal,
+            on_episode_end=config.on_episode_end, first_epoch=first_epoch))
+        self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
+                                   send_timeout=config.action_timeout)
         self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)
-        self._observe = rospy.ServiceProxy("/hrc/observe", Observe)
-        self._loop_lock = threading.RLock()   # a step or a reset at a time
-        self._await_fresh_start = False       # after a reset, only a step 0 is accepted
-        self._mdp_connections = 0
-        self._mdp_peer: Optional[int] = None  # the MDP process being served (the newest)
-        self._answers = threading.Condition()
-        self._answer: Optional[Message] = None
+        self.runner = LoopRunner(coordinator, RosWorld(self.call), RosPlanner(self.call),
+                                 LinkExecutor(self.robot, config.action_timeout), LinkMdp(),
+                                 Terminal(self.status_pub, config.mode, config.print_steps))
+        table = DispatchTable("hrc_human")
+        table.on(Step, self._on_step)
+        table.on(Reset, self._on_reset)
+        table.on(Ack, self._on_answer)
+        table.on(Error, self._on_answer)
+        self.server = MessageServer(config.human_port, table, host=config.host,
+                                    name="hrc_human", on_connect=self.runner.mdp_connected,
+                                    on_disconnect=self.runner.mdp_disconnected)
+        self._answers: Dict[int, Message] = {}
+        self._answered = threading.Condition()
 
-    # -- websocket side ----------------------------------------------------------------------
-    def on_connect(self, peer: Peer) -> None:
-        if peer.who != MDP_NAME:
-            return
-        self._mdp_connections += 1
-        self._mdp_peer = peer.id
-        if self._mdp_connections > 1:
-            # A respawned or reconnected MDP: everything starts over together from step 0.
-            threading.Thread(target=self.reset_all, args=("the MDP process reconnected",),
-                             daemon=True).start()
+    def start(self) -> None:
+        self.runner.start()
+        self.robot.start()
+        self.server.start()
 
-    def handle(self, msg: Message, peer: Peer) -> Optional[Message]:
-        if isinstance(msg, Step):
-            if peer.id != self._mdp_peer:
-                return Error(message="another MDP process is connected and being served",
-                             in_reply_to=msg.type, step=msg.step)
-            return self.run_step(msg)
-        if isinstance(msg, Reset):
-            ok, text = self.reset_all(f"asked by {peer.who}", tell_mdp=False)
-            return Ack(step=0, of=msg.type, success=ok, result=text)
-        if isinstance(msg, (Ack, Error)) and (msg.type == "error" or msg.of == "next_state"):
-            with self._answers:   # the MDP's answer to a next_state
-                self._answer = msg
-                self._answers.notify_all()
+    def stop(self) -> None:
+        self.server.stop()
+        self.runner.stop()
+        self.robot.close()
+        self.call.close()
+
+    # -- the MDP's messages -------------------------------------------------------------------
+    def _on_step(self, msg: Step, peer: Peer) -> None:
+        self.runner.step_requested(peer, StepRequest(
+            epoch=msg.epoch, step=msg.step, action=msg.action, state=msg.state,
+            state_index=msg.state_index or 0, reward=msg.reward or 0.0, reply=msg.id))
+
+    def _on_reset(self, msg: Reset, peer: Peer) -> Message:
+        self.runner.request_reset(f"asked by {peer.who}: {msg.reason or 'reset'}")
+        return Ack(step=0, of=Reset.TYPE, result="reset requested", reply_to=msg.id)
+
+    def _on_answer(self, msg: Message, peer: Peer) -> None:
+        # The MDP's answers to next_state requests, matched by correlation id.
+        if msg.reply_to is None:
             return None
-        return Error(message=f"hrc_human does not take {msg.type} messages here",
-                     in_reply_to=msg.type, step=getattr(msg, "step", None))
+        with self._answered:
+            self._answers[msg.reply_to] = msg
+            self._answered.notify_all()
+        return None
 
-    def run_step(self, msg: Step) -> Message:
-        with self._loop_lock:
-            if self._await_fresh_start and msg.step != 0:
-                return Error(message=f"step {msg.step} is from before the reset; start again "
-                                     "from step 0", in_reply_to=msg.type, step=msg.step)
-            self._await_fresh_start = False
-            try:
-                service = task.human_service_for(msg.action, msg.state)
-            except ValueError as exc:
-                return Error(message=str(exc), in_reply_to=msg.type, step=msg.step)
-            try:
-                acted, action_result = self.call(f"/human/{service}")
-                response = self._observe(ObserveRequest(
-                    step=msg.step, human_action=msg.action, human_state=msg.state,
-                    human_state_index=msg.state_index or 0, human_reward=msg.reward or 0.0))
-            except (ServiceUnavailable, rospy.ServiceException) as exc:
-                return Error(message=f"step {msg.step} not carried out: {exc}",
-                             in_reply_to=msg.type, step=msg.step)
-            status = response.status
-            if not status.robot_action:
-                # Nothing was decided (no POMDP process, or it restarted): no step to report.
-                rospy.logwarn("step %d: %s", msg.step, response.message)
-                return Error(message=f"step {msg.step} not completed: {response.message}",
-                             in_reply_to=msg.type, step=msg.step)
-            status.mode = self.config.mode
-            self.status_pub.publish(status)
-            if self.config.print_steps:
-                print(format_step(status), flush=True)
-                if not acted:
-                    print(f"(human: {action_result})", flush=True)
-            if not response.success:
-                rospy.logwarn("step %d: %s", msg.step, response.message)
-            return Ack(step=msg.step, of=msg.type, action=status.robot_action or None,
-                       success=response.success,
-                       result=response.message or action_result,
-                       extra={k: v for k, v in msg.extra.items() if k == "episode"})
-
-    # -- resets --------------------------------------------------------------------------------
-    def reset_all(self, reason: str, tell_mdp: bool = True):
-        """World, observer, POMDP and (if ``tell_mdp``) MDP back to step 0: (ok, message)."""
-        with self._loop_lock:
-            problems = []
-            for service in ("/human/reset", "/robot/reset", "/hrc/obs/reset"):
-                try:
-                    ok, text = self.call(service)
-                except ServiceUnavailable as exc:
-                    ok, text = False, str(exc)
-                if not ok:
-                    problems.append(f"{service}: {text}")
-            if tell_mdp:
-                self.server.send(Reset(reason=reason), who=MDP_NAME)
-            self._await_fresh_start = True
-            summary = "; ".join(problems) if problems else "world, robot belief and human MDP reset"
-            print(f"=============== RESET ({reason}): {summary} ===============", flush=True)
-            return not problems, summary
-
+    # -- services -------------------------------------------------------------------------------
     def reset_service(self, _req) -> TriggerResponse:
-        ok, text = self.reset_all("/hrc/reset called")
+        ok, text = self.runner.reset("/hrc/reset called", self.config.reset_timeout)
         return TriggerResponse(success=ok, message=text)
 
+    _next_state_ids = iter(range(1, 1 << 52))
+    _ids_lock = threading.Lock()
+
     def set_human_state(self, req) -> SetHumanStateResponse:
-        state = None if req.state < 0 else int(req.state)
-        with self._answers:
-            self._answer = None
-        if self.server.send(NextState(state=state), who=MDP_NAME) == 0:
+        seat = self.runner.coordinator.seat
+        if seat is None:
             return SetHumanStateResponse(success=False, message="no MDP process is connected")
-        with self._answers:
-            self._answers.wait_for(lambda: self._answer is not None, self.config.reply_timeout)
-            answer = self._answer
+        with self._ids_lock:
+            request_id = next(self._next_state_ids)
+        state = None if req.state < 0 else int(req.state)
+        if not seat.send(NextState(state=state, id=request_id)):
+            return SetHumanStateResponse(success=False, message="the MDP process is gone")
+        with self._answered:
+            self._answered.wait_for(lambda: request_id in self._answers,
+                                    self.config.reply_timeout)
+            answer = self._answers.pop(request_id, None)
         if answer is None:
             return SetHumanStateResponse(success=False, message="the MDP process did not answer")
         if isinstance(answer, Error):
@@ -204,17 +320,21 @@ class HumanNode:
         for _line in sys.stdin:
             if rospy.is_shutdown():
                 break
-            threading.Thread(target=self.reset_all, args=("Enter pressed",), daemon=True).start()
+            self.runner.request_reset("Enter pressed")
 
 
 def main() -> None:
     rospy.init_node("hrc_human")
     route_python_logging()
-    node = HumanNode(read_config(HumanNodeConfig))
+    try:
+        node = HumanNode(read_config(HumanNodeConfig))
+        node.start()
+    except (HrcError, ValueError) as exc:
+        rospy.logfatal("hrc_human cannot start: %s", exc)
+        raise SystemExit(2) from None
+    rospy.on_shutdown(node.stop)
     rospy.Service("/hrc/reset", Trigger, node.reset_service)
     rospy.Service("/hrc/set_human_state", SetHumanState, node.set_human_state)
-    node.server.start()
-    rospy.on_shutdown(node.server.stop)
     if node.config.read_stdin and sys.stdin is not None and not sys.stdin.closed:
         threading.Thread(target=node.read_enter, name="enter-resets", daemon=True).start()
         print("hrc_human: press Enter in this terminal to reset the whole scenario", flush=True)

@@ -1,12 +1,14 @@
-"""hrc_robot: carries out the robot POMDP's actions in the world.
+"""hrc_robot: the robot executor, an adapter of the loop's coordinator.
 
-A websocket server (port ``~port``, 8080 by default, bound to ``~host``) that the POMDP
-process connects to. Each ``action`` message is carried out through the world's /robot/*
-services (``rIdle`` moves nothing; ``rPoint_obj`` /robot/point_to_obj, ``rGrasp_obj``
-/robot/grasp, ``rStop_all`` /robot/cancel_action) and answered with an ``ack`` carrying what
-happened. A ``reset`` calls /robot/reset.
+A websocket server (``~robot_port``, 8080 by default, bound to ``~host``). The coordinator
+(in hrc_human) connects and, once the planner has decided, sends the ``action`` to carry out;
+this node carries it out through the world's /robot/* services (``rIdle`` moves nothing;
+``rPoint_obj`` /robot/point_to_obj, ``rGrasp_obj`` /robot/grasp, ``rStop_all``
+/robot/cancel_action) and answers with an ``ack`` saying what happened (``success`` false: the
+world refused, e.g. out of reach). When the world cannot be reached the answer is an
+``error``: a fault, which fails the step. A ``reset`` calls /robot/reset. No loop state here.
 
-Parameters: ~host (127.0.0.1), ~port (8080), ~service_timeout (30 s to wait for the world).
+Parameters: ~host (127.0.0.1), ~robot_port (8080), ~service_timeout (30 s to wait for the world).
 Services used: /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset.
 """
 from __future__ import annotations
@@ -16,9 +18,10 @@ from typing import Optional
 
 import rospy
 
-from ros_hrc import task
-from ros_hrc.link.protocol import Ack, Action, Error, Message, Reset
+from ros_hrc.errors import HrcError
+from ros_hrc.link.protocol import Ack, Action, DispatchTable, Error, Message, Reset
 from ros_hrc.link.transport import MessageServer, Peer
+from ros_hrc.loop import task
 from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
                                   route_python_logging)
 
@@ -26,49 +29,59 @@ from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config
 @dataclass
 class RobotNodeConfig:
     host: str = "127.0.0.1"
-    port: int = 8080
+    robot_port: int = 8080
     service_timeout: float = 30.0
 
 
 class RobotNode:
-    """Adapter from the POMDP's action messages to the world's robot services."""
+    """Adapter from action messages to the world's robot services."""
 
     def __init__(self, config: RobotNodeConfig) -> None:
         self.config = config
         self.call = TriggerCaller(config.service_timeout)
-        self.server = MessageServer(config.port, self.handle, host=config.host, name="hrc_robot")
+        table = DispatchTable("hrc_robot")
+        table.on(Action, self.on_action)
+        table.on(Reset, self.on_reset)
+        self.server = MessageServer(config.robot_port, table, host=config.host,
+                                    name="hrc_robot")
 
-    def handle(self, msg: Message, peer: Peer) -> Optional[Message]:
-        if isinstance(msg, Action):
-            if msg.action not in task.ROBOT_ACTION_SERVICES:
-                return Error(message=f"unknown robot action {msg.action!r}; known: "
-                                     f"{', '.join(task.ROBOT_ACTION_SERVICES)}",
-                             in_reply_to=msg.type, step=msg.step)
-            service = task.ROBOT_ACTION_SERVICES[msg.action]
-            if service is None:
-                ok, result = True, "robot stays idle and keeps observing"
-            else:
-                try:
-                    ok, result = self.call(f"/robot/{service}")
-                except ServiceUnavailable as exc:
-                    ok, result = False, str(exc)
-            rospy.logdebug("step %d: %s -> %s (%s)", msg.step, msg.action, ok, result)
-            return Ack(step=msg.step, of=msg.type, action=msg.action, success=ok, result=result)
-        if isinstance(msg, Reset):
+    def on_action(self, msg: Action, peer: Peer) -> Message:
+        if msg.action not in task.ROBOT_ACTION_SERVICES:
+            return Error(message=f"unknown robot action {msg.action!r}; known: "
+                                 f"{', '.join(task.ROBOT_ACTION_SERVICES)}", code="invalid",
+                         in_reply_to=msg.type, step=msg.step, epoch=msg.epoch, reply_to=msg.id)
+        service = task.ROBOT_ACTION_SERVICES[msg.action]
+        if service is None:
+            ok, result = True, "the robot stays idle and keeps observing"
+        else:
             try:
-                ok, result = self.call("/robot/reset")
+                ok, result = self.call(f"/robot/{service}")
             except ServiceUnavailable as exc:
-                ok, result = False, str(exc)
-            return Ack(step=0, of=msg.type, success=ok, result=result)
-        return Error(message=f"hrc_robot does not take {msg.type} messages",
-                     in_reply_to=msg.type, step=getattr(msg, "step", None))
+                return Error(message=str(exc), code="failed", in_reply_to=msg.type,
+                             step=msg.step, epoch=msg.epoch, reply_to=msg.id)
+        rospy.logdebug("step %d: %s -> %s (%s)", msg.step, msg.action, ok, result)
+        return Ack(step=msg.step, of=msg.type, action=msg.action, success=ok, result=result,
+                   epoch=msg.epoch, reply_to=msg.id)
+
+    def on_reset(self, msg: Reset, peer: Peer) -> Optional[Message]:
+        try:
+            ok, result = self.call("/robot/reset")
+        except ServiceUnavailable as exc:
+            return Error(message=str(exc), code="failed", in_reply_to=msg.type,
+                         epoch=msg.epoch, reply_to=msg.id)
+        return Ack(step=0, of=msg.type, success=ok, result=result, epoch=msg.epoch,
+                   reply_to=msg.id)
 
 
 def main() -> None:
     rospy.init_node("hrc_robot")
     route_python_logging()
-    node = RobotNode(read_config(RobotNodeConfig))
-    node.server.start()
-    rospy.loginfo("hrc_robot: waiting for the POMDP process on %s", node.server.url)
+    try:
+        node = RobotNode(read_config(RobotNodeConfig))
+        node.server.start()
+    except (HrcError, ValueError) as exc:
+        rospy.logfatal("hrc_robot cannot start: %s", exc)
+        raise SystemExit(2) from None
+    rospy.loginfo("hrc_robot: carrying out the robot's actions on %s", node.server.url)
     rospy.on_shutdown(node.server.stop)
     rospy.spin()

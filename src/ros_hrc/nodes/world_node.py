@@ -2,7 +2,8 @@
 
 Every service is a ``std_srvs/Trigger`` adapter around one call of the world; actions return
 when their motion is over (``success``: it did what was asked; ``message``: what happened),
-predicates answer in ``success`` and explain in ``message``.
+predicates answer in ``success`` and explain in ``message``. A fault of the world (it closed,
+an action did not finish in time) is a service error, never a ``false``.
 
 Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapshot):
   /human/walk_away, /human/look_around, /human/warn_robot, /human/attempt_grasp, /human/grasp,
@@ -10,6 +11,8 @@ Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapsho
   MDP's idle action), /human/is_ov, /human/is_oir, /human/is_ho, /human/is_a0, /human/is_a2,
   /human/is_h4, /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset,
   /hrc/world/snapshot (writes a PNG of the scene; ``message`` is its path)
+  /hrc/world/reset (human, robot and object back at their start at once, interrupting any
+                    action under way: the coordinator's reset)
   /hrc/world/state (ros_hrc/GetWorldState: the state now, as /hrc/world_state publishes it)
 
 Topics published:
@@ -22,7 +25,8 @@ Parameters (read once at start-up):
   ~seed (int, 0)                  seed of the world's randomness
   ~belt_speed (float, 0.02)       conveyor speed, m/s
   ~real_time_factor (float, 1.0)  simulated seconds per wall second; 0 = as fast as possible
-  ~pause_when_idle (bool, false)  freeze simulated time while no action runs
+  ~pause_when_idle (bool or "")  freeze simulated time while no action runs ("": when
+                                  real_time_factor is 0)
   ~publish_rate (float, 10.0)     /hrc/world_state rate, Hz
   ~action_timeout (float, 120.0)  wall seconds a service call waits for its action
   ~snapshot_dir (str, $ROS_HOME/hrc_snapshots)  where /hrc/world/snapshot writes
@@ -42,7 +46,8 @@ import rospy
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
 
-from ros_hrc.errors import SimulationError
+from ros_hrc.errors import HrcError, SimulationError
+from ros_hrc.loop import settings
 from ros_hrc.msg import WorldState
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
 from ros_hrc.world import HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, World, WorldConfig
@@ -74,12 +79,14 @@ class WorldNodeConfig:
         snapshot_dir = get_param("~snapshot_dir", "") or os.path.join(rospkg.get_ros_home(), "hrc_snapshots")
         model_dir = get_param("~model_dir", "") or os.path.join(
             rospkg.RosPack().get_path("ros_hrc"), "models", "urdf")
+        def setting(name: str) -> Any:   # launch settings: one source of defaults and checks
+            return settings.parse(name, get_param(f"~{name}", ""))
+
+        real_time_factor = setting("real_time_factor")
         config = cls(
-            gui=bool(get_param("~gui", defaults.gui)),
-            seed=int(get_param("~seed", defaults.seed)),
-            belt_speed=float(get_param("~belt_speed", defaults.belt_speed)),
-            real_time_factor=float(get_param("~real_time_factor", defaults.real_time_factor)),
-            pause_when_idle=bool(get_param("~pause_when_idle", defaults.pause_when_idle)),
+            gui=setting("gui"), seed=setting("seed"), belt_speed=setting("belt_speed"),
+            real_time_factor=real_time_factor,
+            pause_when_idle=_pause_when_idle(get_param("~pause_when_idle", ""), real_time_factor),
             publish_rate=float(get_param("~publish_rate", defaults.publish_rate)),
             action_timeout=float(get_param("~action_timeout", defaults.action_timeout)),
             snapshot_dir=snapshot_dir, model_dir=model_dir,
@@ -90,14 +97,15 @@ class WorldNodeConfig:
         return config
 
 
+# A world fault (the world closed, an action that never finished) is raised, so that rospy
+# answers the caller with a service *error*: a fault never reads as "false" (a predicate that
+# does not hold, an action the world refused).
+
 def action_handler(world: World, agent: str, action: str,
                    timeout: float) -> Callable[[TriggerRequest], TriggerResponse]:
     """Trigger handler running ``agent``'s ``action`` in the world and waiting for its outcome."""
     def handle(_request: TriggerRequest) -> TriggerResponse:
-        try:
-            outcome = world.run(agent, action, timeout)
-        except SimulationError as error:
-            return TriggerResponse(False, str(error))
+        outcome = world.run(agent, action, timeout)   # SimulationError: a service error
         return TriggerResponse(outcome.success, outcome.message)
     return handle
 
@@ -105,10 +113,7 @@ def action_handler(world: World, agent: str, action: str,
 def predicate_handler(world: World, predicate: str) -> Callable[[TriggerRequest], TriggerResponse]:
     """Trigger handler answering a human predicate from the current geometry."""
     def handle(_request: TriggerRequest) -> TriggerResponse:
-        try:
-            reading = world.query(predicate)
-        except SimulationError as error:
-            return TriggerResponse(False, str(error))
+        reading = world.query(predicate)   # SimulationError: a service error, never "false"
         return TriggerResponse(reading.value, reading.message)
     return handle
 
@@ -148,6 +153,16 @@ def state_message(state: dict, stamp: rospy.Time) -> WorldState:
     return msg
 
 
+def _pause_when_idle(value: Any, real_time_factor: float) -> bool:
+    """``""`` (the default) means: freeze simulated time between actions exactly when the world
+    runs as fast as it can (real_time_factor 0), so a seeded run depends only on its seed."""
+    if value == "" or value is None:
+        return real_time_factor == 0
+    if isinstance(value, str):
+        return value.strip().lower() in ("1", "true", "yes", "on")
+    return bool(value)
+
+
 class WorldNode:
     """The world, its services, its state publisher and (under simulated time) its clock."""
 
@@ -173,6 +188,7 @@ class WorldNode:
         for action in ROBOT_ACTIONS:
             self._advertise(f"/robot/{action}", action_handler(self.world, "robot", action, c.action_timeout))
         self._advertise("/hrc/world/snapshot", snapshot_handler(self.world, c.snapshot_dir))
+        self._advertise("/hrc/world/reset", action_handler(self.world, "world", "reset", c.action_timeout))
         self._services.append(rospy.Service("/hrc/world/state", GetWorldState, self._state_now))
         # The physics runs in its own thread paced by the wall clock: under /use_sim_time this
         # node is the clock, so nothing here may wait on rospy time.
@@ -225,7 +241,7 @@ def main() -> None:
         node = WorldNode(config)
         rospy.on_shutdown(node.shutdown)
         node.start()
-    except (SimulationError, ValueError) as error:
+    except (HrcError, ValueError) as error:
         rospy.logfatal("hrc_world cannot start: %s", error)
         raise SystemExit(1) from error
     rospy.spin()

@@ -5,7 +5,7 @@ from types import SimpleNamespace
 import pytest
 
 from ros_hrc.experiment.cli import build_parser, plan_cells
-from ros_hrc.experiment.episode import (ROBOT_POLICIES, discounted_robot_reward, end_reason,
+from ros_hrc.experiment.episode import (ROBOT_POLICIES, discounted_robot_reward,
                                         needs_help_mass, score_episode, step_rows)
 from ros_hrc.experiment.stack import (CellSpec, decode_episode, encode_episode,
                                       launch_arguments)
@@ -28,17 +28,6 @@ def step(n, robot_state="S0", robot_action="rIdle", bits=35, holder="none", left
         belief_states=STATES, belief=belief or [1.0, 0, 0, 0, 0, 0, 0], decision_ms=2.0 * (n + 1),
         sim_time=10.0 + n if sim_time is None else sim_time, object_holder=holder,
         object_left_belt=left)
-
-
-def test_an_episode_goes_on_until_someone_holds_the_object_it_is_missed_or_steps_run_out():
-    assert end_reason([], 5) is None
-    assert end_reason([step(0)], 5) is None
-    assert end_reason([step(0), step(1, holder="human")], 5) == "success"
-    assert end_reason([step(0, holder="robot")], 5) == "success"
-    assert end_reason([step(0), step(1, left=True)], 5) == "object_left_belt"
-    assert end_reason([step(i) for i in range(5)], 5) == "step_limit"
-    # Success on the last allowed step counts as success.
-    assert end_reason([step(i) for i in range(4)] + [step(4, holder="human")], 5) == "success"
 
 
 def test_scoring_counts_who_succeeded_intrusions_warnings_and_times(robot_model):

@@ -1,5 +1,6 @@
-"""The results room: rows and their CSV form, the store an interrupted run resumes from,
-confidence intervals against hand-computed values, the summary and the plots."""
+"""The results: rows and their CSV form, the store an interrupted run resumes from and its lock
+(store.py), confidence intervals against hand-computed values and the summary (statistics.py),
+and the plots (plots.py)."""
 import csv
 import math
 import os
@@ -9,10 +10,11 @@ import warnings
 
 import pytest
 
-from ros_hrc.experiment.results import (EPISODE_COLUMNS, STEP_COLUMNS, SUMMARY_COLUMNS,
-                                        EpisodeRow, ResultsStore, ResultsWarning, StepRow,
-                                        format_ci, mean_ci, plot_belief, plot_outcomes,
-                                        proportion_ci, summarize, write_summary)
+from ros_hrc.experiment.plots import plot_belief, plot_outcomes
+from ros_hrc.experiment.statistics import (SUMMARY_COLUMNS, format_ci, mean_ci, proportion_ci,
+                                           summarize, write_summary)
+from ros_hrc.experiment.store import (EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, ResultsStore,
+                                      ResultsWarning, StepRow)
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -292,9 +294,10 @@ def test_plot_belief_warns_when_runs_disagree_on_the_truth(tmp_path):
 
 
 def test_the_plots_need_no_display_and_leave_pyplot_alone(tmp_path):
-    code = ("import sys; from ros_hrc.experiment import results as r; "
-            "rows = [r.EpisodeRow('h', 'p', 0, 0, 1, 'human', 'success', 3, 1.0, 0.0, 0, 0, 1.0, 1.0)]; "
-            f"r.plot_outcomes(r.summarize(rows), {str(tmp_path / 'o.png')!r}); "
+    code = ("import sys; from ros_hrc.experiment import plots, statistics, store; "
+            "rows = [store.EpisodeRow('h', 'p', 0, 0, 1, 'human', 'success', 3, 1.0, 0.0, 0, 0, "
+            "1.0, 1.0)]; "
+            f"plots.plot_outcomes(statistics.summarize(rows), {str(tmp_path / 'o.png')!r}); "
             "assert 'matplotlib.pyplot' not in sys.modules; "
             "assert not {'rospy', 'pybullet'} & set(sys.modules)")
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MPLBACKEND")}

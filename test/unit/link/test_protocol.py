@@ -7,29 +7,36 @@ import sys
 import pytest
 
 from ros_hrc.errors import LinkError, ProtocolError
-from ros_hrc.link.protocol import (BELIEF_TOLERANCE, MAX_MESSAGE_BYTES, MESSAGE_TYPES, Ack,
-                                   Action, Error, Hello, MessageError, NextState, Observation,
-                                   Reset, Step, decode, encode, error_message, error_reply,
-                                   from_dict)
+from ros_hrc.link.protocol import (BELIEF_TOLERANCE, ERR_FAILED, ERR_INVALID, ERR_UNKNOWN_TYPE,
+                                   MAX_MESSAGE_BYTES, MESSAGE_TYPES, PROTOCOL_VERSION, Ack,
+                                   Action, Decision, Error, Hello, MessageError, NextState,
+                                   Observation, Reset, Step, decode, encode, error_message,
+                                   error_reply, from_dict)
 
 # One message of each type, with every optional field set, and one with none of them.
 FULL_MESSAGES = [
-    Hello(who="despot_mdp", version=1),
+    Hello(who="despot_mdp", version=2, id=1),
     Step(step=3, action="idle", state="evaluating", reward=-1.5, state_index=4,
-         belief={"evaluating": 0.8, "tired": 0.2}, manual=True),
-    Observation(step=3, observation="O35", bits=35, state="S2"),
+         belief={"evaluating": 0.8, "tired": 0.2}, manual=True, epoch=2, id=17),
+    Observation(step=3, observation="O35", bits=35, state="S2", epoch=2, id=18),
+    Decision(step=3, action="rPoint_obj", belief=[0.1, 0.2, 0.7],
+             belief_states=["S0", "S1", "S2"], decision_ms=12.5, surprise=False,
+             rule="attempt_failed", epoch=2, reply_to=18),
     Action(step=3, action="rPoint_obj", belief=[0.1, 0.2, 0.7],
-           belief_states=["S0", "S1", "S2"], decision_ms=12.5),
-    Reset(reason="enter pressed"),
-    NextState(state=4),
-    Ack(step=3, of="step", action="rPoint_obj", success=True, result="pointing"),
-    Error(message="bad thing", in_reply_to="step", step=3),
+           belief_states=["S0", "S1", "S2"], decision_ms=12.5, epoch=2, id=19),
+    Reset(reason="enter pressed", episode=4, epoch=3, id=20),
+    NextState(state=4, epoch=2, id=2 ** 53 - 1),
+    Ack(step=3, of="step", action="rPoint_obj", success=True, result="pointing", episode=4,
+        episode_over=True, end_reason="human_has_object", epoch=2, reply_to=17),
+    Error(message="bad thing", in_reply_to="step", step=3, code="stale", epoch=0,
+          reply_to=0),
 ]
 MINIMAL_MESSAGES = [
     Hello(who="hrc_obs"),
     Step(3, "idle", "evaluating"),
     Observation(0, "O0", 0, "S0"),
-    Action(0, "rIdle", [1.0]),
+    Decision(0, "rIdle", [1.0]),
+    Action(0, "rIdle"),
     Reset(),
     NextState(None),
     Ack(0),
@@ -124,7 +131,8 @@ MALFORMED = [
      'missing field "action"'),
     ("missing observation bits",
      _frame(**{k: v for k, v in OBSERVATION.items() if k != "bits"}), 'missing field "bits"'),
-    ("missing belief", _frame(type="action", step=1, action="rIdle"), 'missing field "belief"'),
+    ("missing decision belief", _frame(type="decision", step=1, action="rIdle"),
+     'decision message: missing field "belief"'),
     ("missing hello who", _frame(type="hello"), 'missing field "who"'),
     ("missing error message", _frame(type="error"), 'missing field "message"'),
     ("step is a string", _frame(**{**STEP, "step": "3"}), '"step" must be an integer'),
@@ -228,7 +236,8 @@ def test_error_reply_answers_a_rejected_message_with_its_type_step_and_reason():
     with pytest.raises(MessageError) as caught:
         decode(_frame(**{**OBSERVATION, "step": 5, "bits": 99}))
     reply = decode(error_reply(caught.value))
-    assert reply == Error(message=caught.value.reason, in_reply_to="observation", step=5)
+    assert reply == Error(message=caught.value.reason, in_reply_to="observation", step=5,
+                          code=ERR_INVALID)
 
 
 def test_error_reply_names_the_class_of_any_other_exception():

@@ -2,15 +2,16 @@
 websocket-client clients. Waits carry generous timeouts only as safety nets: no assertion
 depends on how fast anything is."""
 import threading
+from dataclasses import replace
 
 import pytest
 import websocket
 
 from ros_hrc.errors import LinkError, ProtocolError
-from ros_hrc.link.protocol import (MAX_MESSAGE_BYTES, Ack, Action, Error, Hello, Message,
+from ros_hrc.link.protocol import (ERR_FAILED, MAX_MESSAGE_BYTES, Ack, Error, Hello, Message,
                                    NextState, Observation, Reset, Step, decode, encode)
 from ros_hrc.link.transport import (FRAME_LIMIT_BYTES, LinkClosed, LinkDropped, LinkTimeout,
-                                    MessageClient, MessageServer, Peer, is_reply_to, link_url)
+                                    MessageClient, MessageServer, Peer, link_url)
 
 SAFETY = 10.0  # seconds; only ever reached when something is broken
 FAST_BACKOFF = (0.01, 0.1)
@@ -76,6 +77,11 @@ def client(server):
     cli.close()
 
 
+def bare(msg):
+    """The message without its envelope (request() stamps ids; replies carry reply_to)."""
+    return replace(msg, epoch=None, id=None, reply_to=None)
+
+
 def raw_connection(server):
     """A bare websocket-client connection, able to send what MessageClient never would."""
     return websocket.create_connection(server.url, timeout=SAFETY)
@@ -88,8 +94,9 @@ def test_server_binds_loopback_by_default_on_an_ephemeral_port(server):
 
 def test_client_and_server_exchange_messages_both_ways(server, client, recorder):
     reply = client.request(Step(3, "idle", "evaluating"), timeout=SAFETY)
-    assert reply == Ack(step=3, of="step", action="rIdle")
-    assert recorder.seen == [Step(3, "idle", "evaluating")]
+    assert reply == Ack(step=3, of="step", action="rIdle", reply_to=recorder.seen[0].id)
+    assert [bare(m) for m in recorder.seen] == [Step(3, "idle", "evaluating")]
+    assert recorder.seen[0].id is not None  # request() stamped a correlation id
 
     assert server.send(NextState(4)) == 1
     assert client.receive(SAFETY) == NextState(4)
@@ -159,12 +166,14 @@ def test_error_reply_names_the_rejected_type_and_step(server):
         ws.close()
 
 
-def test_handler_exception_is_answered_with_an_error_and_the_server_goes_on(server, client):
-    reply = client.request(Observation(4, "O35", 35, "S2"), timeout=SAFETY)
+def test_handler_exception_is_answered_with_an_error_and_the_server_goes_on(server, client,
+                                                                           recorder):
+    reply = client.request(Observation(4, "O35", 35, "S2", epoch=6), timeout=SAFETY)
     assert isinstance(reply, Error)
     assert reply.message == "RuntimeError: planner exploded"
-    assert (reply.in_reply_to, reply.step) == ("observation", 4)
-    assert client.request(Step(5, "idle", "tired"), timeout=SAFETY) == \
+    assert (reply.in_reply_to, reply.step, reply.code) == ("observation", 4, ERR_FAILED)
+    assert reply.reply_to == recorder.seen[-1].id and reply.epoch == 6
+    assert bare(client.request(Step(5, "idle", "tired"), timeout=SAFETY)) == \
         Ack(step=5, of="step", action="rIdle")
 
 
@@ -203,7 +212,7 @@ def test_frame_over_the_frame_limit_closes_only_that_connection(server, client):
 def test_client_refuses_to_send_an_oversized_message(client):
     with pytest.raises(ProtocolError, match="too large"):
         client.send(Reset(extra={"padding": "x" * MAX_MESSAGE_BYTES}))
-    assert client.request(Reset(), timeout=SAFETY) == Ack(step=0, of="reset")
+    assert bare(client.request(Reset(), timeout=SAFETY)) == Ack(step=0, of="reset")
 
 
 def test_client_answers_a_malformed_frame_from_the_server_with_an_error(recorder):
@@ -216,7 +225,7 @@ def test_client_answers_a_malformed_frame_from_the_server_with_an_error(recorder
 
     with MessageServer(0, handler, name="garbling") as srv, \
             MessageClient(srv.url, "c", backoff=FAST_BACKOFF) as cli:
-        assert cli.request(Step(1, "idle", "tired"), timeout=SAFETY) == Ack(step=1)
+        assert bare(cli.request(Step(1, "idle", "tired"), timeout=SAFETY)) == Ack(step=1)
         recorder.wait_until(lambda: any(isinstance(m, Error) for m in recorder.seen))
         error = next(m for m in recorder.seen if isinstance(m, Error))
         assert "invalid JSON" in error.message
@@ -419,14 +428,3 @@ def test_binding_a_port_in_use_is_a_link_error(server, recorder):
 
 def test_wait_for_client_is_false_when_nobody_comes(server):
     assert server.wait_for_client(timeout=0.01) is False
-
-
-def test_is_reply_to_matches_acks_and_errors_to_their_request():
-    step = Step(3, "idle", "tired")
-    assert is_reply_to(Ack(3), step) and is_reply_to(Ack(3, of="step"), step)
-    assert not is_reply_to(Ack(4), step) and not is_reply_to(Ack(3, of="action"), step)
-    assert is_reply_to(Error("no", step=3), step)
-    assert is_reply_to(Error("no", in_reply_to="step"), step)
-    assert not is_reply_to(Error("no", in_reply_to="action", step=3), step)
-    assert is_reply_to(Ack(0, of="reset"), Reset()) and not is_reply_to(Ack(0), Reset())
-    assert not is_reply_to(Action(3, "rIdle", [1.0]), step)

@@ -96,6 +96,11 @@ def observation_name(bits: int) -> str:
     return f"O{bits}"
 
 
+def predicates_text(predicates: Mapping[str, bool]) -> str:
+    """The predicates as the step block prints them, e.g. ``ov=1 oir=1 a0=0 ...``."""
+    return " ".join(f"{name[3:]}={int(bool(predicates.get(name)))}" for name in PREDICATE_BITS)
+
+
 def describe_bits(bits: int) -> str:
     """Human-readable list of the bits set, e.g. ``visible+in_range+idle``."""
     names = [(VISIBLE, "visible"), (IN_RANGE, "in_range"), (GRASP_ATTEMPT, "grasp_attempt"),

@@ -1,0 +1,166 @@
+"""hrc_check: the launch's pre-flight. Every argument, both models, the policy file and the
+ports are checked before anything starts; the resolved configuration is printed as YAML.
+
+    hrc_check human_model:=tired robot_port:=8081 ...     # the launch arguments, name:=value
+
+On success it prints the configuration (every setting, defaults filled in, a mapping name ->
+value) on stdout and exits 0. On the first problem it prints one line on stderr,
+``hrc.launch: <what is wrong>`` naming the argument or the file, and exits 2; never a traceback.
+``hrc.launch`` runs it as a ``<param command=...>`` so that roslaunch refuses to start anything
+when it fails::
+
+    <param name="/hrc/config" type="yaml"
+           command="$(find ros_hrc)/scripts/hrc_check human_model:=$(arg human_model) ..."/>
+
+``--no-port-check`` skips binding the ports (to check a configuration for later). The
+POMDP's port is only checked with ``start_pomdp:=true``: started by hand, the POMDP process
+may already serve it.
+"""
+from __future__ import annotations
+
+import errno
+import os
+import socket
+import sys
+from typing import Dict, List, Mapping, Optional, Sequence
+
+from ros_hrc.errors import HrcError
+from ros_hrc.loop import settings
+
+NAME = "hrc_check"
+#: What each error line starts with: the user ran the launch file, not this program.
+PREFIX = "hrc.launch"
+
+USAGE = (f"usage: {NAME} [--no-port-check] name:=value ...  (the arguments of hrc.launch: "
+         f"{', '.join(settings.SETTINGS)})")
+
+
+class CheckError(HrcError):
+    """One line saying what is wrong with the launch's configuration."""
+
+
+def parse_words(words: Sequence[str]) -> Dict[str, str]:
+    """``name:=value`` words as a dict; a word of another shape or a name given twice is refused."""
+    values: Dict[str, str] = {}
+    for word in words:
+        name, sep, value = word.partition(":=")
+        if not sep or not name:
+            raise CheckError(f"{word!r}: expected name:=value (e.g. human_model:=tired)")
+        if name in values and values[name] != value:
+            raise CheckError(f"{name}: given twice ({values[name]!r} and {value!r})")
+        values[name] = value
+    return values
+
+
+def check_models(config: Mapping[str, object]) -> None:
+    """Load both models and check them against the task's tables (and the policy file against
+    the robot model for planner:=policy)."""
+    from ros_hrc.loop.models import ModelNotFound, load_human_model, load_robot_model
+
+    loaded = {}
+    for name, load in (("human_model", load_human_model), ("robot_model", load_robot_model)):
+        try:
+            loaded[name] = load(str(config[name]))
+        except ModelNotFound as exc:
+            raise CheckError(f"{name}:={config[name]}: {exc}") from None
+    if config["planner"] == "policy":
+        from ros_hrc.pomdp.policy import load as load_policy
+
+        try:
+            load_policy(str(config["policy_file"]), loaded["robot_model"])
+        except (HrcError, OSError, ValueError) as exc:
+            text = " ".join(str(exc).split())
+            raise CheckError(f"policy_file:={config['policy_file']}: {text}") from None
+
+
+def ports_to_bind(config: Mapping[str, object]) -> List[str]:
+    """The port settings whose servers the launch starts: robot_port (hrc_robot) and
+    human_port (hrc_human) always, pomdp_port only with start_pomdp (without it, the POMDP
+    process started by hand may already serve it)."""
+    return [name for name in settings.PORTS
+            if name != "pomdp_port" or config.get("start_pomdp", True)]
+
+
+def check_ports(config: Mapping[str, object]) -> None:
+    """Each port the launch will serve can be bound on ``host`` now (as the servers will:
+    with SO_REUSEADDR, so a port in TIME_WAIT is free)."""
+    host = str(config["host"])
+    literal = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    for name in ports_to_bind(config):
+        port = int(config[name])  # type: ignore[arg-type]
+        try:
+            infos = socket.getaddrinfo(literal, port, type=socket.SOCK_STREAM,
+                                       flags=socket.AI_PASSIVE)
+        except socket.gaierror as exc:
+            raise CheckError(f"host:={host}: cannot resolve it ({exc.strerror})") from None
+        family, kind, proto, _, address = infos[0]
+        with socket.socket(family, kind, proto) as sock:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                sock.bind(address)
+            except OSError as exc:
+                if exc.errno == errno.EADDRINUSE:
+                    raise CheckError(f"{name}:={port}: port {port} is already in use on {host} "
+                                     "(another launch running? choose another port)") from None
+                if exc.errno in (errno.EACCES, errno.EPERM):
+                    raise CheckError(f"{name}:={port}: not allowed to bind port {port} on "
+                                     f"{host} ({exc.strerror})") from None
+                raise CheckError(f"host:={host}: cannot bind port {port} there "
+                                 f"({exc.strerror or exc})") from None
+
+
+def check(words: Sequence[str], port_check: bool = True) -> Dict[str, object]:
+    """The resolved configuration of the launch arguments ``words``; raises HrcError (a
+    SettingError, ModelError, ModelFormatError or CheckError) with one line on the first
+    problem."""
+    config = settings.resolve(parse_words(words))
+    check_models(config)
+    if port_check:
+        check_ports(config)
+    return config
+
+
+def one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    from ros_hrc.command_line import own_arguments
+
+    words: List[str] = own_arguments(argv)
+    port_check = "--no-port-check" not in words
+    words = [w for w in words if w != "--no-port-check"]
+    try:
+        if any(w in ("-h", "--help") for w in words):
+            lines = [__doc__.split("\n\n")[0], "", USAGE]
+            for s in settings.SETTINGS.values():
+                shown = "automatic" if s.default is None else repr(s.default)
+                lines.append(f"  {s.name:<17} {s.doc} (default: {shown})")
+            sys.stdout.write("\n".join(lines) + "\n")
+            sys.stdout.flush()
+            return 0
+        options = [w for w in words if w.startswith("-")]
+        if options:
+            raise CheckError(f"{options[0]}: unknown option; {USAGE}")
+        config = check(words, port_check)
+        import yaml
+
+        sys.stdout.write(yaml.safe_dump(dict(config), sort_keys=False, default_flow_style=False))
+        sys.stdout.flush()
+        return 0
+    except HrcError as exc:
+        print(f"{PREFIX}: {one_line(exc)}", file=sys.stderr, flush=True)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:   # stdout closed early (| head): nothing more to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 2
+    except Exception as exc:  # no traceback for any input: one line, whatever went wrong
+        print(f"{PREFIX}: {NAME} failed: {type(exc).__name__}: {one_line(exc)}",
+              file=sys.stderr, flush=True)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,640 @@
+"""The episode coordinator: the one owner of the loop's step (DESIGN §2), Sans-I/O.
+
+It holds the step number, the epoch, the order of a step, episode ends and resets, and
+nothing else does. It never calls anything: it is told what happened (an MDP connected, a
+step was asked for, a call came back, a reset was asked for) and answers with *effects*, what
+to do next, which an adapter carries out and reports back (:mod:`ros_hrc.loop.runner` does
+this with threads; the unit tests do it by hand). Like websockets' ``Connection``: events in
+through methods, effects out through :meth:`Coordinator.effects`.
+
+The four interfaces it sees, through the calls it emits:
+
+* the **world**: :class:`ActHuman` (the human's action), :class:`ObserveWorld` (one atomic
+  snapshot: the six predicates and where the object is), :class:`ResetWorld`;
+* the **human MDP**: one client is *seated* and steps; its steps come in through
+  :meth:`Coordinator.step_requested`, answers go out as :class:`MdpStepDone`,
+  :class:`MdpRefused`, :class:`MdpReset`; a second client is refused (:class:`SeatRefused`);
+* the **robot planner**: :class:`Decide` (observation in, decision back), :class:`ResetPlanner`;
+* the **robot executor**: :class:`ActRobot`.
+
+One step, in this order (observe -> decide -> act)::
+
+    MDP step(epoch, n, action, state) -> ActHuman -> ObserveWorld -> Decide -> ActRobot
+        -> ObserveWorld (the outcome) -> StepReport published, MdpStepDone, episode end?
+
+**The epoch.** Every reset mints a new epoch, and every call carries the epoch it was made in.
+:meth:`Coordinator.call_done` is the one place where anything from an older epoch is dropped.
+A reset first waits for the calls still out (a world action under way is interrupted by an
+early world reset), then resets the world and the planner into the new epoch, and only then
+tells the MDP, so nothing of the old epoch can act in the new one. Resets asked for while one
+is under way join it (a burst of fifty is one reset).
+
+**Failures.** A call that fails (a fault: the service or process is gone, or answered
+nonsense) fails its step visibly (the report's ``fault``), and the loop recovers by a reset,
+retried every ``retry_delay`` seconds until it succeeds (a respawned process comes back). A
+world action that is *refused* (a grasp out of reach) is not a fault: it is what happened.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field, replace
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+
+from ros_hrc.loop import task
+
+# -- what comes back from the interfaces --------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What an action did (the world's or the robot executor's answer)."""
+    success: bool
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The world at one instant, read atomically: the six predicates (by service name,
+    ``is_ov`` ...), the simulated time, who holds the object, whether it left the belt."""
+    predicates: Mapping[str, bool]
+    sim_time: float = 0.0
+    holder: str = "none"
+    left_belt: bool = False
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The robot planner's answer to an observation."""
+    action: str
+    belief: Tuple[float, ...] = ()
+    belief_states: Tuple[str, ...] = ()
+    decision_ms: float = 0.0
+    surprise: bool = False
+    rule: str = ""
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A call failed: the interface could not be reached or answered nonsense."""
+    message: str
+
+
+@dataclass(frozen=True)
+class StepRequest:
+    """The seated MDP's step: in epoch ``epoch`` step ``step`` the human takes ``action`` and
+    ends in ``state``. ``reply`` is the adapter's handle to answer it (e.g. a request id)."""
+    epoch: Optional[int]
+    step: int
+    action: str
+    state: str
+    state_index: int = 0
+    reward: float = 0.0
+    reply: Any = None
+
+
+# -- effects: calls (answered through call_done) and notices (fire and forget) --------------------
+
+
+@dataclass(frozen=True)
+class Call:
+    """An effect that the adapter carries out and answers with ``call_done(call.id, result)``."""
+    id: int
+    epoch: int
+    step: Optional[int]
+
+
+@dataclass(frozen=True)
+class ActHuman(Call):
+    """Carry out the human's action through the world's ``/human/<service>``."""
+    service: str
+
+
+@dataclass(frozen=True)
+class ObserveWorld(Call):
+    """One snapshot of the world (answer: :class:`Snapshot`). ``purpose``: ``observe`` (the
+    robot's observation), ``outcome`` (after both acted), ``episode_start``."""
+    purpose: str
+
+
+@dataclass(frozen=True)
+class Decide(Call):
+    """Ask the robot planner for a decision on this observation (answer: :class:`Decision`)."""
+    observation: str
+    bits: int
+    state: str
+
+
+@dataclass(frozen=True)
+class ActRobot(Call):
+    """Have the robot executor carry out ``action`` (answer: :class:`Outcome`)."""
+    action: str
+
+
+@dataclass(frozen=True)
+class ResetWorld(Call):
+    """Put human, robot and object back at their start (answer: :class:`Outcome`).
+    ``interrupt``: only to stop actions still under way before the real reset."""
+    interrupt: bool = False
+
+
+@dataclass(frozen=True)
+class ResetPlanner(Call):
+    """Put the robot's belief back to its initial belief, in epoch ``epoch``."""
+    episode: int = 0
+
+
+@dataclass(frozen=True)
+class MdpReset:
+    """Tell the seated MDP: a new episode starts, epoch ``epoch``, from step 0."""
+    peer: Any
+    epoch: int
+    episode: int
+    reason: str
+
+
+@dataclass(frozen=True)
+class MdpStepDone:
+    """Answer the MDP's step: done, with the robot's action."""
+    peer: Any
+    reply: Any
+    epoch: int
+    step: int
+    robot_action: str
+    success: bool
+    result: str
+    episode: int
+    episode_over: bool
+    end_reason: str
+
+
+@dataclass(frozen=True)
+class MdpRefused:
+    """Answer the MDP's step: not carried out (``code`` as in the protocol's error codes)."""
+    peer: Any
+    reply: Any
+    epoch: Optional[int]
+    step: int
+    code: str
+    message: str
+
+
+@dataclass(frozen=True)
+class SeatRefused:
+    """Refuse a second MDP client: one line, then close its connection."""
+    peer: Any
+    message: str
+
+
+@dataclass(frozen=True)
+class ResetDone:
+    """Answer everyone who asked for this reset (``tokens``)."""
+    tokens: Tuple[Any, ...]
+    success: bool
+    message: str
+
+
+@dataclass(frozen=True)
+class Note:
+    """A line for the terminal (``level``: info, warn, error)."""
+    level: str
+    text: str
+
+
+@dataclass(frozen=True)
+class Timer:
+    """Call ``timer_fired(id)`` after ``seconds``."""
+    id: int
+    seconds: float
+
+
+@dataclass
+class StepReport:
+    """Everything one step did: what the step block prints and ``/hrc/status`` carries."""
+    epoch: int
+    episode: int
+    step: int
+    human_action: str
+    human_state: str
+    human_state_index: int = 0
+    human_reward: float = 0.0
+    human_result: str = ""
+    human_acted: bool = True
+    human_observation: str = ""
+    observation_bits: int = 0
+    robot_observation: str = ""
+    robot_state: str = ""
+    robot_action: str = ""
+    robot_result: str = ""
+    robot_acted: bool = True
+    belief: Tuple[float, ...] = ()
+    belief_states: Tuple[str, ...] = ()
+    decision_ms: float = 0.0
+    surprise: bool = False
+    rule: str = ""
+    sim_time: float = 0.0
+    episode_start_time: float = 0.0
+    object_holder: str = "none"
+    object_left_belt: bool = False
+    episode_over: bool = False
+    end_reason: str = ""
+    fault: str = ""
+
+
+@dataclass(frozen=True)
+class PublishStep:
+    """Publish and print one step's report (also a failed one: ``report.fault``)."""
+    report: StepReport
+
+
+Effect = Any
+
+#: Episode policies after an episode ends (the ``on_episode_end`` setting).
+EPISODE_END_POLICIES = ("wait", "reset", "continue")
+
+#: The phases of the loop.
+IDLE, RESETTING, READY, STEPPING, EPISODE_OVER, BROKEN = (
+    "idle", "resetting", "ready", "stepping", "episode_over", "broken")
+
+#: Error codes of refused steps (the protocol's ``error.code``).
+STALE, BUSY, SEAT_TAKEN, INVALID, EPISODE_IS_OVER, FAILED, NOT_READY = (
+    "stale", "busy", "seat_taken", "invalid", "episode_over", "failed", "not_ready")
+
+
+@dataclass(frozen=True)
+class CoordinatorConfig:
+    """How episodes end and how the loop recovers.
+
+    ``max_steps``: end an episode after this many steps (0: no limit). ``end_on_goal``: also
+    end it when the human MDP reaches ``goal_state`` (the seed's end), besides the world's
+    ends (someone holds the object, or it left the belt). ``on_episode_end``: ``wait`` for a
+    reset, ``reset`` at once, or ``continue`` stepping. ``retry_delay``: seconds between
+    attempts to recover by a reset. ``first_epoch``: the first epoch minted (adapters give a
+    random one, so a restarted coordinator never reuses an epoch of its predecessor)."""
+
+    max_steps: int = 0
+    end_on_goal: bool = True
+    goal_state: str = "success"
+    on_episode_end: str = "wait"
+    retry_delay: float = 1.0
+    max_retry_delay: float = 10.0
+    first_epoch: int = 1
+
+    def __post_init__(self) -> None:
+        if self.on_episode_end not in EPISODE_END_POLICIES:
+            raise ValueError(f"on_episode_end must be one of {', '.join(EPISODE_END_POLICIES)}, "
+                             f"not {self.on_episode_end!r}")
+        if self.max_steps < 0 or self.retry_delay <= 0 or self.first_epoch < 0:
+            raise ValueError("max_steps >= 0, retry_delay > 0 and first_epoch >= 0 are required")
+
+
+@dataclass
+class _StepContext:
+    request: StepRequest
+    peer: Any
+    report: StepReport
+    stage: str = "human"   # human -> observe -> decide -> robot -> outcome
+
+
+class Coordinator:
+    """The loop's state machine; see the module docstring."""
+
+    def __init__(self, config: Optional[CoordinatorConfig] = None) -> None:
+        self.config = config or CoordinatorConfig()
+        self.phase = IDLE
+        self.epoch: Optional[int] = None
+        self.episode = 0
+        self.seat: Any = None
+        self.expected_step = 0
+        self.tracker = task.RobotStateTracker()
+        self._next_epoch = self.config.first_epoch
+        self._ids = itertools.count(1)
+        self._effects: List[Effect] = []
+        self._outstanding: Dict[int, Call] = {}
+        self._step: Optional[_StepContext] = None
+        self._episode_ended = False     # with on_episode_end=continue: report the end once
+        self._episode_start_time = 0.0
+        # the reset under way
+        self._reset_tokens: List[Any] = []
+        self._reset_reason = ""
+        self._reset_stage = ""          # draining -> resetting -> starting
+        self._reset_calls: Dict[int, str] = {}
+        self._reset_problems: List[str] = []
+        self._retry_timer: Optional[int] = None
+        self._retry_delay = self.config.retry_delay
+        self.dropped = 0                # results of an older epoch, dropped
+
+    # -- output -------------------------------------------------------------------------------
+    def effects(self) -> List[Effect]:
+        """Take the effects produced so far, in order."""
+        out, self._effects = self._effects, []
+        return out
+
+    @property
+    def outstanding(self) -> Sequence[Call]:
+        """Calls made and not answered yet."""
+        return tuple(self._outstanding.values())
+
+    def _emit(self, effect: Effect) -> None:
+        self._effects.append(effect)
+
+    def _call(self, kind, step: Optional[int], **fields) -> Call:
+        call = kind(id=next(self._ids), epoch=self.epoch, step=step, **fields)
+        self._outstanding[call.id] = call
+        self._emit(call)
+        return call
+
+    def _note(self, level: str, text: str) -> None:
+        self._emit(Note(level, text))
+
+    # -- the MDP's seat -------------------------------------------------------------------------
+    def mdp_connected(self, peer: Any) -> None:
+        """A client connected to the human MDP's port. The first one is seated (a reset
+        starts its first episode); any other is refused while one is seated."""
+        if self.seat is not None and self.seat != peer:
+            self._emit(SeatRefused(peer, "refused: an MDP process is already served on this "
+                                         "port; one MDP at a time (start the stack with "
+                                         "start_mdp:=false to run your own)"))
+            return
+        if self.seat == peer:
+            return
+        self.seat = peer
+        self._note("info", "an MDP process connected: it is served")
+        self._begin_reset("an MDP process connected", None)
+
+    def mdp_disconnected(self, peer: Any) -> None:
+        """A client of the MDP's port left. If it was the seated one, the seat is free and
+        the loop resets (the next MDP to connect is served after a reset of its own)."""
+        if peer != self.seat:
+            return
+        self.seat = None
+        self._note("warn", "the MDP process left: waiting for the next one")
+        self._begin_reset("the MDP process left", None)
+
+    # -- steps ---------------------------------------------------------------------------------
+    def step_requested(self, peer: Any, request: StepRequest) -> None:
+        """The MDP asks for a step. Refused (with a code and a reason) unless it comes from
+        the seated MDP, in the current epoch, with the expected number, while the loop is
+        ready; otherwise the step starts with the human's action."""
+        def refuse(code: str, message: str) -> None:
+            self._emit(MdpRefused(peer, request.reply, request.epoch, request.step, code,
+                                  message))
+
+        if peer != self.seat:
+            return refuse(SEAT_TAKEN, "another MDP process is being served")
+        if request.epoch != self.epoch or self.epoch is None:
+            return refuse(STALE, f"epoch {request.epoch} is over (the loop was reset): wait "
+                                 "for the reset message and start again from step 0")
+        if self.phase == STEPPING:
+            return refuse(BUSY, f"step {self._step.request.step} is still under way")
+        if self.phase == EPISODE_OVER:
+            return refuse(EPISODE_IS_OVER, "the episode is over: reset for a new one")
+        if self.phase != READY:
+            return refuse(NOT_READY, f"the loop is {self.phase}, not ready for a step")
+        if request.step != self.expected_step:
+            return refuse(INVALID, f"expected step {self.expected_step}, not {request.step}")
+        if request.state not in task.HUMAN_STATES:
+            return refuse(INVALID, f"unknown human state {request.state!r}")
+        try:
+            service = task.human_service_for(request.action, request.state)
+        except ValueError as exc:
+            return refuse(INVALID, str(exc))
+        report = StepReport(epoch=self.epoch, episode=self.episode, step=request.step,
+                            human_action=request.action, human_state=request.state,
+                            human_state_index=task.HUMAN_STATES.index(request.state),
+                            human_reward=request.reward,
+                            episode_start_time=self._episode_start_time)
+        self._step = _StepContext(request, peer, report)
+        self.phase = STEPPING
+        if service is None:
+            self._step.stage = "observe"
+            report.human_result = "the human does nothing"
+            self._call(ObserveWorld, request.step, purpose="observe")
+        else:
+            self._call(ActHuman, request.step, service=service)
+
+    # -- answers --------------------------------------------------------------------------------
+    def call_done(self, call_id: int, result: Any) -> None:
+        """A call came back with its result (or a :class:`Fault`). The one place where
+        results of an older epoch are dropped."""
+        call = self._outstanding.pop(call_id, None)
+        if call is None:
+            return   # unknown or answered twice: nothing to do
+        if call.epoch != self.epoch:
+            self.dropped += 1
+            self._continue_reset()   # a reset may be waiting for this call
+            return
+        if isinstance(call, (ResetWorld, ResetPlanner)):
+            self._reset_call_done(call, result)
+        elif isinstance(call, ObserveWorld) and call.purpose == "episode_start":
+            self._episode_started(result)
+        elif self._step is not None and call.step == self._step.request.step:
+            self._step_call_done(call, result)
+        self._continue_reset()
+
+    def _step_call_done(self, call: Call, result: Any) -> None:
+        ctx = self._step
+        report = ctx.report
+        if isinstance(result, Fault):
+            return self._fail_step(f"{_what(call)} failed: {result.message}")
+        try:
+            if isinstance(call, ActHuman):
+                report.human_acted = bool(result.success)
+                report.human_result = result.message
+                ctx.stage = "observe"
+                self._call(ObserveWorld, call.step, purpose="observe")
+            elif isinstance(call, ObserveWorld) and call.purpose == "observe":
+                raw = task.bits_from_predicates(result.predicates)
+                bits = task.legal_bits(raw)
+                report.human_observation = task.predicates_text(result.predicates)
+                report.observation_bits = bits
+                report.robot_observation = task.observation_name(bits)
+                report.robot_state = self.tracker.update(report.human_state)
+                ctx.stage = "decide"
+                self._call(Decide, call.step, observation=report.robot_observation, bits=raw,
+                           state=report.robot_state)
+            elif isinstance(call, Decide):
+                if result.action not in task.ROBOT_ACTION_SERVICES:
+                    return self._fail_step(f"the robot planner answered an unknown action "
+                                           f"{result.action!r}")
+                report.robot_action = result.action
+                report.belief = tuple(result.belief)
+                report.belief_states = tuple(result.belief_states)
+                report.decision_ms = result.decision_ms
+                report.surprise = result.surprise
+                report.rule = result.rule
+                ctx.stage = "robot"
+                if task.ROBOT_ACTION_SERVICES[result.action] is None:
+                    report.robot_result = "the robot stays idle and keeps observing"
+                    ctx.stage = "outcome"
+                    self._call(ObserveWorld, call.step, purpose="outcome")
+                else:
+                    self._call(ActRobot, call.step, action=result.action)
+            elif isinstance(call, ActRobot):
+                report.robot_acted = bool(result.success)
+                report.robot_result = result.message
+                ctx.stage = "outcome"
+                self._call(ObserveWorld, call.step, purpose="outcome")
+            elif isinstance(call, ObserveWorld) and call.purpose == "outcome":
+                report.sim_time = result.sim_time
+                report.object_holder = result.holder
+                report.object_left_belt = bool(result.left_belt)
+                self._finish_step()
+        except (AttributeError, TypeError, ValueError) as exc:
+            # The interface answered something that is not what was asked for.
+            self._fail_step(f"{_what(call)} answered nonsense: {exc}")
+
+    def _finish_step(self) -> None:
+        ctx, self._step = self._step, None
+        report = ctx.report
+        reason = "" if self._episode_ended else self._end_reason(report)
+        report.episode_over = bool(reason)
+        report.end_reason = reason
+        self.expected_step = report.step + 1
+        self._emit(PublishStep(report))
+        self._emit(MdpStepDone(ctx.peer, ctx.request.reply, self.epoch, report.step,
+                               report.robot_action, report.robot_acted, report.robot_result,
+                               self.episode, report.episode_over, reason))
+        self.phase = READY
+        if not reason:
+            return
+        policy = self.config.on_episode_end
+        self._note("info", f"episode {self.episode} over after {report.step + 1} steps: "
+                           f"{reason}")
+        if policy == "wait":
+            self.phase = EPISODE_OVER
+        elif policy == "reset":
+            self._begin_reset(f"episode {self.episode} over ({reason})", None)
+        else:
+            self._episode_ended = True
+
+    def _end_reason(self, report: StepReport) -> str:
+        if report.object_holder in ("human", "robot"):
+            return "success"
+        if report.object_left_belt:
+            return "object_left_belt"
+        if self.config.end_on_goal and report.human_state == self.config.goal_state:
+            return "human_goal"
+        if self.config.max_steps and report.step + 1 >= self.config.max_steps:
+            return "step_limit"
+        return ""
+
+    def _fail_step(self, why: str) -> None:
+        ctx, self._step = self._step, None
+        report = ctx.report
+        report.fault = why
+        self._emit(PublishStep(report))
+        self._emit(MdpRefused(ctx.peer, ctx.request.reply, self.epoch, report.step, FAILED,
+                              f"step {report.step} failed: {why}"))
+        self.phase = BROKEN
+        self._note("error", f"step {report.step} failed: {why}; the loop starts again "
+                            "from a reset")
+        self._begin_reset(f"recovering from a failed step ({why})", None)
+
+    # -- resets ----------------------------------------------------------------------------------
+    def reset_requested(self, reason: str, token: Any = None) -> None:
+        """Someone asks for a reset (``token`` is answered by :class:`ResetDone`)."""
+        self._begin_reset(reason, token)
+
+    def timer_fired(self, timer_id: int) -> None:
+        """A :class:`Timer` ran out: retry the reset that failed."""
+        if timer_id != self._retry_timer:
+            return
+        self._retry_timer = None
+        if self.phase == BROKEN:
+            self._begin_reset(f"retrying ({self._reset_reason})", None)
+
+    def _begin_reset(self, reason: str, token: Any) -> None:
+        if self.phase == RESETTING:
+            # Joins the reset under way: nothing has stepped since it began.
+            if token is not None:
+                self._reset_tokens.append(token)
+            return
+        self._retry_timer = None
+        self.epoch = self._next_epoch
+        self._next_epoch += 1
+        self.episode += 1
+        self.phase = RESETTING
+        self._reset_reason = reason
+        self._reset_tokens = [token] if token is not None else []
+        self._reset_problems = []
+        self._reset_calls = {}
+        self._reset_stage = "draining"
+        self._episode_ended = False
+        if self._step is not None:
+            ctx, self._step = self._step, None
+            self._emit(MdpRefused(ctx.peer, ctx.request.reply, ctx.request.epoch,
+                                  ctx.request.step, STALE,
+                                  f"step {ctx.request.step} was interrupted by a reset"))
+        if any(isinstance(c, (ActHuman, ActRobot)) for c in self._outstanding.values()):
+            # Stop the motions under way now, so the calls waiting on them come back soon.
+            self._call(ResetWorld, None, interrupt=True)
+        self._continue_reset()
+
+    def _continue_reset(self) -> None:
+        if self.phase != RESETTING or self._reset_stage != "draining":
+            return
+        if any(c.epoch != self.epoch for c in self._outstanding.values()):
+            return   # calls of the old epoch still out: they could act after the reset
+        if any(isinstance(c, ResetWorld) and c.interrupt for c in self._outstanding.values()):
+            return
+        self._reset_stage = "resetting"
+        self.tracker.reset()
+        self.expected_step = 0
+        world = self._call(ResetWorld, None)
+        planner = self._call(ResetPlanner, None, episode=self.episode)
+        self._reset_calls = {world.id: "world", planner.id: "robot planner"}
+
+    def _reset_call_done(self, call: Call, result: Any) -> None:
+        if isinstance(call, ResetWorld) and call.interrupt:
+            return
+        what = self._reset_calls.pop(call.id, None)
+        if what is None:
+            return
+        if isinstance(result, Fault):
+            self._reset_problems.append(f"{what}: {result.message}")
+        elif isinstance(result, Outcome) and not result.success:
+            self._reset_problems.append(f"{what}: {result.message}")
+        if self._reset_calls:
+            return
+        if self._reset_problems:
+            return self._reset_failed("; ".join(self._reset_problems))
+        self._reset_stage = "starting"
+        self._call(ObserveWorld, None, purpose="episode_start")
+
+    def _episode_started(self, result: Any) -> None:
+        if isinstance(result, Fault):
+            return self._reset_failed(f"world: {result.message}")
+        self._episode_start_time = float(getattr(result, "sim_time", 0.0))
+        self.phase = READY
+        self._retry_delay = self.config.retry_delay
+        tokens, self._reset_tokens = tuple(self._reset_tokens), []
+        text = f"world, robot belief and human MDP reset ({self._reset_reason})"
+        self._note("info", f"RESET ({self._reset_reason}): episode {self.episode}, "
+                           f"epoch {self.epoch}")
+        if self.seat is not None:
+            self._emit(MdpReset(self.seat, self.epoch, self.episode, self._reset_reason))
+        if tokens:
+            self._emit(ResetDone(tokens, True, text))
+
+    def _reset_failed(self, why: str) -> None:
+        self.phase = BROKEN
+        tokens, self._reset_tokens = tuple(self._reset_tokens), []
+        self._note("error", f"reset failed: {why}; retrying in {self._retry_delay:g} s")
+        if tokens:
+            self._emit(ResetDone(tokens, False, f"reset failed: {why}"))
+        self._retry_timer = next(self._ids)
+        self._emit(Timer(self._retry_timer, self._retry_delay))
+        self._retry_delay = min(self._retry_delay * 2, self.config.max_retry_delay)
+
+
+def _what(call: Call) -> str:
+    """What a call was, for a failed step's line."""
+    if isinstance(call, ActHuman):
+        return f"the human's action (/human/{call.service})"
+    if isinstance(call, ObserveWorld):
+        return "the world's snapshot"
+    if isinstance(call, Decide):
+        return "the robot planner"
+    if isinstance(call, ActRobot):
+        return f"the robot executor ({call.action})"
+    return type(call).__name__

@@ -1,0 +1,387 @@
+"""One source of defaults and checks for every launch argument (no ROS, no sockets).
+
+``hrc.launch`` (through ``hrc_check``), the command-line programs and ``hrc_experiment`` read
+their defaults from :data:`SETTINGS` and check values with :func:`parse`, so a value means the
+same thing, and is refused the same way, whichever entry point it comes through.
+
+A refused value raises :class:`SettingError`, whose text is one line naming the argument, the
+value and what is wrong::
+
+    robot_port:=70000: must be an integer from 1 to 65535
+    human_port:=abc: must be an integer from 1 to 65535, got 'abc'
+
+    parse(name, value)              -> the typed value ("" or None: the default)
+    default(name)                   -> the default
+    resolve({name: value, ...})     -> every setting, checked together (ports distinct, ...)
+    add_argument(parser, name, ...) -> an argparse option with the table's type, default, help
+"""
+from __future__ import annotations
+
+import ipaddress
+import math
+import os
+import re
+from dataclasses import dataclass
+from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
+
+from ros_hrc.errors import HrcError
+
+__all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
+           "add_argument", "TRUE_WORDS", "FALSE_WORDS"]
+
+TRUE_WORDS = ("true", "1", "yes", "on")
+FALSE_WORDS = ("false", "0", "no", "off")
+
+#: Setting kinds: how a value is read.
+KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file")
+
+
+class SettingError(HrcError):
+    """A setting's value is refused. ``str()`` is one line: ``name:=value: what is wrong``."""
+
+    def __init__(self, name: str, value: Any, requirement: str, unparsable: bool = False) -> None:
+        self.name = name
+        self.value = value
+        self.requirement = requirement     # e.g. "must be an integer >= 0"
+        self.unparsable = unparsable       # the text was not even of the right type
+        shown = _shown(value)
+        what = f"{requirement}, got {shown!r}" if unparsable else requirement
+        self.what = what
+        super().__init__(f"{name}:={shown}: {what}")
+
+
+def _shown(value: Any) -> str:
+    """A value as the user would have typed it, on one line."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return " ".join(str(value).split()) if "\n" in str(value) else str(value)
+
+
+def _number(x: float) -> str:
+    return f"{x:g}"
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One launch argument: its kind, default, doc and the values it accepts.
+
+    ``default`` None on a bool means "automatic": :func:`resolve` derives it (the doc says how).
+    """
+
+    name: str
+    kind: str
+    default: Any
+    doc: str
+    minimum: Optional[float] = None
+    maximum: Optional[float] = None
+    choices: Optional[Tuple[str, ...]] = None
+    exclusive_minimum: bool = False    # value > minimum rather than >=
+    unit: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"setting {self.name}: unknown kind {self.kind!r}")
+        if self.kind == "choice" and not self.choices:
+            raise ValueError(f"setting {self.name}: a choice needs choices")
+
+    @property
+    def flag(self) -> str:
+        """The command-line option of the same name: ``--time-per-step``."""
+        return "--" + self.name.replace("_", "-")
+
+    def requirement(self) -> str:
+        """What a value must be, as the second half of an error line."""
+        unit = f" ({self.unit})" if self.unit else ""
+        if self.kind in ("int", "float"):
+            noun = "an integer" if self.kind == "int" else "a number"
+            lo, hi = self.minimum, self.maximum
+            if lo is not None and hi is not None and not self.exclusive_minimum:
+                return f"must be {noun} from {_number(lo)} to {_number(hi)}{unit}"
+            parts = []
+            if lo is not None:
+                parts.append(f"{'>' if self.exclusive_minimum else '>='} {_number(lo)}")
+            if hi is not None:
+                parts.append(f"<= {_number(hi)}")
+            return f"must be {noun}{' ' + ' and '.join(parts) if parts else ''}{unit}"
+        if self.kind == "bool":
+            return "must be true or false (also 1/0, yes/no, on/off)"
+        if self.kind == "choice":
+            return f"must be one of {', '.join(self.choices or ())}"
+        if self.kind == "host":
+            return "must be an IPv4 or IPv6 address or a host name"
+        if self.kind == "model":
+            return "must name a model (a scenario name or a model file)"
+        if self.kind == "file":
+            return "must be a readable file"
+        return "must be a string"
+
+    def parse(self, value: Any) -> Any:
+        """The typed value of ``value``; ``""`` or None give the default. Raises SettingError."""
+        if value is None or (isinstance(value, str) and value.strip() == ""):
+            return self.default
+        parse = getattr(self, "_parse_" + self.kind)
+        return parse(value)
+
+    # -- one parser per kind --------------------------------------------------------------------
+    def _refuse(self, value: Any, unparsable: bool = False) -> SettingError:
+        return SettingError(self.name, value, self.requirement(), unparsable)
+
+    def _in_range(self, value: Any, number: float) -> None:
+        if self.minimum is not None:
+            if number < self.minimum or (self.exclusive_minimum and number == self.minimum):
+                raise self._refuse(value)
+        if self.maximum is not None and number > self.maximum:
+            raise self._refuse(value)
+
+    def _parse_int(self, value: Any) -> int:
+        if isinstance(value, bool) or not isinstance(value, (int, str)):
+            raise self._refuse(value, unparsable=True)
+        if isinstance(value, str):
+            text = value.strip()
+            if not re.fullmatch(r"[+-]?[0-9]+", text):
+                raise self._refuse(value, unparsable=True)
+            number = int(text)
+        else:
+            number = int(value)
+        self._in_range(value, number)
+        return number
+
+    def _parse_float(self, value: Any) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise self._refuse(value, unparsable=True)
+        try:
+            number = float(value.strip() if isinstance(value, str) else value)
+        except ValueError:
+            raise self._refuse(value, unparsable=True) from None
+        if not math.isfinite(number):
+            raise self._refuse(value, unparsable=True)
+        self._in_range(value, number)
+        return number
+
+    def _parse_bool(self, value: Any) -> bool:
+        if isinstance(value, bool):
+            return value
+        if isinstance(value, int) and value in (0, 1):
+            return bool(value)
+        if isinstance(value, str):
+            word = value.strip().lower()
+            if word in TRUE_WORDS:
+                return True
+            if word in FALSE_WORDS:
+                return False
+        raise self._refuse(value, unparsable=True)
+
+    def _parse_choice(self, value: Any) -> str:
+        text = str(value).strip()
+        if text not in (self.choices or ()):
+            raise self._refuse(value)
+        return text
+
+    def _parse_str(self, value: Any) -> str:
+        if not isinstance(value, str):
+            raise self._refuse(value, unparsable=True)
+        return value.strip()
+
+    def _parse_model(self, value: Any) -> str:
+        if not isinstance(value, str) or any(c in value for c in "\n\r\0"):
+            raise self._refuse(value)
+        return value.strip()
+
+    def _parse_host(self, value: Any) -> str:
+        text = str(value).strip()
+        if not _valid_host(text):
+            raise self._refuse(value)
+        return text
+
+    def _parse_file(self, value: Any) -> str:
+        if not isinstance(value, str) or "\0" in value:
+            raise self._refuse(value)
+        path = os.path.expanduser(value.strip())
+        if not os.path.isfile(path) or not os.access(path, os.R_OK):
+            raise SettingError(self.name, value, "no readable file there")
+        return path
+
+
+_HOST_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)\Z")
+
+
+def _valid_host(text: str) -> bool:
+    """An IPv4 or IPv6 literal (``[::1]`` too), or a host name (RFC 1123, not all-numeric)."""
+    literal = text[1:-1] if text.startswith("[") and text.endswith("]") else text
+    try:
+        ipaddress.ip_address(literal)
+        return True
+    except ValueError:
+        pass
+    name = text[:-1] if text.endswith(".") else text
+    if not name or len(name) > 253:
+        return False
+    labels = name.split(".")
+    if not all(_HOST_LABEL.match(label) for label in labels):
+        return False
+    return not labels[-1].isdigit()    # 999.1.1.1 is a bad address, not a name
+
+
+def _s(name: str, kind: str, default: Any, doc: str, **more: Any) -> Setting:
+    return Setting(name, kind, default, doc, **more)
+
+
+def _port(name: str, default: int, doc: str) -> Setting:
+    return _s(name, "int", default, doc, minimum=1, maximum=65535)
+
+
+_TABLE: Iterable[Setting] = (
+    # what runs
+    _s("human_model", "model", "humanModel",
+       "human scenario (humanModel, expert, beginner, tired, distracted) or a .pomdpx path"),
+    _s("robot_model", "model", "robot",
+       "robot POMDP name in models/robot/ or a .pomdp/.pomdpx path"),
+    _s("mode", "choice", "auto", "auto: the MDP picks the human's next state; manual: you type "
+       "it (or call /hrc/set_human_state)", choices=("auto", "manual")),
+    _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
+    _s("seed", "int", 0, "random seed of the world and both solvers: same seed, same run",
+       minimum=0),
+    _s("use_sim_time", "bool", False,
+       "the world publishes /clock and every node runs on simulated time"),
+    _s("real_time_factor", "float", 1.0,
+       "simulated seconds per wall second; 0 = as fast as possible", minimum=0),
+    _s("pause_when_idle", "bool", None, "freeze simulated time between actions; empty = "
+       "automatic: true exactly when real_time_factor is 0 (the run then depends only on the "
+       "seed)"),
+    _s("belt_speed", "float", 0.02, "conveyor belt speed", minimum=0, maximum=0.5, unit="m/s"),
+    # links
+    _s("host", "host", "127.0.0.1",
+       "address the websocket servers bind and the clients connect to"),
+    _port("pomdp_port", 7070, "POMDP process's server, for observations from hrc_obs"),
+    _port("robot_port", 8080, "hrc_robot's server, for actions from the POMDP process"),
+    _port("human_port", 9090, "hrc_human's server, for steps from the MDP process"),
+    # the human (MDP)
+    _s("start_mdp", "bool", True,
+       "start the MDP process; false to run 'rosrun ros_hrc despot_mdp' by hand"),
+    _s("mdp_xterm", "bool", None, "give the MDP process its own xterm; empty = automatic: in "
+       "manual mode when a display exists"),
+    _s("human_choice", "choice", "optimal", "how the human picks actions: optimal, softmax or "
+       "random", choices=("optimal", "softmax", "random")),
+    _s("temperature", "float", 1.0, "softmax temperature of human_choice:=softmax", minimum=0,
+       exclusive_minimum=True),
+    _s("manual_share", "float", 0.8, "belief share of a manually entered state", minimum=0,
+       maximum=1, exclusive_minimum=True),
+    _s("step_delay", "float", 1.0, "pause between steps in auto mode", minimum=0, unit="s"),
+    _s("max_steps", "int", 0, "end an episode after this many steps (0: no limit)", minimum=0),
+    _s("on_episode_end", "choice", "wait", "wait (for Enter or /hrc/reset), reset (start a new "
+       "episode) or continue", choices=("wait", "reset", "continue")),
+    _s("end_on_goal", "bool", True,
+       "an episode also ends when the human MDP reaches its goal state success"),
+    # the robot (POMDP)
+    _s("start_pomdp", "bool", True, "start the POMDP process"),
+    _s("planner", "choice", "despot", "despot; policy with policy_file; reactive (baseline: "
+       "rules on the current observation, see reactive_budget); none (baseline: the robot "
+       "never acts)", choices=("despot", "policy", "reactive", "none")),
+    _s("policy_file", "file", "",
+       "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that planner"),
+    _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision", minimum=0,
+       maximum=60, exclusive_minimum=True, unit="s"),
+    _s("scenarios", "int", 500, "DESPOT's number of sampled scenarios K", minimum=1,
+       maximum=100000),
+    _s("depth", "int", 90, "DESPOT's maximum search depth", minimum=1, maximum=1000),
+    _s("lambda", "float", 0.1, "DESPOT's regularisation constant", minimum=0),
+    _s("max_trials", "int", 0, "cap on DESPOT trials per decision (0: time only; set it for "
+       "reproducible runs)", minimum=0),
+    _s("reactive_budget", "int", 8, "planner:=reactive helps after this many steps since the "
+       "reset without the human getting the object (0: never for that reason)", minimum=0),
+    _s("read_stdin", "bool", True, "Enter on the roslaunch terminal resets everything"),
+)
+
+#: Every launch argument, by name, in hrc.launch's order.
+SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
+
+#: The three websocket ports, which must differ.
+PORTS: Tuple[str, ...] = ("pomdp_port", "robot_port", "human_port")
+
+
+def _setting(name: str, value: Any = "") -> Setting:
+    try:
+        return SETTINGS[name]
+    except KeyError:
+        raise SettingError(name, value, f"no such argument; known: {', '.join(SETTINGS)}") \
+            from None
+
+
+def parse(name: str, value: Any) -> Any:
+    """``value`` (a launch argument's text, or a Python value) as the setting's type; ``""``
+    or None give the default. Raises SettingError (one line) for a bad value or name."""
+    return _setting(name, value).parse(value)
+
+
+def default(name: str) -> Any:
+    """The setting's default (None for an automatic one: :func:`resolve` derives it)."""
+    return _setting(name).default
+
+
+def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = None
+            ) -> Dict[str, Any]:
+    """Every setting, in table order: the given ones parsed, the others their defaults, then
+    the checks that involve several (distinct ports, policy_file with planner:=policy) and the
+    automatic ones (pause_when_idle, mdp_xterm; ``environ`` for DISPLAY, os.environ by default).
+
+    Raises SettingError on the first problem; unknown names are refused, all of them named.
+    """
+    unknown = [n for n in values if n not in SETTINGS]
+    if unknown:
+        if len(unknown) == 1:
+            raise SettingError(unknown[0], values[unknown[0]],
+                               f"no such argument; known: {', '.join(SETTINGS)}")
+        raise SettingError(", ".join(unknown), "",
+                           f"no such arguments; known: {', '.join(SETTINGS)}")
+    out = {name: setting.parse(values.get(name)) for name, setting in SETTINGS.items()}
+    seen: Dict[int, str] = {}
+    for name in PORTS:
+        port = out[name]
+        if port in seen:
+            raise SettingError(name, values.get(name, port),
+                               f"the same port as {seen[port]}; the three ports must differ")
+        seen[port] = name
+    if out["planner"] == "policy" and not out["policy_file"]:
+        raise SettingError("policy_file", values.get("policy_file", ""),
+                           "planner:=policy needs a policy file (hrc_pomdp solve -o FILE)")
+    if out["planner"] != "policy" and out["policy_file"]:
+        raise SettingError("policy_file", values.get("policy_file"),
+                           f"only used with planner:=policy, not planner:={out['planner']}")
+    if out["pause_when_idle"] is None:
+        out["pause_when_idle"] = out["real_time_factor"] == 0
+    if out["mdp_xterm"] is None:
+        env = os.environ if environ is None else environ
+        out["mdp_xterm"] = out["mode"] == "manual" and bool(env.get("DISPLAY", ""))
+    return out
+
+
+def add_argument(parser, name: str, *flags: str, **kwargs: Any):
+    """Add the setting ``name`` to an argparse parser: the flag (``--`` + name with ``-``
+    for ``_`` unless ``flags`` are given), a type that parses with :func:`parse` (a bad value
+    is argparse's one-line error; an empty one means the default), the table's default and
+    its doc as help. ``kwargs`` override any of them."""
+    setting = _setting(name)
+
+    def type_(text: str) -> Any:
+        try:
+            return setting.parse(text)
+        except SettingError as exc:
+            import argparse
+            raise argparse.ArgumentTypeError(f"{exc.requirement}, got {text!r}") from None
+
+    type_.__name__ = setting.kind   # argparse names it in some messages
+    shown = "automatic" if setting.default is None else (
+        "''" if setting.default == "" else _shown(setting.default))
+    unit = f" {setting.unit}" if setting.unit and setting.kind == "float" else ""
+    options: Dict[str, Any] = {
+        "type": type_, "default": setting.default,
+        "help": f"{setting.doc} (default: {shown}{unit})".replace("%", "%%"),
+    }
+    options["metavar"] = ("{" + ",".join(setting.choices or ()) + "}" if setting.kind == "choice"
+                          else setting.name.upper())
+    if flags and all(f.startswith("-") for f in flags):
+        options["dest"] = name        # -p for planner still sets args.planner
+    options.update(kwargs)
+    return parser.add_argument(*(flags or (setting.flag,)), **options)

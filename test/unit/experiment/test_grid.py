@@ -1,0 +1,244 @@
+"""hrc_experiment before and around the stacks: the whole grid is checked before any stack
+starts, --out is locked for the run, and SIGINT / SIGTERM stop every cell's stack.
+
+No ROS master: a stand-in ``roslaunch`` on PATH records that it was started and how it was
+stopped, so these tests see exactly what the experiment would start."""
+import importlib.util
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from ros_hrc.experiment.cli import build_parser, main, plan_cells, validate_grid
+from ros_hrc.experiment.stack import (CellSpec, cell_name, check_launch_settings,
+                                      launch_arguments, worker_command)
+from ros_hrc.experiment.store import DirectoryLocked, lock_directory
+from ros_hrc.loop import settings
+from ros_hrc.loop.settings import SettingError
+
+ROOT = Path(__file__).resolve().parents[3]
+
+FAKE_ROSLAUNCH = """#!/bin/sh
+echo "start $$ $*" >> "$FAKE_ROSLAUNCH_LOG"
+trap 'echo "SIGINT $$" >> "$FAKE_ROSLAUNCH_LOG"; exit 0' INT
+trap 'echo "SIGTERM $$" >> "$FAKE_ROSLAUNCH_LOG"; exit 0' TERM
+while :; do sleep 0.1; done
+"""
+
+
+@pytest.fixture
+def fake_ros(tmp_path):
+    """An environment whose ``roslaunch`` only records; returns (env, its log)."""
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    script = bin_dir / "roslaunch"
+    script.write_text(FAKE_ROSLAUNCH)
+    script.chmod(0o755)
+    log = tmp_path / "roslaunch.log"
+    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}",
+               FAKE_ROSLAUNCH_LOG=str(log))
+    return env, log
+
+
+def experiment(*args):
+    return [sys.executable, "-m", "ros_hrc.experiment.cli", *args]
+
+
+def run_experiment(env, *args):
+    return subprocess.run(experiment(*args), env=env, capture_output=True, text=True,
+                          timeout=120, stdin=subprocess.DEVNULL)
+
+
+def the_line(done) -> str:
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith("hrc_experiment: ")
+    return lines[0]
+
+
+def o36_robot_model(tmp_path) -> Path:
+    bad = tmp_path / "o36.pomdp"
+    bad.write_text((ROOT / "models" / "robot" / "robot.pomdp").read_text().replace("O35", "O36"))
+    return bad
+
+
+def test_a_robot_model_with_other_observation_names_is_refused_before_any_stack(tmp_path,
+                                                                                 fake_ros):
+    env, log = fake_ros
+    bad = o36_robot_model(tmp_path)
+    out = tmp_path / "out"
+    done = run_experiment(env, "--robot-model", str(bad), "--human-models", "tired",
+                          "--out", str(out))
+    assert the_line(done) == (f"hrc_experiment: {bad}: observations O36 are not the task's "
+                              "observations (missing: O35)")
+    assert not log.exists(), "a stack was started"
+    assert not out.exists(), "the results directory was touched"
+
+
+def test_a_missing_human_model_is_refused_before_any_stack(tmp_path, fake_ros):
+    env, log = fake_ros
+    out = tmp_path / "out"
+    done = run_experiment(env, "--human-models", "tired,does_not_exist", "--out", str(out))
+    line = the_line(done)
+    assert line.startswith("hrc_experiment: --human-models: no human model named "
+                           "'does_not_exist'")
+    assert "known: beginner, distracted, expert, humanModel, tired" in line
+    assert not log.exists() and not out.exists()
+
+
+def test_a_human_model_file_that_does_not_fit_is_refused(tmp_path, capsys):
+    bad = tmp_path / "h.pomdpx"
+    bad.write_text((ROOT / "models" / "human" / "tired.pomdpx").read_text()
+                   .replace("warnRobot", "shout"))
+    assert main(["--human-models", f"tired,{bad}", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"hrc_experiment: {bad}: actions shout are not the task's actions "
+                   "(missing: warnRobot)\n")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--time-per-step", "-1"], "argument --time-per-step: must be a number > 0 and <= 60 (s), "
+                                "got '-1'"),
+    (["--seeds", "0,-1"], "argument --seeds: seeds are integers >= 0, comma-separated, "
+                          "got '-1'"),
+    (["--episodes", "0"], "argument --episodes: must be an integer >= 1, got '0'"),
+    (["--step-limit", "x"], "argument --step-limit: must be an integer >= 1, got 'x'"),
+    (["--scenarios", "0"], "argument --scenarios: must be an integer from 1 to 100000, got '0'"),
+    (["--human-choice", "lazy"], "argument --human-choice: must be one of optimal, softmax, "
+                                 "random, got 'lazy'"),
+])
+def test_a_bad_option_is_one_line(args, message, capsys):
+    with pytest.raises(SystemExit) as info:
+        build_parser().parse_args(args)
+    assert info.value.code == 2
+    assert capsys.readouterr().err == f"hrc_experiment: {message}\n"
+
+
+def test_the_grid_takes_its_defaults_from_the_settings():
+    args = build_parser().parse_args([])
+    assert args.time_per_step == settings.default("time_per_step") == 0.1
+    assert (args.max_trials, args.reactive_budget, args.scenarios, args.depth, args.lambda_) == (
+        0, 8, 500, 90, 0.1)
+    assert args.robot_model == "robot" and args.human_choice == "optimal"
+    validate_grid(args)   # the default grid is good
+    cell = plan_cells(args, set())[0]
+    assert cell.time_per_step == 0.1 and CellSpec("a", "pomdp", 0, [0]).time_per_step == 0.1
+
+
+def test_every_cell_s_launch_arguments_pass_the_launch_s_checks():
+    spec = CellSpec("tired", "reactive", 4, episodes=[0], scenarios=7, lambda_=0.5)
+    config = check_launch_settings(spec)
+    assert (config["planner"], config["scenarios"], config["lambda"]) == ("reactive", 7, 0.5)
+    assert config["pause_when_idle"] is True and config["use_sim_time"] is True
+    ports = {"master": 1, "pomdp": 7071, "robot": 8081, "human": 9091}
+    assert {"scenarios:=7", "lambda:=0.5", "depth:=90"} <= set(launch_arguments(spec, ports))
+    with pytest.raises(SettingError, match="^belt_speed:=9: must be a number from 0 to 0.5"):
+        check_launch_settings(CellSpec("tired", "pomdp", 0, [0], extra_args=["belt_speed:=9"]))
+
+
+def test_a_cell_runs_in_the_node_module_and_its_spec_travels_as_json():
+    spec = CellSpec("/data/my model.pomdpx", "no_robot", 2, episodes=[1, 3])
+    command = worker_command(spec)
+    assert command[:3] == [sys.executable, "-m", "ros_hrc.nodes.experiment_cell"]
+    assert CellSpec.from_json(command[3]) == spec
+    assert json.loads(command[3])["time_per_step"] == 0.1
+    assert cell_name(spec) == "my_model-no_robot-seed2"
+    assert cell_name(CellSpec("tired", "pomdp", 0, [0])) == "tired-pomdp-seed0"
+
+
+# ------------------------------------------------------------------------------------ lock
+
+def test_a_directory_is_locked_by_one_holder_at_a_time(tmp_path):
+    out = tmp_path / "out"
+    with lock_directory(out) as lock:
+        assert lock.held
+        assert (out / ".lock").read_text() == f"{os.getpid()}\n"
+        with pytest.raises(DirectoryLocked) as info:
+            lock_directory(out)
+        assert info.value.pid == os.getpid()
+        assert str(out) in str(info.value) and f"pid {os.getpid()}" in str(info.value)
+    assert not lock.held
+    lock_directory(out).release()     # free again
+
+
+def test_a_second_run_on_a_locked_directory_is_refused_touching_nothing(tmp_path, capsys):
+    out = tmp_path / "out"
+    with lock_directory(out):
+        before = sorted(p.name for p in out.iterdir())
+        assert main(["--human-models", "tired", "--policies", "no_robot", "--seeds", "0",
+                     "--episodes", "1", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1
+        assert err.startswith(f"hrc_experiment: {out} is in use by another run "
+                              f"(pid {os.getpid()})")
+        assert sorted(p.name for p in out.iterdir()) == before == [".lock"]
+        assert (out / ".lock").read_text() == f"{os.getpid()}\n"
+
+
+def test_a_second_process_is_refused_while_the_first_holds_the_lock(tmp_path, fake_ros):
+    env, log = fake_ros
+    out = tmp_path / "out"
+    with lock_directory(out):
+        done = run_experiment(env, "--human-models", "tired", "--policies", "no_robot",
+                              "--seeds", "0", "--episodes", "1", "--out", str(out))
+    assert the_line(done).startswith(f"hrc_experiment: {out} is in use by another run "
+                                     f"(pid {os.getpid()})")
+    assert not log.exists()
+
+
+# ------------------------------------------------------------------------------- signals
+
+def _wait_for(predicate, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(importlib.util.find_spec("rospy") is None, reason="the worker needs rospy")
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_to_the_experiment_stops_every_stack_and_keeps_the_results(
+        tmp_path, fake_ros, signum, code):
+    env, log = fake_ros
+    out = tmp_path / "out"
+    args = ["--human-models", "tired", "--policies", "pomdp,no_robot", "--seeds", "0",
+            "--episodes", "1", "--jobs", "2", "--out", str(out), "--no-plots"]
+    proc = subprocess.Popen(experiment(*args), env=env, stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        def started():
+            return log.exists() and log.read_text().count("start ") == 2
+        _wait_for(started, 60, "both stacks to start")
+        stacks = [int(line.split()[1]) for line in log.read_text().splitlines()
+                  if line.startswith("start ")]
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == code, err
+    # Each worker stopped its own roslaunch (in a session of its own) as Ctrl-C would.
+    stopped = log.read_text()
+    for pid in stacks:
+        assert f"SIGINT {pid}" in stopped
+        assert not _alive(pid)
+    assert f"stopped by {signal.Signals(signum).name}; 0 episodes are kept in {out}" in err
+    assert "Resume with: hrc_experiment --human-models tired" in err
+    assert (out / "episodes.csv").exists()       # what was recorded (here nothing) stays
+

@@ -1,0 +1,154 @@
+"""hrc_check, the launch's pre-flight: good arguments give the whole configuration as YAML and
+exit 0; any bad one gives exactly one line on stderr naming the argument or the file, exit 2,
+and never a traceback."""
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ros_hrc.link.transport import free_port
+from ros_hrc.loop import settings
+from ros_hrc.loop.check import check, main, parse_words
+
+ROOT = Path(__file__).resolve().parents[3]
+SCRIPT = ROOT / "scripts" / "hrc_check"
+
+
+def run(*words, script=False):
+    command = [sys.executable, str(SCRIPT)] if script else [sys.executable, "-m",
+                                                            "ros_hrc.loop.check"]
+    return subprocess.run(command + list(words), capture_output=True, text=True, timeout=60)
+
+
+def free_ports():
+    ports = set()
+    while len(ports) < 3:
+        ports.add(free_port())
+    return dict(zip(("pomdp_port", "robot_port", "human_port"), sorted(ports)))
+
+
+def refused(*words):
+    """The one stderr line of a refused check."""
+    done = run(*words)
+    assert done.returncode == 2, done.stderr
+    assert done.stdout == ""
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith("hrc.launch: ")
+    assert "Traceback" not in done.stderr
+    return lines[0]
+
+
+def test_good_arguments_give_the_whole_configuration_as_yaml():
+    ports = free_ports()
+    done = run("human_model:=tired", "seed:=3", "real_time_factor:=0",
+               *(f"{k}:={v}" for k, v in ports.items()), script=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""
+    config = yaml.safe_load(done.stdout)
+    assert list(config) == list(settings.SETTINGS)
+    assert config["human_model"] == "tired" and config["seed"] == 3
+    assert config["pause_when_idle"] is True            # automatic with real_time_factor 0
+    assert {k: config[k] for k in ports} == ports
+    for name in ("robot_model", "planner", "time_per_step", "scenarios", "depth", "lambda",
+                 "belt_speed", "step_delay", "on_episode_end", "host", "policy_file"):
+        assert config[name] == settings.default(name), name
+
+
+def test_without_arguments_every_default(capsys):
+    assert main(["--no-port-check"]) == 0
+    config = yaml.safe_load(capsys.readouterr().out)
+    assert config["time_per_step"] == 0.1
+    assert config["human_model"] == "humanModel" and config["robot_model"] == "robot"
+    assert (config["pomdp_port"], config["robot_port"], config["human_port"]) == (7070, 8080, 9090)
+
+
+@pytest.mark.parametrize("word, line", [
+    ("human_model:=does_not_exist", "hrc.launch: human_model:=does_not_exist: no human model "
+                                    "named 'does_not_exist'"),
+    ("robot_port:=70000", "hrc.launch: robot_port:=70000: must be an integer from 1 to 65535"),
+    ("human_port:=abc", "hrc.launch: human_port:=abc: must be an integer from 1 to 65535, "
+                        "got 'abc'"),
+    ("planner:=bogus", "hrc.launch: planner:=bogus: must be one of despot, policy, reactive, none"),
+    ("time_per_step:=-1", "hrc.launch: time_per_step:=-1: must be a number > 0 and <= 60 (s)"),
+    ("scenarios:=0", "hrc.launch: scenarios:=0: must be an integer from 1 to 100000"),
+    ("step_delay:=-1", "hrc.launch: step_delay:=-1: must be a number >= 0 (s)"),
+    ("belt_speed:=-5", "hrc.launch: belt_speed:=-5: must be a number from 0 to 0.5 (m/s)"),
+    ("seed:=-1", "hrc.launch: seed:=-1: must be an integer >= 0"),
+    ("on_episode_end:=never", "hrc.launch: on_episode_end:=never: must be one of wait, reset, "
+                              "continue"),
+    ("bogus_argument:=1", "hrc.launch: bogus_argument:=1: no such argument; known: human_model, "),
+    ("planner:=policy", "hrc.launch: policy_file:=: planner:=policy needs a policy file"),
+    ("robot_model:=tired", "hrc.launch: robot_model:=tired: no robot model named 'tired'"),
+    ("human_port:=8080", "hrc.launch: human_port:=8080: the same port as robot_port"),
+    ("not-a-setting", "hrc.launch: 'not-a-setting': expected name:=value"),
+])
+def test_a_bad_argument_is_one_line_naming_it(word, line):
+    assert refused("--no-port-check", word).startswith(line)
+
+
+def test_a_truncated_robot_model_is_one_line_naming_the_file(tmp_path):
+    cut = tmp_path / "cut.pomdpx"
+    cut.write_text((ROOT / "models" / "robot" / "robot.pomdpx").read_text()[:3000])
+    assert refused("--no-port-check", f"robot_model:={cut}").startswith(f"hrc.launch: {cut}:")
+    cut = tmp_path / "cut.pomdp"
+    text = (ROOT / "models" / "robot" / "robot.pomdp").read_text().splitlines()
+    cut.write_text("\n".join(text[:len(text) // 2]) + "\n")
+    assert refused("--no-port-check", f"robot_model:={cut}").startswith(f"hrc.launch: {cut}")
+
+
+def test_a_robot_model_with_other_observation_names_is_refused(tmp_path):
+    bad = tmp_path / "o36.pomdp"
+    bad.write_text((ROOT / "models" / "robot" / "robot.pomdp").read_text().replace("O35", "O36"))
+    assert refused("--no-port-check", f"robot_model:={bad}") == (
+        f"hrc.launch: {bad}: observations O36 are not the task's observations (missing: O35)")
+
+
+def test_a_bad_policy_file_for_planner_policy_is_refused(tmp_path):
+    policy = tmp_path / "p.policy"
+    policy.write_text("not a policy")
+    line = refused("--no-port-check", "planner:=policy", f"policy_file:={policy}")
+    assert line.startswith(f"hrc.launch: policy_file:={policy}: ")
+
+
+def test_a_port_in_use_is_one_line_naming_it():
+    ports = free_ports()
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        taken = busy.getsockname()[1]
+        ports["robot_port"] = taken
+        line = refused(*(f"{k}:={v}" for k, v in ports.items()))
+    assert line.startswith(f"hrc.launch: robot_port:={taken}: port {taken} is already in use "
+                           "on 127.0.0.1")
+
+
+def test_the_pomdp_port_may_be_served_already_when_the_pomdp_process_runs_by_hand():
+    ports = free_ports()
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        ports["pomdp_port"] = busy.getsockname()[1]
+        words = [f"{k}:={v}" for k, v in ports.items()]
+        assert run(*words, "start_pomdp:=false").returncode == 0
+        assert refused(*words).startswith(f"hrc.launch: pomdp_port:={ports['pomdp_port']}: ")
+
+
+def test_a_host_that_is_not_this_machine_is_refused():
+    # TEST-NET-1 (RFC 5737): never an address of this machine.
+    line = refused(*(f"{k}:={v}" for k, v in free_ports().items()), "host:=192.0.2.1")
+    assert line.startswith("hrc.launch: host:=192.0.2.1: cannot bind port ")
+
+
+def test_the_words_are_name_value_pairs():
+    assert parse_words(["a:=1", "b:=", "c:=x:=y"]) == {"a": "1", "b": "", "c": "x:=y"}
+    assert check(["seed:=1", "human_model:=expert"], port_check=False)["seed"] == 1
+
+
+def test_the_script_is_an_executable_shim():
+    assert SCRIPT.stat().st_mode & 0o111
+    assert "ros_hrc.loop.check" in SCRIPT.read_text()
+    assert len(SCRIPT.read_text().strip().splitlines()) <= 4

@@ -1,0 +1,283 @@
+"""ros_hrc.loop.settings: one default per launch argument, one line per refused value."""
+import argparse
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from ros_hrc.errors import HrcError
+from ros_hrc.loop import settings
+from ros_hrc.loop.settings import SETTINGS, Setting, SettingError
+
+LAUNCH = Path(__file__).resolve().parents[3] / "launch" / "hrc.launch"
+
+DEFAULTS = {
+    "human_model": "humanModel", "robot_model": "robot", "mode": "auto", "gui": False,
+    "seed": 0, "use_sim_time": False, "real_time_factor": 1.0, "pause_when_idle": None,
+    "belt_speed": 0.02, "host": "127.0.0.1", "pomdp_port": 7070, "robot_port": 8080,
+    "human_port": 9090, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
+    "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
+    "on_episode_end": "wait", "end_on_goal": True, "start_pomdp": True, "planner": "despot",
+    "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
+    "max_trials": 0, "reactive_budget": 8, "read_stdin": True,
+}
+
+
+def refusal(name, value):
+    with pytest.raises(SettingError) as info:
+        settings.parse(name, value)
+    return str(info.value)
+
+
+def test_every_setting_has_its_default():
+    assert set(SETTINGS) == set(DEFAULTS)
+    for name, expected in DEFAULTS.items():
+        assert settings.default(name) == expected, name
+        assert type(settings.default(name)) is type(expected), name
+        assert settings.parse(name, "") == expected
+        assert settings.parse(name, None) == expected
+        assert isinstance(SETTINGS[name], Setting) and SETTINGS[name].name == name
+        assert SETTINGS[name].doc
+
+
+def test_one_time_per_step_default_for_every_entry_point():
+    assert settings.default("time_per_step") == 0.1
+
+
+def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
+    # Private derived arguments (_name) and computed defaults ($(eval ...)) aside.
+    for arg in ET.parse(LAUNCH).getroot().iter("arg"):
+        name = arg.get("name")
+        if name.startswith("_"):
+            continue
+        assert name in SETTINGS, f"hrc.launch argument {name} has no setting"
+        text = arg.get("default")
+        if text is not None and "$(" not in text:
+            assert settings.parse(name, text) == settings.parse(name, settings.default(name)) \
+                or (text == "" and settings.default(name) in ("", None)), name
+
+
+@pytest.mark.parametrize("name, value, line", [
+    ("robot_port", "70000", "robot_port:=70000: must be an integer from 1 to 65535"),
+    ("human_port", "abc", "human_port:=abc: must be an integer from 1 to 65535, got 'abc'"),
+    ("pomdp_port", "0", "pomdp_port:=0: must be an integer from 1 to 65535"),
+    ("pomdp_port", "80.5", "pomdp_port:=80.5: must be an integer from 1 to 65535, got '80.5'"),
+    ("seed", "-1", "seed:=-1: must be an integer >= 0"),
+    ("seed", "x", "seed:=x: must be an integer >= 0, got 'x'"),
+    ("step_delay", "-1", "step_delay:=-1: must be a number >= 0 (s)"),
+    ("belt_speed", "-5", "belt_speed:=-5: must be a number from 0 to 0.5 (m/s)"),
+    ("belt_speed", "0.6", "belt_speed:=0.6: must be a number from 0 to 0.5 (m/s)"),
+    ("time_per_step", "-1", "time_per_step:=-1: must be a number > 0 and <= 60 (s)"),
+    ("time_per_step", "0", "time_per_step:=0: must be a number > 0 and <= 60 (s)"),
+    ("time_per_step", "61", "time_per_step:=61: must be a number > 0 and <= 60 (s)"),
+    ("time_per_step", "nan", "time_per_step:=nan: must be a number > 0 and <= 60 (s), got 'nan'"),
+    ("scenarios", "0", "scenarios:=0: must be an integer from 1 to 100000"),
+    ("scenarios", "100001", "scenarios:=100001: must be an integer from 1 to 100000"),
+    ("depth", "0", "depth:=0: must be an integer from 1 to 1000"),
+    ("lambda", "-0.1", "lambda:=-0.1: must be a number >= 0"),
+    ("max_trials", "-1", "max_trials:=-1: must be an integer >= 0"),
+    ("reactive_budget", "-2", "reactive_budget:=-2: must be an integer >= 0"),
+    ("max_steps", "-1", "max_steps:=-1: must be an integer >= 0"),
+    ("real_time_factor", "-1", "real_time_factor:=-1: must be a number >= 0"),
+    ("temperature", "0", "temperature:=0: must be a number > 0"),
+    ("manual_share", "0", "manual_share:=0: must be a number > 0 and <= 1"),
+    ("manual_share", "1.5", "manual_share:=1.5: must be a number > 0 and <= 1"),
+    ("mode", "semi", "mode:=semi: must be one of auto, manual"),
+    ("planner", "bogus", "planner:=bogus: must be one of despot, policy, reactive, none"),
+    ("on_episode_end", "stop", "on_episode_end:=stop: must be one of wait, reset, continue"),
+    ("human_choice", "greedy", "human_choice:=greedy: must be one of optimal, softmax, random"),
+    ("gui", "maybe", "gui:=maybe: must be true or false (also 1/0, yes/no, on/off), got 'maybe'"),
+    ("host", "999.1.1.1", "host:=999.1.1.1: must be an IPv4 or IPv6 address or a host name"),
+    ("host", "bad host", "host:=bad host: must be an IPv4 or IPv6 address or a host name"),
+    ("host", "-x.org", "host:=-x.org: must be an IPv4 or IPv6 address or a host name"),
+])
+def test_a_bad_value_is_one_line_naming_the_argument(name, value, line):
+    text = refusal(name, value)
+    assert text == line
+    assert "\n" not in text
+
+
+def test_a_setting_error_is_an_hrc_error_with_its_parts():
+    with pytest.raises(HrcError) as info:
+        settings.parse("robot_port", 70000)
+    error = info.value
+    assert isinstance(error, SettingError)
+    assert (error.name, error.value) == ("robot_port", 70000)
+    assert error.requirement == "must be an integer from 1 to 65535"
+
+
+def test_numbers_and_python_values():
+    assert settings.parse("seed", "  42 ") == 42
+    assert settings.parse("seed", 7) == 7
+    assert settings.parse("robot_port", "65535") == 65535
+    assert settings.parse("time_per_step", "60") == 60.0
+    assert settings.parse("time_per_step", 1) == 1.0
+    assert settings.parse("belt_speed", "0") == 0.0
+    assert settings.parse("real_time_factor", "0") == 0.0
+    assert settings.parse("lambda", "1e-3") == 0.001
+    assert settings.parse("manual_share", "1") == 1.0
+    with pytest.raises(SettingError, match=r"^seed:=true: must be an integer >= 0, got 'true'$"):
+        settings.parse("seed", True)
+    with pytest.raises(SettingError):
+        settings.parse("scenarios", 2.5)
+    with pytest.raises(SettingError):
+        settings.parse("time_per_step", "inf")
+
+
+@pytest.mark.parametrize("word", ["true", "True", "TRUE", "1", "yes", "Yes", "on", "ON", True, 1])
+def test_true_spellings(word):
+    assert settings.parse("gui", word) is True
+
+
+@pytest.mark.parametrize("word", ["false", "False", "0", "no", "NO", "off", "Off", False, 0])
+def test_false_spellings(word):
+    assert settings.parse("use_sim_time", word) is False
+
+
+def test_hosts():
+    for host in ("127.0.0.1", "0.0.0.0", "::1", "[::1]", "fe80::1", "localhost", "my-pc.lan",
+                 "example.org."):
+        assert settings.parse("host", host) == host
+    with pytest.raises(SettingError):
+        settings.parse("host", "a" * 64 + ".org")
+
+
+def test_models_are_names_or_paths_checked_elsewhere():
+    assert settings.parse("human_model", " tired ") == "tired"
+    assert settings.parse("robot_model", "/tmp/x.pomdp") == "/tmp/x.pomdp"
+
+
+def test_a_policy_file_must_be_readable(tmp_path):
+    policy = tmp_path / "p.policy"
+    policy.write_bytes(b"x")
+    assert settings.parse("policy_file", str(policy)) == str(policy)
+    assert refusal("policy_file", str(tmp_path / "none.policy")) == \
+        f"policy_file:={tmp_path / 'none.policy'}: no readable file there"
+    assert refusal("policy_file", str(tmp_path)).endswith("no readable file there")
+
+
+def test_unknown_names_are_refused_naming_them():
+    assert refusal("belt_sped", "1").startswith("belt_sped:=1: no such argument; known: ")
+    with pytest.raises(SettingError, match=r"^belt_sped:=0.1: no such argument; known: "
+                                           r"human_model, "):
+        settings.resolve({"belt_sped": "0.1"})
+    with pytest.raises(SettingError, match="^foo, bar:=: no such arguments"):
+        settings.resolve({"foo": "1", "bar": "2", "seed": "1"})
+    with pytest.raises(SettingError):
+        settings.default("nope")
+
+
+def test_resolve_fills_every_default_in_table_order():
+    config = settings.resolve({}, environ={})
+    assert list(config) == list(SETTINGS)
+    expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False)
+    assert config == expected
+
+
+def test_resolve_parses_what_is_given():
+    config = settings.resolve({"seed": "3", "gui": "yes", "belt_speed": "0.1",
+                               "human_model": "tired", "planner": "reactive"}, environ={})
+    assert (config["seed"], config["gui"], config["belt_speed"]) == (3, True, 0.1)
+    assert (config["human_model"], config["planner"]) == ("tired", "reactive")
+
+
+def test_resolve_refuses_the_first_bad_value():
+    with pytest.raises(SettingError, match=r"^robot_port:=70000: must be an integer"):
+        settings.resolve({"seed": "1", "robot_port": "70000"})
+
+
+def test_the_three_ports_must_differ():
+    with pytest.raises(SettingError) as info:
+        settings.resolve({"human_port": "7070"})
+    assert str(info.value) == ("human_port:=7070: the same port as pomdp_port; the three ports "
+                               "must differ")
+    with pytest.raises(SettingError, match="^human_port:=8080: the same port as robot_port"):
+        settings.resolve({"robot_port": "8080", "human_port": "8080", "pomdp_port": "1"})
+    assert settings.resolve({"pomdp_port": "1", "robot_port": "2", "human_port": "3"})
+
+
+def test_a_policy_file_goes_with_planner_policy_and_only_with_it(tmp_path):
+    with pytest.raises(SettingError) as info:
+        settings.resolve({"planner": "policy"})
+    assert str(info.value).startswith("policy_file:=: planner:=policy needs a policy file")
+    policy = tmp_path / "p.policy"
+    policy.write_bytes(b"x")
+    config = settings.resolve({"planner": "policy", "policy_file": str(policy)})
+    assert config["policy_file"] == str(policy)
+    with pytest.raises(SettingError) as info:
+        settings.resolve({"planner": "despot", "policy_file": str(policy)})
+    assert str(info.value) == (f"policy_file:={policy}: only used with planner:=policy, "
+                               "not planner:=despot")
+
+
+def test_pause_when_idle_is_automatic_unless_given():
+    assert settings.resolve({"real_time_factor": "0"})["pause_when_idle"] is True
+    assert settings.resolve({"real_time_factor": "0.5"})["pause_when_idle"] is False
+    assert settings.resolve({"real_time_factor": "0", "pause_when_idle": ""})[
+        "pause_when_idle"] is True
+    assert settings.resolve({"real_time_factor": "0", "pause_when_idle": "false"})[
+        "pause_when_idle"] is False
+    assert settings.resolve({"pause_when_idle": "true"})["pause_when_idle"] is True
+
+
+def test_mdp_xterm_is_automatic_in_manual_mode_with_a_display():
+    assert settings.resolve({"mode": "manual"}, environ={"DISPLAY": ":0"})["mdp_xterm"] is True
+    assert settings.resolve({"mode": "manual"}, environ={})["mdp_xterm"] is False
+    assert settings.resolve({"mode": "auto"}, environ={"DISPLAY": ":0"})["mdp_xterm"] is False
+    assert settings.resolve({"mdp_xterm": "no", "mode": "manual"},
+                            environ={"DISPLAY": ":0"})["mdp_xterm"] is False
+
+
+class Refused(Exception):
+    pass
+
+
+class RaisingParser(argparse.ArgumentParser):
+    def error(self, message):
+        raise Refused(message)
+
+
+def test_add_argument_gives_the_flag_type_default_and_help():
+    parser = RaisingParser()
+    settings.add_argument(parser, "time_per_step")
+    settings.add_argument(parser, "robot_port")
+    settings.add_argument(parser, "lambda", dest="lambda_")
+    settings.add_argument(parser, "gui")
+    settings.add_argument(parser, "planner", "-p")
+    settings.add_argument(parser, "pause_when_idle")
+    args = parser.parse_args([])
+    assert (args.time_per_step, args.robot_port, args.lambda_, args.gui, args.planner) == \
+        (0.1, 8080, 0.1, False, "despot")
+    assert args.pause_when_idle is None
+    args = parser.parse_args(["--time-per-step", "0.5", "--robot-port", "8081", "--lambda", "1",
+                              "--gui", "yes", "-p", "reactive", "--pause-when-idle", "on"])
+    assert (args.time_per_step, args.robot_port, args.lambda_, args.gui, args.planner) == \
+        (0.5, 8081, 1.0, True, "reactive")
+    assert args.pause_when_idle is True
+    assert parser.parse_args(["--time-per-step", ""]).time_per_step == 0.1   # empty: default
+    help_text = parser.format_help()
+    assert "DESPOT's time budget per decision (default: 0.1 s)" in " ".join(help_text.split())
+    assert "(default: 8080)" in help_text
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--time-per-step", "-1"], "argument --time-per-step: must be a number > 0 and <= 60 (s), "
+                                "got '-1'"),
+    (["--robot-port", "70000"], "argument --robot-port: must be an integer from 1 to 65535, "
+                                "got '70000'"),
+    (["--robot-port", "abc"], "argument --robot-port: must be an integer from 1 to 65535, "
+                              "got 'abc'"),
+])
+def test_add_argument_errors_are_argparse_errors(argv, message):
+    parser = RaisingParser()
+    settings.add_argument(parser, "time_per_step")
+    settings.add_argument(parser, "robot_port")
+    with pytest.raises(Refused) as info:
+        parser.parse_args(argv)
+    assert str(info.value) == message
+
+
+def test_add_argument_kwargs_win():
+    parser = RaisingParser()
+    settings.add_argument(parser, "seed", default=5, help="x")
+    assert parser.parse_args([]).seed == 5
