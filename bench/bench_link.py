@@ -15,7 +15,6 @@ Prints a table and writes bench/results/link.json. Usage:
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
@@ -23,7 +22,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Dict, List
+from typing import Dict
 
 import websocket
 import websockets

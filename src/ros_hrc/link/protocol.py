@@ -87,9 +87,14 @@ ERR_REFUSED = "refused"
 ERR_FAILED = "failed"
 #: The peer speaks another protocol version (answers a ``hello``).
 ERR_VERSION = "version"
+#: (answers a ``step``) The episode is over: no step until the next reset.
+ERR_EPISODE_OVER = "episode_over"
+#: (answers a ``step``) The loop is resetting or recovering: wait for the reset message.
+ERR_NOT_READY = "not_ready"
 #: Every code this module defines (a receiver must accept others too: fields may grow).
 ERROR_CODES: FrozenSet[str] = frozenset((ERR_STALE, ERR_BUSY, ERR_SEAT_TAKEN, ERR_INVALID,
-                                         ERR_UNKNOWN_TYPE, ERR_REFUSED, ERR_FAILED, ERR_VERSION))
+                                         ERR_UNKNOWN_TYPE, ERR_REFUSED, ERR_FAILED, ERR_VERSION,
+                                         ERR_EPISODE_OVER, ERR_NOT_READY))
 
 # Error texts quote at most this much of an offending value, so a reply stays small.
 _PREVIEW_CHARS = 40

@@ -28,7 +28,7 @@ Exception tree (the first two live in :mod:`ros_hrc.errors`)::
 
     LinkError                  the link failed: cannot bind, connection lost while sending
     ├── ProtocolError          a message is malformed, unknown or too large
-    │   └── MessageError       (protocol) a message was rejected; .reason, .code, .msg_type, ...
+    │   └── MessageError       (protocol) a message was rejected; .reason, .code, .msg_type
     ├── LinkTimeout            nothing came before the deadline (also a TimeoutError)
     ├── LinkDropped            the connection a reply was awaited on broke: it cannot come
     └── LinkClosed             the client was closed (or the server stopped) meanwhile
@@ -478,8 +478,9 @@ class MessageServer:
                 self._dispatch(peer, frame)
         except ConnectionClosed as exc:
             # Abnormal closes only (normal ones end the loop); 1009 is a frame over the limit.
-            # A peer this server cut off was already reported, in one line.
-            self._log.log(logging.INFO if peer._aborted else logging.WARNING,
+            # A peer this server cut off or closed on purpose was already reported.
+            on_purpose = peer._aborted or peer._close_args is not None
+            self._log.log(logging.INFO if on_purpose else logging.WARNING,
                           "%s: connection of %r closed: %s", self.name, peer, exc)
         finally:
             peer._lost()

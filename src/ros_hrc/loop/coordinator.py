@@ -154,7 +154,9 @@ class MdpReset:
 
 @dataclass(frozen=True)
 class MdpStepDone:
-    """Answer the MDP's step: done, with the robot's action."""
+    """Answer the MDP's step: done, with the robot's action. ``episode_over``: the MDP stops
+    stepping until the next reset; ``end_reason``: the episode ended at this step (also with
+    ``on_episode_end`` continue, when the MDP goes on)."""
     peer: Any
     reply: Any
     epoch: int
@@ -405,12 +407,7 @@ class Coordinator:
                             episode_start_time=self._episode_start_time)
         self._step = _StepContext(request, peer, report)
         self.phase = STEPPING
-        if service is None:
-            self._step.stage = "observe"
-            report.human_result = "the human does nothing"
-            self._call(ObserveWorld, request.step, purpose="observe")
-        else:
-            self._call(ActHuman, request.step, service=service)
+        self._call(ActHuman, request.step, service=service)
 
     # -- answers --------------------------------------------------------------------------------
     def call_done(self, call_id: int, result: Any) -> None:
@@ -491,9 +488,12 @@ class Coordinator:
         report.end_reason = reason
         self.expected_step = report.step + 1
         self._emit(PublishStep(report))
+        # The MDP's episode_over means "stop: a reset comes next"; with on_episode_end
+        # continue the end is reported (end_reason) and stepping goes on.
+        stops = bool(reason) and self.config.on_episode_end != "continue"
         self._emit(MdpStepDone(ctx.peer, ctx.request.reply, self.epoch, report.step,
                                report.robot_action, report.robot_acted, report.robot_result,
-                               self.episode, report.episode_over, reason))
+                               self.episode, stops, reason))
         self.phase = READY
         if not reason:
             return
@@ -541,7 +541,7 @@ class Coordinator:
             return
         self._retry_timer = None
         if self.phase == BROKEN:
-            self._begin_reset(f"retrying ({self._reset_reason})", None)
+            self._begin_reset(self._reset_reason, None)   # the same reason, not nested
 
     def _begin_reset(self, reason: str, token: Any) -> None:
         if self.phase == RESETTING:
@@ -552,7 +552,6 @@ class Coordinator:
         self._retry_timer = None
         self.epoch = self._next_epoch
         self._next_epoch += 1
-        self.episode += 1
         self.phase = RESETTING
         self._reset_reason = reason
         self._reset_tokens = [token] if token is not None else []
@@ -581,7 +580,8 @@ class Coordinator:
         self.tracker.reset()
         self.expected_step = 0
         world = self._call(ResetWorld, None)
-        planner = self._call(ResetPlanner, None, episode=self.episode)
+        # The episode's number counts resets that succeed: failed attempts take none.
+        planner = self._call(ResetPlanner, None, episode=self.episode + 1)
         self._reset_calls = {world.id: "world", planner.id: "robot planner"}
 
     def _reset_call_done(self, call: Call, result: Any) -> None:
@@ -604,7 +604,11 @@ class Coordinator:
     def _episode_started(self, result: Any) -> None:
         if isinstance(result, Fault):
             return self._reset_failed(f"world: {result.message}")
-        self._episode_start_time = float(getattr(result, "sim_time", 0.0))
+        if not isinstance(result, Snapshot) or not isinstance(result.sim_time, (int, float)):
+            return self._reset_failed(f"world: the snapshot at the episode's start is "
+                                      f"{result!r}")
+        self._episode_start_time = float(result.sim_time)
+        self.episode += 1
         self.phase = READY
         self._retry_delay = self.config.retry_delay
         tokens, self._reset_tokens = tuple(self._reset_tokens), []

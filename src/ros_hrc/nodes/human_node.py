@@ -174,9 +174,16 @@ class LinkExecutor(ExecutorPort):
     def __init__(self, client: MessageClient, timeout: float) -> None:
         self.client = client
         self.timeout = timeout
+        self._connection: Optional[int] = None   # the connection of the last action
 
     def act(self, epoch: int, step: int, action: str) -> Outcome:
         reply = self.client.request(Action(step=step, action=action, epoch=epoch), self.timeout)
+        connection = self.client.connections
+        restarted = self._connection is not None and connection != self._connection
+        self._connection = connection
+        if restarted:
+            # hrc_robot was restarted since the last action: what it was doing was cut short.
+            raise LinkError("the robot executor (hrc_robot) restarted")
         if isinstance(reply, Error):
             raise LinkError(f"hrc_robot refused {action}: {reply.message}")
         return Outcome(reply.success is not False, reply.result or "")

@@ -7,11 +7,10 @@ import sys
 import pytest
 
 from ros_hrc.errors import LinkError, ProtocolError
-from ros_hrc.link.protocol import (BELIEF_TOLERANCE, ERR_FAILED, ERR_INVALID, ERR_UNKNOWN_TYPE,
-                                   MAX_MESSAGE_BYTES, MESSAGE_TYPES, PROTOCOL_VERSION, Ack,
-                                   Action, Decision, Error, Hello, MessageError, NextState,
-                                   Observation, Reset, Step, decode, encode, error_message,
-                                   error_reply, from_dict)
+from ros_hrc.link.protocol import (BELIEF_TOLERANCE, ERR_INVALID, MAX_MESSAGE_BYTES,
+                                   MESSAGE_TYPES, Ack, Action, Decision, Error, Hello,
+                                   MessageError, NextState, Observation, Reset, Step, decode,
+                                   encode, error_message, error_reply, from_dict)
 
 # One message of each type, with every optional field set, and one with none of them.
 FULL_MESSAGES = [

@@ -128,7 +128,7 @@ def test_the_new_ack_reset_and_error_fields():
 
 def test_error_codes_are_module_constants():
     assert {ERR_STALE, ERR_BUSY, ERR_SEAT_TAKEN, ERR_INVALID, ERR_UNKNOWN_TYPE, ERR_REFUSED,
-            ERR_FAILED, ERR_VERSION} == set(ERROR_CODES)
+            ERR_FAILED, ERR_VERSION, "episode_over", "not_ready"} == set(ERROR_CODES)
     assert (ERR_STALE, ERR_BUSY, ERR_SEAT_TAKEN, ERR_INVALID, ERR_UNKNOWN_TYPE, ERR_REFUSED,
             ERR_FAILED) == ("stale", "busy", "seat_taken", "invalid", "unknown_type", "refused",
                             "failed")

@@ -11,10 +11,10 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc.errors import SolverError
 from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Call, Coordinator, CoordinatorConfig,
-                                      Decide, Decision, Fault, MdpRefused, MdpReset, MdpStepDone,
-                                      Note, ObserveWorld, Outcome, PublishStep, ResetDone,
-                                      ResetPlanner, ResetWorld, SeatRefused, Snapshot,
-                                      StepReport, StepRequest, Timer)
+                                      Decide, Decision, MdpRefused, MdpReset, MdpStepDone,
+                                      ObserveWorld, Outcome, PublishStep, ResetPlanner,
+                                      ResetWorld, SeatRefused, Snapshot, StepReport,
+                                      StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 
@@ -283,7 +283,8 @@ class FakeWorld(WorldPort):
 class FakePlanner(PlannerPort):
     """Decides by a fixed cycle of actions; refuses to decide in an epoch it was not reset
     into (like a restarted solver). ``down(n)``: the next n calls raise ConnectionError (a
-    dead process). ``hold_next()``: the next decision waits until ``release`` is set."""
+    dead process). ``hold(step)``: the next decision of that step waits until ``release``
+    is set (a slow planner)."""
 
     ACTIONS = ("rIdle", "rPoint_obj", "rIdle", "rStop_all", "rGrasp_obj")
 
@@ -293,7 +294,7 @@ class FakePlanner(PlannerPort):
         self.epoch: Optional[int] = None
         self._lock = threading.Lock()
         self._down = 0
-        self._hold = False
+        self._hold: Optional[int] = None
         self.holding = threading.Event()
         self.release = threading.Event()
 
@@ -301,8 +302,8 @@ class FakePlanner(PlannerPort):
         with self._lock:
             self._down = calls
 
-    def hold_next(self) -> None:
-        self._hold = True
+    def hold(self, step: int) -> None:
+        self._hold = step
 
     def _check_up(self) -> None:
         with self._lock:
@@ -317,8 +318,8 @@ class FakePlanner(PlannerPort):
         self.hooks.maybe_raise("decide")
         if epoch != self.epoch:
             raise SolverError(f"not reset into epoch {epoch}")
-        if self._hold:
-            self._hold = False
+        if self._hold == step:
+            self._hold = None
             self.holding.set()
             self.release.wait(10)   # safety net only
         with self._lock:
