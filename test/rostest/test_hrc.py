@@ -9,6 +9,7 @@ seed print the same steps. (test_loop_faults.py attacks the loop: a second MDP, 
 resets, killed processes.)
 """
 import sys
+import threading
 import unittest
 
 import rospy
@@ -92,10 +93,22 @@ class TestWholeLoop(unittest.TestCase):
             self.assertEqual(statuses[i].human_state, HUMAN_STATES[state])
             self.assertEqual(statuses[i].mode, "manual")
             self.check_step(statuses[i])
-        # A state that does not exist is refused with a reason, and nothing steps.
-        answer = set_state(42)
-        self.assertFalse(answer.success)
-        self.assertIn("0 to 7", answer.message)
+        # A state that does not exist is refused with a reason, and nothing steps; two
+        # concurrent calls each get their own answer.
+        answers = {}
+
+        def ask(state):
+            answers[state] = rospy.ServiceProxy("/hrc/set_human_state", SetHumanState)(state)
+
+        threads = [threading.Thread(target=ask, args=(s,)) for s in (42, 4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(WAIT)
+        self.assertFalse(answers[42].success)
+        self.assertIn("0 to 7", answers[42].message)
+        self.assertTrue(answers[4].success, answers[4].message)
+        self.assertIn("evaluating", answers[4].message)
 
 
     def run_steps(self, count, *args):

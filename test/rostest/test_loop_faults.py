@@ -8,6 +8,7 @@
 * kill -9 of hrc_robot, hrc_obs, despot_pomdp, despot_mdp and hrc_human: each respawns and the
   run goes on from a reset. kill -9 of hrc_world (required): the whole launch stops.
 """
+import json
 import os
 import signal
 import subprocess
@@ -17,6 +18,7 @@ import time
 import unittest
 
 import rospy
+import websocket
 import rostest
 from std_srvs.srv import Trigger
 
@@ -56,6 +58,30 @@ class TestLoopFaults(unittest.TestCase):
         ok, statuses = self.log.wait_for(lambda s: len(s) >= before + 5)
         self.assertTrue(ok, "the served MDP stopped stepping after the refusal")
         self.assertFalse(any(s.fault for s in statuses), [s.fault for s in statuses])
+        check_epochs(self, statuses)
+
+    def test_1b_a_stray_reset_frame_on_the_human_port_is_refused_and_changes_nothing(self):
+        ok, statuses = self.log.wait_for(lambda s: len(s) >= 1)
+        ws = websocket.create_connection("ws://127.0.0.1:9090", timeout=30)
+        try:
+            ws.send(json.dumps({"type": "reset"}))
+            answers = []
+            while True:
+                try:
+                    answer = json.loads(ws.recv())
+                except (websocket.WebSocketException, OSError, ValueError):
+                    break   # refused and disconnected
+                answers.append(answer)
+                if answer.get("type") == "error":
+                    break
+        finally:
+            ws.close()
+        self.assertTrue(answers and answers[-1]["type"] == "error", answers)
+        self.assertEqual(answers[-1].get("code"), "seat_taken", answers)
+        self.log.clear()
+        ok, statuses = self.log.wait_for(lambda s: len(s) >= 5)
+        self.assertTrue(ok, "the loop stopped stepping after a stray reset frame")
+        self.assertFalse(any(s.fault for s in statuses))
         check_epochs(self, statuses)
 
     def test_2_fifty_concurrent_resets_then_steps_from_zero(self):

@@ -823,8 +823,9 @@ class MessageClient:
             if self._closed.is_set():
                 break
             if close_code == CLOSE_REFUSED:
-                # Refused (e.g. the seat is taken): try again, but slower each time.
-                self._log.log(logging.DEBUG if failures else logging.WARNING,
+                # Refused (e.g. the seat is taken): try again, but slower each time. The
+                # refusal's error frame tells the owner why; saying it here too would be noise.
+                self._log.log(logging.DEBUG if failures else logging.INFO,
                               "%s: %s refused the connection (%s); retrying", self.name,
                               self.url, self.last_close[1] if self.last_close else "")
                 failures += 1

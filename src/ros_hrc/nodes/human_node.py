@@ -283,6 +283,10 @@ class HumanNode:
             state_index=msg.state_index or 0, reward=msg.reward or 0.0, reply=msg.id))
 
     def _on_reset(self, msg: Reset, peer: Peer) -> Message:
+        if peer is not self.runner.coordinator.seat:
+            return Error(message="only the served MDP process may reset the loop on this "
+                                 "port (anyone may call /hrc/reset)", code="seat_taken",
+                         in_reply_to=msg.type)
         self.runner.request_reset(f"asked by {peer.who}: {msg.reason or 'reset'}")
         return Ack(step=0, of=Reset.TYPE, result="reset requested", reply_to=msg.id)
 
