@@ -37,7 +37,7 @@ world action that is *refused* (a grasp out of reach) is not a fault: it is what
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from ros_hrc.loop import task
@@ -87,7 +87,6 @@ class StepRequest:
     step: int
     action: str
     state: str
-    state_index: int = 0
     reward: float = 0.0
     reply: Any = None
 

@@ -12,6 +12,7 @@ import rospy
 from std_srvs.srv import Trigger
 
 from ros_hrc.errors import HrcError
+from ros_hrc.loop import settings
 
 C = TypeVar("C")
 
@@ -21,8 +22,6 @@ def read_config(config_type: Type[C]) -> C:
     is one of the launch settings (:mod:`ros_hrc.loop.settings`) is parsed and checked there,
     and an empty value takes the setting's default: the one source of defaults. Other fields
     take the dataclass default when unset; types are coerced."""
-    from ros_hrc.loop import settings
-
     values = {}
     for f in fields(config_type):
         default = f.default

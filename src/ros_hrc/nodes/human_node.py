@@ -27,6 +27,7 @@ robot action may take), ~decide_timeout (s to wait for a decision), ~reset_timeo
 """
 from __future__ import annotations
 
+import itertools
 import os
 import sys
 import threading
@@ -37,8 +38,8 @@ import rospy
 from std_srvs.srv import Trigger, TriggerResponse
 
 from ros_hrc.errors import HrcError, LinkError
-from ros_hrc.link.protocol import (Ack, Action, DispatchTable, Error, Message, NextState,
-                                   Reset, Step)
+from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, Ack, Action, DispatchTable, Error,
+                                   Message, NextState, Reset, Step, reply_error)
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc.loop import task
 from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, MdpRefused,
@@ -209,7 +210,7 @@ class LinkMdp(MdpPort):
 
     def refuse_seat(self, effect: SeatRefused) -> None:
         rospy.logwarn("hrc_human: a second MDP client (%r) was refused", effect.peer)
-        effect.peer.send(Error(message=effect.message, code="seat_taken"))
+        effect.peer.send(Error(message=effect.message, code=ERR_SEAT_TAKEN))
         effect.peer.close(reason="an MDP process is already served")
 
 
@@ -262,6 +263,7 @@ class HumanNode:
         self.server = MessageServer(config.human_port, table, host=config.host,
                                     name="hrc_human", on_connect=self.runner.mdp_connected,
                                     on_disconnect=self.runner.mdp_disconnected)
+        self._next_state_ids = itertools.count(1)   # correlation ids of next_state requests
         self._answers: Dict[int, Message] = {}
         self._answered = threading.Condition()
 
@@ -280,13 +282,12 @@ class HumanNode:
     def _on_step(self, msg: Step, peer: Peer) -> None:
         self.runner.step_requested(peer, StepRequest(
             epoch=msg.epoch, step=msg.step, action=msg.action, state=msg.state,
-            state_index=msg.state_index or 0, reward=msg.reward or 0.0, reply=msg.id))
+            reward=msg.reward or 0.0, reply=msg.id))
 
     def _on_reset(self, msg: Reset, peer: Peer) -> Message:
         if peer is not self.runner.coordinator.seat:
-            return Error(message="only the served MDP process may reset the loop on this "
-                                 "port (anyone may call /hrc/reset)", code="seat_taken",
-                         in_reply_to=msg.type)
+            return reply_error(msg, "only the served MDP process may reset the loop on this "
+                                    "port (anyone may call /hrc/reset)", ERR_SEAT_TAKEN)
         self.runner.request_reset(f"asked by {peer.who}: {msg.reason or 'reset'}")
         return Ack(step=0, of=Reset.TYPE, result="reset requested", reply_to=msg.id)
 
@@ -304,15 +305,11 @@ class HumanNode:
         ok, text = self.runner.reset("/hrc/reset called", self.config.reset_timeout)
         return TriggerResponse(success=ok, message=text)
 
-    _next_state_ids = iter(range(1, 1 << 52))
-    _ids_lock = threading.Lock()
-
     def set_human_state(self, req) -> SetHumanStateResponse:
         seat = self.runner.coordinator.seat
         if seat is None:
             return SetHumanStateResponse(success=False, message="no MDP process is connected")
-        with self._ids_lock:
-            request_id = next(self._next_state_ids)
+        request_id = next(self._next_state_ids)
         state = None if req.state < 0 else int(req.state)
         if not seat.send(NextState(state=state, id=request_id)):
             return SetHumanStateResponse(success=False, message="the MDP process is gone")

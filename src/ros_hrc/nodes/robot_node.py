@@ -19,7 +19,8 @@ from typing import Optional
 import rospy
 
 from ros_hrc.errors import HrcError
-from ros_hrc.link.protocol import Ack, Action, DispatchTable, Error, Message, Reset
+from ros_hrc.link.protocol import (ERR_FAILED, ERR_INVALID, Ack, Action, DispatchTable,
+                                   Message, Reset, reply_error)
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import task
 from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
@@ -47,9 +48,8 @@ class RobotNode:
 
     def on_action(self, msg: Action, peer: Peer) -> Message:
         if msg.action not in task.ROBOT_ACTION_SERVICES:
-            return Error(message=f"unknown robot action {msg.action!r}; known: "
-                                 f"{', '.join(task.ROBOT_ACTION_SERVICES)}", code="invalid",
-                         in_reply_to=msg.type, step=msg.step, epoch=msg.epoch, reply_to=msg.id)
+            return reply_error(msg, f"unknown robot action {msg.action!r}; known: "
+                                    f"{', '.join(task.ROBOT_ACTION_SERVICES)}", ERR_INVALID)
         service = task.ROBOT_ACTION_SERVICES[msg.action]
         if service is None:
             ok, result = True, "the robot stays idle and keeps observing"
@@ -57,8 +57,7 @@ class RobotNode:
             try:
                 ok, result = self.call(f"/robot/{service}")
             except ServiceUnavailable as exc:
-                return Error(message=str(exc), code="failed", in_reply_to=msg.type,
-                             step=msg.step, epoch=msg.epoch, reply_to=msg.id)
+                return reply_error(msg, str(exc), ERR_FAILED)
         rospy.logdebug("step %d: %s -> %s (%s)", msg.step, msg.action, ok, result)
         return Ack(step=msg.step, of=msg.type, action=msg.action, success=ok, result=result,
                    epoch=msg.epoch, reply_to=msg.id)
@@ -67,8 +66,7 @@ class RobotNode:
         try:
             ok, result = self.call("/robot/reset")
         except ServiceUnavailable as exc:
-            return Error(message=str(exc), code="failed", in_reply_to=msg.type,
-                         epoch=msg.epoch, reply_to=msg.id)
+            return reply_error(msg, str(exc), ERR_FAILED)
         return Ack(step=0, of=msg.type, success=ok, result=result, epoch=msg.epoch,
                    reply_to=msg.id)
 

@@ -82,11 +82,13 @@ class WorldNodeConfig:
         def setting(name: str) -> Any:   # launch settings: one source of defaults and checks
             return settings.parse(name, get_param(f"~{name}", ""))
 
-        real_time_factor = setting("real_time_factor")
+        # resolve() decides an empty pause_when_idle (automatic: when real_time_factor is 0).
+        pace = settings.resolve({"real_time_factor": get_param("~real_time_factor", ""),
+                                 "pause_when_idle": get_param("~pause_when_idle", "")})
         config = cls(
             gui=setting("gui"), seed=setting("seed"), belt_speed=setting("belt_speed"),
-            real_time_factor=real_time_factor,
-            pause_when_idle=_pause_when_idle(get_param("~pause_when_idle", ""), real_time_factor),
+            real_time_factor=pace["real_time_factor"],
+            pause_when_idle=pace["pause_when_idle"],
             publish_rate=float(get_param("~publish_rate", defaults.publish_rate)),
             action_timeout=float(get_param("~action_timeout", defaults.action_timeout)),
             snapshot_dir=snapshot_dir, model_dir=model_dir,
@@ -151,16 +153,6 @@ def state_message(state: dict, stamp: rospy.Time) -> WorldState:
     msg.human_idle = predicates["is_a2"]
     msg.human_warning = predicates["is_h4"]
     return msg
-
-
-def _pause_when_idle(value: Any, real_time_factor: float) -> bool:
-    """``""`` (the default) means: freeze simulated time between actions exactly when the world
-    runs as fast as it can (real_time_factor 0), so a seeded run depends only on its seed."""
-    if value == "" or value is None:
-        return real_time_factor == 0
-    if isinstance(value, str):
-        return value.strip().lower() in ("1", "true", "yes", "on")
-    return bool(value)
 
 
 class WorldNode:

@@ -121,7 +121,7 @@ class Driver:
         return StepRequest(epoch=self.c.epoch if epoch == "current" else epoch,
                            step=self.c.expected_step if step is None else step,
                            action=action, state=state,
-                           state_index=0, reward=reward, reply=f"r{self._replies}")
+                           reward=reward, reply=f"r{self._replies}")
 
     def start_step(self, peer: Any = None, **request: Any) -> List[Any]:
         self.last_request = self.request(**request)
