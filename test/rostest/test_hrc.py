@@ -8,9 +8,12 @@ states follow the ones injected through /hrc/set_human_state; and that two runs 
 seed print the same steps. (test_loop_faults.py attacks the loop: a second MDP, bursts of
 resets, killed processes.)
 """
+import json
+import os
 import sys
 import threading
 import unittest
+from pathlib import Path
 
 import rospy
 import rostest
@@ -131,6 +134,28 @@ class TestWholeLoop(unittest.TestCase):
         for a, b in zip(first, second):
             self.assertEqual(a, b, f"step {a[0]} differs between two runs with one seed")
         self.assertGreater(len({r[1] for r in first}), 1, "the human did just one thing")
+
+    def test_seeded_run_is_the_recorded_one(self):
+        # Pins the loop's behaviour across speed work (issue #11): a seeded run of three
+        # episodes, through resets, must give exactly the steps recorded before any of it.
+        # HRC_RECORD_SEEDED_RUN=1 rewrites the record (only for a deliberate change of the
+        # world's or planners' behaviour, said in the commit).
+        steps = [list(record) for record in self.run_steps(
+            SEEDED_RUN_STEPS, "seed:=5", "time_per_step:=30", "max_trials:=100",
+            "on_episode_end:=reset", "max_steps:=12", "end_on_goal:=false",
+            "human_model:=distracted")]
+        steps = [record[:-1] + [[round(p, 6) for p in record[-1]]] for record in steps]
+        if os.environ.get("HRC_RECORD_SEEDED_RUN"):
+            SEEDED_RUN.write_text(json.dumps(steps, indent=1) + "\n")
+        recorded = json.loads(SEEDED_RUN.read_text())
+        self.assertEqual(len(steps), len(recorded))
+        for now, then in zip(steps, recorded):
+            self.assertEqual(now, then, f"episode {then[0]} step {then[1]} differs from the record")
+
+
+#: The seeded run of test_seeded_run_is_the_recorded_one.
+SEEDED_RUN = Path(__file__).resolve().parent / "data" / "seeded_run.json"
+SEEDED_RUN_STEPS = 36
 
 
 if __name__ == "__main__":

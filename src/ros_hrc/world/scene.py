@@ -54,7 +54,8 @@ PREDICATES = ("is_ov", "is_oir", "is_ho", "is_a0", "is_a2", "is_h4")
 _INTERRUPTING = {("human", "reset"), ("robot", "reset"), ("robot", "cancel_action"), ("world", "reset")}
 #: A synchronous run() gives up after this much simulated time (no action lasts that long).
 _MAX_ACTION_TIME = 60.0
-#: An unheld object this close to the belt's end stop has reached the end: it is missed.
+#: An unheld object whose downstream face is this close to the belt's end stop has reached
+#: the end: it is missed.
 _AT_END_STOP_M = 0.02
 
 
@@ -443,8 +444,10 @@ class World:
             position, orientation = self.object.pose()
             on_belt = self.conveyor.is_on_belt(position)
             # Nobody took it before the belt's end (a real belt drops it there), or it fell off.
+            # The object rests against the stop with its centre half its size upstream of it.
+            front = position[0] + self.object.config.size / 2
             left_belt = self.object.holder == "none" and (
-                not on_belt or position[0] >= self.conveyor.stop_x - _AT_END_STOP_M)
+                not on_belt or front >= self.conveyor.stop_x - _AT_END_STOP_M)
             return {
                 "sim_time": self.sim_time,
                 "step": self.step_count,

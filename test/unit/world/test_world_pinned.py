@@ -1,0 +1,73 @@
+"""The world's behaviour, pinned: a scripted run through every action of both agents gives
+what it gave before the speed work of issue #11 (test/unit/world/data/pinned_run.json).
+
+Pinned exactly: each action's success, message and simulated duration, who holds the object,
+every predicate and the simulated clock. The object's position may move by a few millimetres
+(how the physics is integrated may change; where the object goes may not).
+HRC_RECORD_PINNED_RUN=1 rewrites the record, for a deliberate change of the world's behaviour.
+"""
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from ros_hrc.world import World, WorldConfig
+
+RECORD = Path(__file__).resolve().parent / "data" / "pinned_run.json"
+#: Positions may differ by this much from the record, m.
+POSITION_TOLERANCE = 0.005
+
+#: (agent, action), or ("wait", seconds) to let the belt carry the object.
+PLAN = [("human", "look_around"), ("robot", "point_to_obj"), ("human", "attempt_grasp"),
+        ("human", "grasp"), ("human", "walk_away"), ("human", "reset"), ("human", "warn_robot"),
+        ("robot", "grasp"), ("robot", "reset"), ("human", "idle"), ("world", "reset"),
+        ("human", "walk_away"), ("wait", 30.0), ("robot", "point_to_obj"), ("robot", "grasp"),
+        ("human", "look_around"), ("robot", "cancel_action"), ("robot", "reset"),
+        ("human", "reset"), ("wait", 75.0), ("human", "grasp"), ("robot", "grasp"),
+        ("world", "reset"), ("human", "attempt_grasp"), ("human", "grasp")]
+
+
+def run_plan() -> list:
+    rows = []
+    with World(WorldConfig(seed=3)) as world:
+        for agent, what in PLAN:
+            if agent == "wait":
+                world.advance(what)
+                success, message, duration = True, "", what
+            else:
+                outcome = world.run(agent, what)
+                success, message, duration = outcome.success, outcome.message, outcome.duration
+            state = world.state()
+            rows.append({"do": f"{agent}/{what}", "success": success, "message": message,
+                         "duration": round(duration, 6), "sim_time": round(state["sim_time"], 6),
+                         "holder": state["object"]["holder"],
+                         "left_belt": state["object"]["left_belt"],
+                         "predicates": state["predicates"],
+                         "position": [round(x, 4) for x in state["object"]["position"]]})
+    return rows
+
+
+@pytest.fixture(scope="module")
+def run() -> list:
+    rows = run_plan()
+    if os.environ.get("HRC_RECORD_PINNED_RUN"):
+        RECORD.parent.mkdir(exist_ok=True)
+        RECORD.write_text(json.dumps(rows, indent=1) + "\n")
+    return rows
+
+
+def test_every_action_does_what_it_did(run):
+    recorded = json.loads(RECORD.read_text())
+    assert len(run) == len(recorded)
+    for now, then in zip(run, recorded):
+        position_now, position_then = now.pop("position"), then.pop("position")
+        assert now == then
+        assert max(abs(a - b) for a, b in zip(position_now, position_then)) <= POSITION_TOLERANCE, \
+            f"{then['do']}: the object is at {position_now}, was at {position_then}"
+
+
+def test_the_run_covers_both_agents_holding_and_the_belt_end(run):
+    holders = {row["holder"] for row in run}
+    assert {"human", "robot", "none"} <= holders
+    assert any(row["left_belt"] for row in run), "the object never reached the belt's end"
