@@ -4,9 +4,10 @@
 Starts `roslaunch ros_hrc hrc.launch` (world on real_time_factor 0, no pause between steps,
 auto mode, episodes going on) with its own roscore on a free port, listens to /hrc/status and
 times the gaps between consecutive steps: one gap is a whole step — MDP decision, human
-action in the world, six predicate calls, observation over the websocket, DESPOT, robot
-action, acks. Prints p50 / p99 of the step latency, steps per second, and the mean DESPOT
-decision time reported in the status; writes bench/results/loop.json.
+action in the world, one world snapshot, the decision (hrc_obs and DESPOT), robot action,
+outcome snapshot, answers. Prints p50 / p99 of the step latency, steps per second, the mean
+DESPOT decision time, and where a step's time goes (each part's wall time, from
+/hrc/status); writes bench/results/loop.json.
 
     python bench/bench_loop.py [--steps 60] [--time-per-step 0.05] [--human-model humanModel]
 """
@@ -36,33 +37,35 @@ def main(argv=None) -> int:
     parser.add_argument("--steps", type=int, default=60, help="steps to time (after 3 warm-up steps)")
     parser.add_argument("--time-per-step", type=float, default=0.05, help="DESPOT's budget, s")
     parser.add_argument("--human-model", default="humanModel")
-    parser.add_argument("--timeout", type=float, default=900.0, help="give up after this, s")
+    parser.add_argument("--timeout", type=float, default=300.0, help="give up after this, s")
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).resolve().parent / "results" / "loop.json")
     args = parser.parse_args(argv)
 
     port = free_port()
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
-    base = 20000 + port % 20000
+    pomdp_port, robot_port, human_port = free_port(), free_port(), free_port()
     launch = subprocess.Popen(
         ["roslaunch", "--port", str(port), "ros_hrc", "hrc.launch", "gui:=false",
          "real_time_factor:=0", "step_delay:=0", "mode:=auto", "on_episode_end:=reset",
          f"time_per_step:={args.time_per_step}", f"human_model:={args.human_model}",
-         f"pomdp_port:={base}", f"robot_port:={base + 1}", f"human_port:={base + 2}",
+         f"pomdp_port:={pomdp_port}", f"robot_port:={robot_port}", f"human_port:={human_port}",
          "read_stdin:=false"],
         env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True)
     os.environ["ROS_MASTER_URI"] = env["ROS_MASTER_URI"]
     import rospy  # after ROS_MASTER_URI is set
     from ros_hrc.msg import Status
+    from ros_hrc.loop.coordinator import STEP_TIMINGS as STEP_PARTS
 
-    stamps, decisions = [], []
+    stamps, decisions, parts = [], [], []
     done = threading.Event()
     warmup = 3
 
     def on_status(msg):
         stamps.append(time.perf_counter())
         decisions.append(msg.decision_ms)
+        parts.append({part: getattr(msg, f"{part}_ms") for part in STEP_PARTS})
         if len(stamps) >= args.steps + warmup + 1:
             done.set()
 
@@ -90,11 +93,16 @@ def main(argv=None) -> int:
         "step_latency_mean_ms": statistics.fmean(gaps),
         "steps_per_s": len(gaps) / (timed[-1] - timed[0]),
         "despot_decision_mean_ms": statistics.fmean(decisions[warmup:]),
+        # Where a step's wall time goes (the steps' own /hrc/status figures).
+        "parts_p50_ms": {part: percentile([p[part] for p in parts[warmup:]], 50) for part in STEP_PARTS},
+        "parts_mean_ms": {part: statistics.fmean(p[part] for p in parts[warmup:]) for part in STEP_PARTS},
     }
     print(f"  full-loop step latency  p50 {result['step_latency_p50_ms']:.1f} ms   "
           f"p99 {result['step_latency_p99_ms']:.1f} ms   mean {result['step_latency_mean_ms']:.1f} ms")
     print(f"  steps per second (headless, real_time_factor 0)  {result['steps_per_s']:.2f}")
     print(f"  DESPOT decision (mean, as reported)  {result['despot_decision_mean_ms']:.1f} ms")
+    print("  where a step goes (mean ms): " + ", ".join(
+        f"{part} {ms:.1f}" for part, ms in result["parts_mean_ms"].items()))
     write_result(args.out, result)
     return 0
 

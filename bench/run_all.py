@@ -1,12 +1,15 @@
 #!/usr/bin/env python3
 """`make bench`: every benchmark in turn; each prints its figures and writes
-bench/results/<name>.json. `make bench ARGS="link loop"` runs only those."""
-import importlib.util
+bench/results/<name>.json. `make bench ARGS="link loop"` runs only those.
+
+Each benchmark runs in a process of its own: several are ROS nodes (one rospy.init_node per
+process) and each starts its own roscore on a free port.
+"""
+import subprocess
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))  # the benchmarks share bench/common.py
 ORDER = ["pomdp", "world", "link", "loop", "experiment"]
 
 
@@ -16,13 +19,11 @@ def main() -> int:
     for name in wanted:
         path = HERE / f"bench_{name}.py"
         if not path.exists():
-            print(f"=== {name}: no {path.name}, skipped")
+            print(f"=== {name}: no {path.name} (known: {', '.join(ORDER)})")
+            failed.append(name)
             continue
         print(f"=== bench {name}", flush=True)
-        spec = importlib.util.spec_from_file_location(f"bench_{name}", path)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        if module.main([]) != 0:
+        if subprocess.run([sys.executable, str(path)], stdin=subprocess.DEVNULL).returncode != 0:
             failed.append(name)
     if failed:
         print(f"benchmarks that failed: {', '.join(failed)}")

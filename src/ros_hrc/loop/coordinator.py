@@ -37,7 +37,7 @@ world action that is *refused* (a grasp out of reach) is not a fault: it is what
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from ros_hrc.loop import task
@@ -239,6 +239,13 @@ class StepReport:
     episode_over: bool = False
     end_reason: str = ""
     fault: str = ""
+    #: Wall milliseconds of the step's parts (:data:`STEP_TIMINGS`), filled in by the runner.
+    timings_ms: Dict[str, float] = field(default_factory=dict)
+
+
+#: The parts of a step whose wall time a report carries: the whole step (from the MDP's
+#: request to the report), then each call in order.
+STEP_TIMINGS = ("step", "human", "observe", "decide", "robot", "outcome")
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Optional, Tuple
 
@@ -88,6 +89,10 @@ class ReportPort:
         (_log.error if level == "error" else _log.warning if level == "warn" else _log.info)(text)
 
 
+#: Calls whose wall time a step's report carries (see coordinator.STEP_TIMINGS).
+_TIMED_CALLS = {ActHuman: "human", Decide: "decide", ActRobot: "robot"}
+
+
 class _ResetAnswer:
     def __init__(self) -> None:
         self.done = threading.Event()
@@ -114,6 +119,9 @@ class LoopRunner:
         self._stopped = threading.Event()
         self.idle = threading.Condition()   # notified after each event (tests wait on it)
         self.events_handled = 0
+        # Wall times of the step under way (StepReport.timings_ms): one step runs at a time.
+        self._step_started = time.perf_counter()
+        self._timings: dict = {}
 
     # -- life ----------------------------------------------------------------------------------
     def start(self) -> "LoopRunner":
@@ -143,7 +151,12 @@ class LoopRunner:
         self.post(lambda: self.coordinator.mdp_disconnected(peer))
 
     def step_requested(self, peer: Any, request: StepRequest) -> None:
-        self.post(lambda: self.coordinator.step_requested(peer, request))
+        arrived = time.perf_counter()
+
+        def event() -> None:
+            self._step_started, self._timings = arrived, {}
+            self.coordinator.step_requested(peer, request)
+        self.post(event)
 
     def reset(self, reason: str, timeout: Optional[float] = None) -> Tuple[bool, str]:
         """Ask for a reset and wait for its answer: (success, message)."""
@@ -177,6 +190,8 @@ class LoopRunner:
         if isinstance(effect, Call):
             self._pool.submit(self._run_call, effect)
         elif isinstance(effect, PublishStep):
+            effect.report.timings_ms = {
+                "step": (time.perf_counter() - self._step_started) * 1000.0, **self._timings}
             self._safely(self.reports.step, effect.report)
         elif isinstance(effect, Note):
             self._safely(self.reports.note, effect.level, effect.text)
@@ -210,6 +225,7 @@ class LoopRunner:
             _log.exception("%s failed", getattr(fn, "__qualname__", fn))
 
     def _run_call(self, call: Call) -> None:
+        started = time.perf_counter()
         try:
             result = self._perform(call)
         except HrcError as exc:
@@ -217,6 +233,12 @@ class LoopRunner:
         except Exception as exc:   # the dispatch point: any failure is the call's fault
             _log.debug("call %r failed", call, exc_info=True)
             result = Fault(f"{type(exc).__name__}: {exc}")
+        part = _TIMED_CALLS.get(type(call))
+        if isinstance(call, ObserveWorld):
+            part = call.purpose if call.purpose in ("observe", "outcome") else None
+        if part is not None:
+            elapsed = (time.perf_counter() - started) * 1000.0
+            self.post(lambda: self._timings.__setitem__(part, elapsed))
         self.post(lambda: self.coordinator.call_done(call.id, result))
 
     def _perform(self, call: Call) -> Any:

@@ -44,7 +44,7 @@ from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc.loop import task
 from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, MdpRefused,
                                       MdpReset, MdpStepDone, Outcome, SeatRefused, Snapshot,
-                                      StepReport, StepRequest)
+                                      STEP_TIMINGS, StepReport, StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.msg import Status
@@ -121,6 +121,8 @@ def status_message(report: StepReport, mode: str) -> Status:
         setattr(status, name, getattr(report, name))
     status.belief = list(report.belief)
     status.belief_states = list(report.belief_states)
+    for part in STEP_TIMINGS:
+        setattr(status, f"{part}_ms", report.timings_ms.get(part, 0.0))
     return status
 
 

@@ -17,7 +17,8 @@ Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapsho
 
 Topics published:
   /hrc/world_state (ros_hrc/WorldState)  object pose, holder, both agents' actions, predicates,
-                                         at ~publish_rate Hz of wall-clock time
+                                         at ~publish_rate Hz of wall-clock time, while anyone
+                                         subscribes
   /clock (rosgraph_msgs/Clock)           the world's simulated time, when /use_sim_time is true
 
 Parameters (read once at start-up):
@@ -209,6 +210,8 @@ class WorldNode:
     def _publish_states(self) -> None:
         period = 1.0 / self.config.publish_rate
         while not self._stop.wait(period):
+            if self._state_pub.get_num_connections() == 0:
+                continue   # a state costs six predicates under the world's lock: only for listeners
             try:
                 state = self.world.state()
             except SimulationError as error:   # the world closed under us: shutting down

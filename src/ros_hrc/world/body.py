@@ -1,6 +1,11 @@
-"""An articulated body loaded from URDF, driven by position-controlled joints looked up by name.
+"""An articulated body loaded from URDF, moved kinematically by joints looked up by name.
 
-Motions are generators: each ``next()`` sets the joint targets for one physics step and the
+The agents' motions are scripted and touch nothing (the object is held by the world, not by
+contact), so their joints are set, not simulated: each command puts the joints exactly at
+their targets. Their bodies live in the world's scene server, which is never stepped
+(see :mod:`.scene`).
+
+Motions are generators: each ``next()`` sets the joint targets for one control step and the
 world's stepping loop steps the physics in between. That keeps every PyBullet call on the
 stepping thread and lets a reset stop a motion between two steps (``generator.close()``).
 """
@@ -27,7 +32,6 @@ class Joint:
     index: int           # PyBullet's joint index, which is also the child link's index
     lower: float
     upper: float
-    max_force: float
 
     def clamp(self, value: float) -> float:
         """``value`` limited to the joint's range (URDF limits; none when lower > upper)."""
@@ -37,17 +41,15 @@ class Joint:
 
 
 class ArticulatedBody:
-    """A fixed-base multibody whose movable joints are held by position motors.
+    """A fixed-base multibody whose movable joints are set kinematically.
 
-    ``commanded`` keeps the last target of every joint so that a new motion starts from where
-    the previous one was sent, not from a lagging measurement (no jump when one motion follows
-    another).
+    ``commanded`` keeps the last target of every joint: where a new motion starts from.
     """
 
     def __init__(self, client: PhysicsClient, urdf_path: str, position: Sequence[float],
-                 yaw: float, time_step: float) -> None:
+                 yaw: float, control_period: float) -> None:
         self.client = client
-        self.time_step = time_step
+        self.control_period = control_period   # simulated seconds per motion step
         try:
             self.body_id = client.loadURDF(urdf_path, basePosition=list(position),
                                            baseOrientation=yaw_quaternion(yaw), useFixedBase=True)
@@ -60,7 +62,7 @@ class ArticulatedBody:
             self.links[info[12].decode()] = index
             if info[2] in (client.JOINT_REVOLUTE, client.JOINT_PRISMATIC):
                 name = info[1].decode()
-                self.joints[name] = Joint(name, index, info[8], info[9], info[10] or 500.0)
+                self.joints[name] = Joint(name, index, info[8], info[9])
         self.commanded: Dict[str, float] = {name: 0.0 for name in self.joints}
 
     # --- lookup -------------------------------------------------------------------------
@@ -95,41 +97,25 @@ class ArticulatedBody:
             position, orientation = state[4], state[5]
         return np.array(position), quat_to_matrix(orientation)
 
-    def link_com_pose(self, name: str) -> Tuple[Tuple[float, ...], Tuple[float, ...]]:
-        """World position and quaternion of the link's centre of mass frame (constraints use it)."""
-        index = self.link(name)
-        if index < 0:
-            return self.client.getBasePositionAndOrientation(self.body_id)
-        state = self.client.getLinkState(self.body_id, index, computeForwardKinematics=True)
-        return state[0], state[1]
-
     # --- commanding -----------------------------------------------------------------------
     def command(self, targets: Mapping[str, float]) -> None:
-        """Send position targets (clamped to the joint limits) to the named joints' motors."""
+        """Put the named joints at their targets (clamped to the joint limits)."""
         if not targets:
             return
         joints = [self.joint(n) for n in targets]
         values = [j.clamp(v) for j, v in zip(joints, targets.values())]
-        self.client.setJointMotorControlArray(
-            self.body_id, [j.index for j in joints], self.client.POSITION_CONTROL,
-            targetPositions=values, forces=[j.max_force for j in joints])
+        self.client.resetJointStatesMultiDof(self.body_id, [j.index for j in joints],
+                                             [[v] for v in values], [[0.0]] * len(values))
         self.commanded.update({j.name: v for j, v in zip(joints, values)})
 
     def teleport(self, pose: Mapping[str, float]) -> None:
-        """Set joints instantly (resets only: no physics in between) and hold them there."""
-        for name, value in pose.items():
-            joint = self.joint(name)
-            self.client.resetJointState(self.body_id, joint.index, joint.clamp(value), 0.0)
+        """Set joints instantly (resets: one command, not a motion)."""
         self.command(pose)
-
-    def hold(self) -> None:
-        """Hold every joint where it is now (used to stop a motion mid-way)."""
-        self.command(self.positions(self.joints))
 
     # --- motions --------------------------------------------------------------------------
     def steps(self, duration: float) -> int:
-        """Number of physics steps in ``duration`` seconds (at least one)."""
-        return max(1, int(round(duration / self.time_step)))
+        """Number of control steps in ``duration`` seconds (at least one)."""
+        return max(1, int(round(duration / self.control_period)))
 
     def move(self, goal: Mapping[str, float], duration: float,
              extra: Optional[Callable[[float], Mapping[str, float]]] = None) -> Motion:
@@ -162,14 +148,6 @@ class ArticulatedBody:
     def pause(self, duration: float) -> Motion:
         """Motion: keep the current targets for ``duration`` seconds."""
         for _ in range(self.steps(duration)):
-            yield
-
-    def settle(self, names: Sequence[str], tolerance: float = 0.02, timeout: float = 0.3) -> Motion:
-        """Motion: wait until the named joints are within ``tolerance`` of their targets (or timeout)."""
-        for _ in range(self.steps(timeout)):
-            measured = self.positions(names)
-            if all(abs(measured[n] - self.commanded[n]) < tolerance for n in names):
-                return
             yield
 
     def set_collision_group(self, group: int, mask: int) -> None:

@@ -38,20 +38,19 @@ class PhysicsClient:
             raise SimulationError(f"PyBullet could not open {what}")
         self.client_id = client_id
         self.gui = gui
-        # Bound functions are cached: the lookup sits on the per-step path.
-        self._bound: dict = {}
+        self._bound: list = []   # names of the bound functions set on this instance
 
     def __getattr__(self, name: str) -> Any:
-        # Only called for names not found normally: forward to pybullet.
+        # Only called for names not found normally: forward to pybullet. A bound function is
+        # then set on the instance, so the next lookup (on the per-step path) is a plain one.
         if name.startswith("_"):
             raise AttributeError(name)
         target = getattr(pybullet, name)
         if not isinstance(target, types.BuiltinFunctionType):
             return target  # constants, and the exception class `error`
-        bound = self._bound.get(name)
-        if bound is None:
-            bound = functools.partial(target, physicsClientId=self.client_id)
-            self._bound[name] = bound
+        bound = functools.partial(target, physicsClientId=self.client_id)
+        setattr(self, name, bound)
+        self._bound.append(name)
         return bound
 
     @property
@@ -65,5 +64,7 @@ class PhysicsClient:
             if pybullet.isConnected(physicsClientId=self.client_id):
                 pybullet.disconnect(physicsClientId=self.client_id)
             self.client_id = -1
+            for name in self._bound:   # later calls go to no server (and fail)
+                delattr(self, name)
             self._bound.clear()
 

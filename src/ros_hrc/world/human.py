@@ -89,8 +89,8 @@ class Human(ArticulatedBody):
     """The human body, its actions (motions) and its predicates."""
 
     def __init__(self, client: PhysicsClient, urdf_path: str, config: HumanConfig,
-                 time_step: float, work_object: WorkObject, rng: np.random.Generator) -> None:
-        super().__init__(client, urdf_path, (*config.station, 0.0), config.facing, time_step)
+                 control_period: float, work_object: WorkObject, rng: np.random.Generator) -> None:
+        super().__init__(client, urdf_path, (*config.station, 0.0), config.facing, control_period)
         self.config = config
         self.object = work_object
         self.rng = rng
@@ -347,7 +347,7 @@ class Human(ArticulatedBody):
         yield from watched(self.move({"neck_yaw": -angle}, 1.3))
         yield from watched(self.pause(0.25))
         yield from watched(self.move({"neck_yaw": 0.0}, 0.8))
-        hidden = seen["hidden"] * self.time_step
+        hidden = seen["hidden"] * self.control_period
         now = self.is_ov().value
         if not seen["before"] and not visible_steps["count"]:
             return Outcome(True, f"looked {self.config.look_angle_deg:.0f} deg left and right; "
@@ -410,10 +410,9 @@ class Human(ArticulatedBody):
         yield from self.track(lambda: self.solve_reach(
             side, self.object.position(), best_effort=True).targets, self.config.reach_time)
         arm = self.arms[side]
-        yield from self.settle([arm.yaw, arm.pitch, arm.elbow, "waist_pitch"], 0.02, 0.25)
         gap = float(np.linalg.norm(self.hand_position(side) - self.object.position()))
         if gap <= self.config.grasp_tolerance and self.object.holder == NOBODY:
-            self.object.attach("human", self.body_id, self.link(arm.hand), self.link_com_pose(arm.hand))
+            self.object.attach("human", self.body_id, self.link(arm.hand))
             self._holding_side = side
             self.attempting = False
             yield from self.move({**self._arm_pose(side, _ARM_CARRY), "waist_pitch": 0.0}, 0.8)

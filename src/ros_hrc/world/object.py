@@ -1,8 +1,13 @@
 """The object to grasp: a small box that rides the belt and can be held by the human or the robot.
 
-Holding is a fixed constraint between the holder's hand (or gripper) link and the object, made
-at the pose they have when the grasp closes: the object moves with the hand from then on and
-does not jump into it.
+The object lives in both of the world's PyBullet servers (see :mod:`.scene`): a dynamic body in
+the physics server, where the belt carries it by friction, and a copy in the scene server,
+where the agents are, so that rays (line of sight) and images see it. The physics body is the
+truth; :meth:`WorkObject.after_step` copies its pose to the scene after every control step.
+
+Holding: when a grasp closes, the object's pose relative to the holder's hand (or gripper)
+link is kept, and after every control step the object is put back at that pose relative to
+the hand: it moves with the hand from then on and does not jump into it.
 """
 from __future__ import annotations
 
@@ -34,24 +39,38 @@ class ObjectConfig:
 
 
 class WorkObject:
-    """The object, its holder (``"none"``, ``"human"`` or ``"robot"``) and its hold constraint."""
+    """The object, its holder (``"none"``, ``"human"`` or ``"robot"``) and how it is held.
 
-    def __init__(self, client: PhysicsClient, config: ObjectConfig, surface_height: float) -> None:
+    ``client`` is the scene server (``body_id`` is the object's copy there, the one rays hit);
+    ``physics`` the server that simulates it (``physics_id``).
+    """
+
+    def __init__(self, client: PhysicsClient, physics: PhysicsClient, config: ObjectConfig,
+                 surface_height: float) -> None:
         self.client = client
+        self.physics = physics
         self.config = config
         half = config.size / 2
         self._start = [config.start[0], config.start[1], surface_height + half + 0.001]
+        self.physics_id = self._create(physics, config.mass)
+        # A resting box would fall asleep and stop feeling the belt: keep it awake.
+        physics.changeDynamics(self.physics_id, -1, lateralFriction=0.8, rollingFriction=0.001,
+                               activationState=physics.ACTIVATION_STATE_DISABLE_SLEEPING)
+        self.body_id = self._create(client, 0.0)   # never simulated: only placed
+        self.holder = NOBODY
+        # While held: (body, link) of the hand and the object's pose in the hand's frame.
+        self._hand: Optional[Tuple[int, int]] = None
+        self._in_hand: Optional[Tuple[Sequence[float], Sequence[float]]] = None
+
+    def _create(self, client: PhysicsClient, mass: float) -> int:
+        half = self.config.size / 2
         shape = client.createCollisionShape(client.GEOM_BOX, halfExtents=[half] * 3)
         visual = client.createVisualShape(client.GEOM_BOX, halfExtents=[half] * 3,
-                                          rgbaColor=list(config.colour))
-        self.body_id = client.createMultiBody(baseMass=config.mass, baseCollisionShapeIndex=shape,
-                                              baseVisualShapeIndex=visual, basePosition=self._start)
-        # A resting box would fall asleep and stop feeling the belt: keep it awake.
-        client.changeDynamics(self.body_id, -1, lateralFriction=0.8, rollingFriction=0.001,
-                              activationState=client.ACTIVATION_STATE_DISABLE_SLEEPING)
-        client.setCollisionFilterGroupMask(self.body_id, -1, OBJECT_GROUP, OBJECT_MASK)
-        self.holder = NOBODY
-        self._constraint: Optional[int] = None
+                                          rgbaColor=list(self.config.colour))
+        body = client.createMultiBody(baseMass=mass, baseCollisionShapeIndex=shape,
+                                      baseVisualShapeIndex=visual, basePosition=self._start)
+        client.setCollisionFilterGroupMask(body, -1, OBJECT_GROUP, OBJECT_MASK)
+        return body
 
     @property
     def start_position(self) -> np.ndarray:
@@ -60,36 +79,53 @@ class WorkObject:
 
     def position(self) -> np.ndarray:
         """Centre of the object in the world frame."""
-        return np.array(self.client.getBasePositionAndOrientation(self.body_id)[0])
+        return np.array(self.physics.getBasePositionAndOrientation(self.physics_id)[0])
 
     def pose(self) -> Tuple[Tuple[float, ...], Tuple[float, ...]]:
         """Position and quaternion (x, y, z, w) of the object."""
-        return self.client.getBasePositionAndOrientation(self.body_id)
+        return self.physics.getBasePositionAndOrientation(self.physics_id)
 
-    def attach(self, holder: str, body_id: int, link_index: int,
-               link_pose: Tuple[Sequence[float], Sequence[float]]) -> None:
-        """Hold the object rigidly in ``holder``'s link (whose centre-of-mass pose is ``link_pose``)."""
+    def _hand_pose(self) -> Tuple[Sequence[float], Sequence[float]]:
+        body, link = self._hand
+        if link < 0:
+            return self.client.getBasePositionAndOrientation(body)
+        state = self.client.getLinkState(body, link, computeForwardKinematics=True)
+        return state[4], state[5]
+
+    def attach(self, holder: str, body_id: int, link_index: int) -> None:
+        """Hold the object rigidly, where it is now, in link ``link_index`` of ``body_id``
+        (a body of the scene server)."""
         if self.holder != NOBODY:
             raise SimulationError(f"the object is already held by the {self.holder}")
-        link_position, link_orientation = link_pose
+        self._hand = (body_id, link_index)
+        hand_position, hand_orientation = self._hand_pose()
         position, orientation = self.pose()
-        inverse = self.client.invertTransform(link_position, link_orientation)
-        relative = self.client.multiplyTransforms(inverse[0], inverse[1], position, orientation)
-        self._constraint = self.client.createConstraint(
-            body_id, link_index, self.body_id, -1, self.client.JOINT_FIXED, [0, 0, 0],
-            relative[0], [0, 0, 0], relative[1], [0, 0, 0, 1])
-        self.client.changeConstraint(self._constraint, maxForce=200)
+        inverse = self.client.invertTransform(hand_position, hand_orientation)
+        self._in_hand = self.client.multiplyTransforms(inverse[0], inverse[1], position, orientation)
         self.holder = holder
 
     def release(self) -> None:
         """Let go (the object falls from where it is). No-op when nobody holds it."""
-        if self._constraint is not None:
-            self.client.removeConstraint(self._constraint)
-        self._constraint = None
+        self._hand = self._in_hand = None
         self.holder = NOBODY
+
+    def after_step(self) -> None:
+        """After a control step: a held object goes where the hand took it; the scene's copy
+        goes where the physics put the object."""
+        if self._hand is not None:
+            hand_position, hand_orientation = self._hand_pose()
+            position, orientation = self.client.multiplyTransforms(
+                hand_position, hand_orientation, self._in_hand[0], self._in_hand[1])
+            self.physics.resetBasePositionAndOrientation(self.physics_id, position, orientation)
+            self.physics.resetBaseVelocity(self.physics_id, [0, 0, 0], [0, 0, 0])
+            self.client.resetBasePositionAndOrientation(self.body_id, position, orientation)
+            return
+        position, orientation = self.pose()
+        self.client.resetBasePositionAndOrientation(self.body_id, position, orientation)
 
     def reset(self) -> None:
         """Release and put the object back at its start on the belt, at rest."""
         self.release()
+        self.physics.resetBasePositionAndOrientation(self.physics_id, self._start, [0, 0, 0, 1])
+        self.physics.resetBaseVelocity(self.physics_id, [0, 0, 0], [0, 0, 0])
         self.client.resetBasePositionAndOrientation(self.body_id, self._start, [0, 0, 0, 1])
-        self.client.resetBaseVelocity(self.body_id, [0, 0, 0], [0, 0, 0])

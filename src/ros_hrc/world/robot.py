@@ -58,8 +58,8 @@ class Robot(ArticulatedBody):
     """The robot body, its actions (motions) and what it can reach."""
 
     def __init__(self, client: PhysicsClient, urdf_path: str, config: RobotConfig,
-                 time_step: float, work_object: WorkObject) -> None:
-        super().__init__(client, urdf_path, (*config.position, 0.0), config.facing, time_step)
+                 control_period: float, work_object: WorkObject) -> None:
+        super().__init__(client, urdf_path, (*config.position, 0.0), config.facing, control_period)
         self.config = config
         self.object = work_object
         self.set_collision_group(ROBOT_GROUP, 1)
@@ -217,7 +217,7 @@ class Robot(ArticulatedBody):
         gap = float(np.linalg.norm(self.tool_position() - self.object.position()))
         if gap <= c.grasp_tolerance and self.object.holder == NOBODY:
             gripper = self.link("r_gripper_palm_link")
-            self.object.attach("robot", self.body_id, gripper, self.link_com_pose("r_gripper_palm_link"))
+            self.object.attach("robot", self.body_id, gripper)
             lifted = self._lift_pose(self.object.position(), pitch)
             if lifted is None:
                 return Outcome(True, "grasped the object (no room to lift it: holding it on the belt)")
@@ -242,8 +242,7 @@ class Robot(ArticulatedBody):
 
     def cancel(self, interrupted: Optional[str]) -> Outcome:
         """Stop where it is and hold (keeps a held object), instantly."""
-        self.activity = "cancel_action"
-        self.hold()
+        self.activity = "cancel_action"   # the joints stay where the last command put them
         if interrupted:
             return Outcome(True, f"cancelled {interrupted}; holding still")
         return Outcome(True, "nothing to cancel; holding still")

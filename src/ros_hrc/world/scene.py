@@ -1,9 +1,23 @@
 """The PyBullet world: floor, conveyor, object, human and robot, stepped at a fixed rate.
 
-One loop steps the physics. Each step it (1) takes the requests that came in (a reset or a
-cancel interrupts at once; any other action queues behind the agent's current one), (2) advances
-the human's and the robot's current motion by one step, (3) moves the belt, (4) steps PyBullet.
-Actions are therefore only ever executed by the loop, between two physics steps, and every
+Two PyBullet servers, because only the object needs dynamics:
+
+* the **physics** server simulates what contact matters for: the floor, the belt (which
+  carries the object by friction), its rails and end stop, and the object. It steps at
+  ``time_step`` (240 Hz), ``substeps`` physics steps per control step.
+* the **scene** server (``World.client``; the window with ``gui``) holds every body as it is
+  seen: the same scenery, a copy of the object, the human and the robot. It is never stepped:
+  the agents' joints are set along their scripted motions (they touch nothing: holding is
+  done by the world, not by contact), and the object's copy is put where the physics put the
+  object. Rays (line of sight), images and the agents' geometry are read here.
+
+One loop steps the world in control steps of ``substeps * time_step`` (1/60 s). Each control
+step it (1) takes the requests that came in (a reset or a cancel interrupts at once; any other
+action queues behind the agent's current one) and starts a queued action where the agent is
+free, (2) moves the belt, (3) steps the physics, (4) puts a held object in its holder's hand
+and the object's copy where the object is, (5) advances the human's and the robot's motions
+to their next command, which finishes a motion whose last step has just been taken.
+Actions are therefore only ever executed by the loop, between two steps, and every
 PyBullet call happens under one lock: callers on other threads (ROS service handlers) submit a
 request and wait for its :class:`Ticket`, and predicate queries read the geometry under the
 lock. Nothing waits for anything while holding the lock, so calls cannot deadlock.
@@ -81,8 +95,11 @@ class WorldConfig:
 
     gui: bool = False
     seed: int = 0
-    time_step: float = 1.0 / 240.0
-    solver_iterations: int = 20  # PyBullet's default 50 costs twice the time for no visible gain
+    time_step: float = 1.0 / 240.0   # physics step, s
+    substeps: int = 4                # physics steps per control step (motions, clock, requests)
+    # The physics server holds one dynamic body (the object on the belt): 10 iterations carry
+    # it exactly as 20 or PyBullet's 50 do (docs/performance.md), at half the cost of 20.
+    solver_iterations: int = 10
     belt_speed: float = 0.02  # m/s, downstream (+x)
     conveyor: ConveyorConfig = field(default_factory=ConveyorConfig)
     work_object: ObjectConfig = field(default_factory=ObjectConfig)
@@ -144,8 +161,11 @@ class World:
         for name in ("human.urdf", "pr2_like.urdf"):
             if not (self.model_dir / name).is_file():
                 raise SimulationError(f"model {name} not found in {self.model_dir}")
+        if self.config.substeps < 1:
+            raise SimulationError(f"substeps must be at least 1, got {self.config.substeps}")
         self.time_step = self.config.time_step
-        self.step_count = 0
+        self.control_period = self.config.time_step * self.config.substeps
+        self.step_count = 0   # physics steps
         self.sim_time = 0.0
         self.rng = np.random.default_rng(self.config.seed)
         self._lock = threading.RLock()
@@ -156,38 +176,43 @@ class World:
         self._stop = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._listeners: List[Callable[[float], None]] = []
-        self.client = PhysicsClient(self.config.gui)
+        self.client = PhysicsClient(self.config.gui)   # the scene: never stepped
         try:
+            self.physics = PhysicsClient(False)
             self._build()
         except BaseException:
-            self.client.disconnect()
+            self.close_clients()
             raise
 
     def _build(self) -> None:
-        c, cfg = self.client, self.config
-        c.setTimeStep(cfg.time_step)
-        c.setPhysicsEngineParameter(numSolverIterations=cfg.solver_iterations)
-        c.setGravity(0, 0, -9.81)
+        c, physics, cfg = self.client, self.physics, self.config
+        # One stepSimulation() is a control step of `substeps` physics steps of `time_step`.
+        physics.setTimeStep(self.control_period)
+        physics.setPhysicsEngineParameter(numSolverIterations=cfg.solver_iterations,
+                                          numSubSteps=cfg.substeps)
+        physics.setGravity(0, 0, -9.81)
         if cfg.gui:
             c.configureDebugVisualizer(c.COV_ENABLE_GUI, 0)
             self._aim_gui_camera()
-        plane = c.createCollisionShape(c.GEOM_PLANE)
-        floor_look = c.createVisualShape(c.GEOM_BOX, halfExtents=[4, 4, 0.005], rgbaColor=[0.80, 0.80, 0.78, 1],
-                                         visualFramePosition=[0, 0, -0.005])
-        self.floor_id = c.createMultiBody(0, plane, floor_look)
-        c.setCollisionFilterGroupMask(self.floor_id, -1, STATIC_GROUP, STATIC_MASK)
-        self.conveyor = Conveyor(c, cfg.conveyor, cfg.belt_speed)
-        self.object = WorkObject(c, cfg.work_object, cfg.conveyor.surface_height)
-        self.human = Human(c, str(self.model_dir / "human.urdf"), cfg.human, cfg.time_step,
+        self.floor_id = self._floor(c)
+        self._floor(physics)
+        Conveyor(c, cfg.conveyor, 0.0)   # the scenery as seen (and as it blocks a line of sight)
+        self.conveyor = Conveyor(physics, cfg.conveyor, cfg.belt_speed)
+        self.object = WorkObject(c, physics, cfg.work_object, cfg.conveyor.surface_height)
+        self.human = Human(c, str(self.model_dir / "human.urdf"), cfg.human, self.control_period,
                            self.object, self.rng)
-        self.robot = Robot(c, str(self.model_dir / "pr2_like.urdf"), cfg.robot, cfg.time_step, self.object)
+        self.robot = Robot(c, str(self.model_dir / "pr2_like.urdf"), cfg.robot, self.control_period,
+                           self.object)
         self._channels: Dict[str, _Channel] = {"human": _Channel(self.human), "robot": _Channel(self.robot)}
-        # Groups and masks keep the agents off the scenery and off each other; they must stay
-        # visible to rays (mask 1), which would let them knock the object about, so those
-        # pairs are switched off one by one. Holding is done by constraints, not by contact.
-        for agent in (self.human, self.robot):
-            for link in agent.links.values():  # the root (-1) and every link
-                c.setCollisionFilterPair(agent.body_id, self.object.body_id, link, -1, 0)
+
+    @staticmethod
+    def _floor(client: PhysicsClient) -> int:
+        plane = client.createCollisionShape(client.GEOM_PLANE)
+        look = client.createVisualShape(client.GEOM_BOX, halfExtents=[4, 4, 0.005],
+                                        rgbaColor=[0.80, 0.80, 0.78, 1], visualFramePosition=[0, 0, -0.005])
+        floor = client.createMultiBody(0, plane, look)
+        client.setCollisionFilterGroupMask(floor, -1, STATIC_GROUP, STATIC_MASK)
+        return floor
 
     def _aim_gui_camera(self) -> None:
         cam = self.config.camera
@@ -223,11 +248,18 @@ class World:
     def _step_locked(self) -> None:
         self._take_requests()
         for channel in self._channels.values():
-            self._advance(channel)
+            if channel.motion is None:
+                self._advance(channel)   # start a queued action: its first command
         self.conveyor.before_step()
-        self.client.stepSimulation()
-        self.step_count += 1
+        self.physics.stepSimulation()
+        self.object.after_step()
+        self.step_count += self.config.substeps
         self.sim_time = self.step_count * self.time_step
+        # The next command of each motion, right after the step: a motion of n steps is over
+        # n steps after it began (its last command has had its step), not one step later.
+        for channel in self._channels.values():
+            if channel.motion is not None:
+                self._advance(channel)
 
     def _take_requests(self) -> None:
         while self._requests:
@@ -268,8 +300,7 @@ class World:
                                                  f"{self.sim_time - channel.ticket.started_at:.1f} s"),
                                   self.sim_time)
             channel.motion, channel.ticket = None, None
-            channel.body.moving = False
-            channel.body.hold()
+            channel.body.moving = False   # its joints stay where the last step put them
         while channel.queue:
             channel.queue.popleft().finish(
                 Outcome(False, f"cancelled by {agent}/{by} before it started"), self.sim_time)
@@ -375,14 +406,21 @@ class World:
                 channel.motion, channel.ticket = None, None
             for ticket in pending:
                 ticket.finish(Outcome(False, f"{ticket.name} abandoned: the world was closed"), self.sim_time)
-            self.client.disconnect()
+            self.close_clients()
+
+    def close_clients(self) -> None:
+        """Disconnect from both PyBullet servers (safe to call twice)."""
+        self.client.disconnect()
+        physics = getattr(self, "physics", None)
+        if physics is not None:
+            physics.disconnect()
 
     def add_step_listener(self, listener: Callable[[float], None]) -> None:
         """Call ``listener(sim_time)`` after every physics step (on the stepping thread)."""
         self._listeners.append(listener)
 
     def step(self, count: int = 1) -> None:
-        """Advance the physics by ``count`` steps on the calling thread (no stepping thread)."""
+        """Advance the world by ``count`` control steps on the calling thread (no stepping thread)."""
         if self.running:
             raise SimulationError("the stepping thread is running: use run() or submit() instead of step()")
         for _ in range(count):
@@ -392,7 +430,7 @@ class World:
 
     def advance(self, seconds: float) -> None:
         """Advance ``seconds`` of simulated time on the calling thread."""
-        self.step(max(0, int(round(seconds / self.time_step))))
+        self.step(max(0, int(round(seconds / self.control_period))))
 
     def submit(self, agent: str, action: str) -> Ticket:
         """Ask ``agent`` ("human", "robot" or "world") to carry out ``action``; returns at once."""
@@ -415,7 +453,7 @@ class World:
         ticket = self.submit(agent, action)
         if self.running:
             return ticket.wait(timeout)
-        limit = int(_MAX_ACTION_TIME / self.time_step)
+        limit = int(_MAX_ACTION_TIME / self.control_period)
         for _ in range(limit):
             if ticket.done():
                 return ticket.outcome

@@ -50,13 +50,12 @@ def test_point_to_obj_aims_the_gripper_at_the_object(world):
 
 def test_cancel_stops_a_grasp_mid_way_and_holds_still(near_robot):
     ticket = near_robot.submit("robot", "grasp")
-    near_robot.step(120)
+    near_robot.advance(0.5)
     cancel = near_robot.run("robot", "cancel_action")
     assert ticket.done() and not ticket.outcome.success and "interrupted" in ticket.outcome.message
     assert cancel.success and "cancelled grasp" in cancel.message
-    near_robot.step(30)  # let the arm come to rest where it was stopped
     held = near_robot.robot.tool_position()
-    near_robot.step(120)
+    near_robot.advance(0.5)
     assert np.allclose(near_robot.robot.tool_position(), held, atol=0.01)
     assert near_robot.object.holder == "none"
 

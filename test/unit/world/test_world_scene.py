@@ -27,7 +27,7 @@ def test_reset_restores_everything(world):
 def test_reset_interrupts_a_motion_in_progress(world):
     walking = world.submit("human", "walk_away")
     queued = world.submit("human", "look_around")
-    world.step(200)
+    world.advance(0.8)   # half-way
     assert not walking.done()
     reset = world.run("human", "reset")
     assert reset.success
@@ -40,7 +40,7 @@ def test_actions_of_one_agent_queue_and_agents_move_together(still_world):
     first = still_world.submit("human", "warn_robot")
     second = still_world.submit("human", "idle")
     robot = still_world.submit("robot", "point_to_obj")
-    still_world.step(300)
+    still_world.advance(1.25)   # pointing takes 1.2 s; the warning 2.2 s
     assert robot.done() and not first.done()   # the robot did not wait for the human
     while not second.done():
         still_world.step()
