@@ -37,9 +37,16 @@ observation with one sort, and reads the children's bounds with ``np.add.reducea
 
 Beliefs are exact for small models (scenarios are drawn from the exact belief) and particle
 filters for large ones (``DespotConfig.particles``).
+
+Time: ``time_per_step`` bounds all of act(), and the belief updates since the previous act(), not
+only the trials: the garbage collector is paused during act() (the tree has no reference cycles
+and is freed before act() returns), and the search stops before an expansion predicted to end
+too late to free the tree in time. Under ``max_trials`` with a generous budget none of this
+changes a trial or a random draw.
 """
 from __future__ import annotations
 
+import gc
 import math
 import time
 from dataclasses import dataclass
@@ -59,6 +66,19 @@ EXACT_BELIEF_MAX_STATES = 5000
 
 #: Particle count of the default particle belief.
 DEFAULT_PARTICLES = 2000
+
+#: First guess of the seconds it takes to free one node of a finished tree (measured on every
+#: search afterwards); the search stops early enough to free its tree within the budget.
+FREE_SECONDS_PER_NODE = 1e-6
+
+#: Safety factor on that estimate, the fewest nodes a measurement is taken from, and the most
+#: a measurement may say (a stall while freeing must not starve the next searches).
+FREE_MARGIN = 1.5
+FREE_MIN_NODES = 100
+FREE_MAX_PER_NODE = 1e-5
+
+#: Weight of the newest expansion in the running means that predict the next one's duration.
+EXPAND_WEIGHT = 0.1
 
 
 @dataclass
@@ -134,17 +154,22 @@ class DespotTables:
 
 
 class _VNode:
-    """A belief node: the scenarios that reach it and their current states."""
+    """A belief node: the scenarios that reach it and their current states.
 
-    __slots__ = ("depth", "scen", "states", "frac", "lower0", "default_action", "lower",
-                 "upper", "uupper", "children", "parent", "is_default")
+    Those are ``block[0][lo:hi]`` and ``block[1][lo:hi]``: the arrays of all the siblings'
+    scenarios and states, shared, sliced only when the node is expanded (most never are), which
+    saves two array views per node in making and in freeing the tree.
+    """
 
-    def __init__(self, depth: int, scen: np.ndarray, states: np.ndarray, frac: float,
-                 lower0: float, default_action: int, upper0: float,
-                 parent: Optional["_QNode"]) -> None:
+    __slots__ = ("depth", "block", "lo", "hi", "frac", "lower0", "default_action", "lower",
+                 "upper", "uupper", "children", "is_default")
+
+    def __init__(self, depth: int, block: tuple, lo: int, hi: int, frac: float,
+                 lower0: float, default_action: int, upper0: float) -> None:
         self.depth = depth
-        self.scen = scen
-        self.states = states
+        self.block = block                 # (scenario indices, states) of the sibling group
+        self.lo = lo
+        self.hi = hi
         self.frac = frac                   # |Φ_b| / K
         self.lower0 = lower0               # weighted default-policy value ℓ0
         self.default_action = default_action
@@ -152,20 +177,23 @@ class _VNode:
         self.upper = max(upper0, lower0)   # μ
         self.uupper = max(upper0, lower0)  # U (weighted, not regularized)
         self.children: Optional[List[_QNode]] = None
-        self.parent = parent
         self.is_default = False
 
 
 class _QNode:
-    """An action node: the step reward of its scenarios and a child per observation."""
+    """An action node: the step reward of its scenarios and a child per observation.
 
-    __slots__ = ("action", "rho", "children", "lower", "upper", "uupper", "parent")
+    Nodes hold no pointer to their parent: the tree has no reference cycles, so a finished tree
+    is freed by reference counting the moment it is dropped, never left to the cyclic garbage
+    collector (whose full passes over dead trees cost up to ~190 ms inside a 0.1 s search).
+    """
 
-    def __init__(self, action: int, rho: float, parent: _VNode) -> None:
+    __slots__ = ("action", "rho", "children", "lower", "upper", "uupper")
+
+    def __init__(self, action: int, rho: float) -> None:
         self.action = action
         self.rho = rho                     # weighted step reward minus λ
         self.children: List[_VNode] = []
-        self.parent = parent
         self.lower = self.upper = self.uupper = 0.0
 
 
@@ -201,6 +229,12 @@ class DespotPlanner(BeliefPlanner):
         self._search_rng = np.random.default_rng(0)
         self._nodes = 0
         self._max_depth = 0
+        self._deadline = math.inf
+        self._trials = 0
+        self._free_per_node = FREE_SECONDS_PER_NODE
+        self._expand_seconds = 0.0
+        self._expand_scenarios = 0.0
+        self._update_seconds = 0.0
 
     # -- random streams ------------------------------------------------------------------------
     def _uniforms(self, depth: int) -> np.ndarray:
@@ -240,6 +274,8 @@ class DespotPlanner(BeliefPlanner):
         disc = 1.0
         rows0 = actions * self._S
         for d in range(depth, self.config.depth + 1):
+            if time.perf_counter() > self._deadline:
+                break               # out of time: the blind values stand in from here on
             u = self._uniforms(d)
             states, _, r = self.sampler.step_rows(rows0 + states, u[0, scen], u[1, scen])
             total += disc * r
@@ -255,16 +291,18 @@ class DespotPlanner(BeliefPlanner):
         low, acts, up = self._default_values(0, scen, states, starts)
         self._nodes = 1
         self._max_depth = 0
-        return _VNode(0, scen, states, 1.0, float(low[0]), int(acts[0]), float(up[0]), None)
+        return _VNode(0, (scen, states), 0, K, 1.0, float(low[0]), int(acts[0]), float(up[0]))
 
     # -- tree ----------------------------------------------------------------------------------
     def _expand(self, v: _VNode) -> None:
         """Step every scenario of v under every action; one child per (action, observation)."""
         A, Z, K = self._A, self._Z, self.config.scenarios
-        n = v.scen.size
-        u = self._uniforms(v.depth)[:, v.scen]                        # (2, n)
+        lo, hi = v.lo, v.hi
+        n = hi - lo
+        scen = v.block[0][lo:hi]
+        u = self._uniforms(v.depth)[:, scen]                          # (2, n)
         # The same two uniforms per scenario for every action: that is the determinized scenario.
-        nxt, obs, rew = self.sampler.step_block(self._action_rows, v.states, u[0], u[1])
+        nxt, obs, rew = self.sampler.step_block(self._action_rows, v.block[1][lo:hi], u[0], u[1])
         key = (obs + self._obs_offsets).ravel()                       # action * Z + observation
         order = np.argsort(key, kind="stable")
         key_s = key[order]
@@ -274,7 +312,7 @@ class DespotPlanner(BeliefPlanner):
         bounds = np.flatnonzero(change)                               # group starts, then the end
         starts = bounds[:-1]
         nxt_s = nxt.ravel()[order]
-        scen_s = v.scen[order % n]
+        scen_s = scen[order % n]
         depth = v.depth + 1
         low, acts, up = self._default_values(depth, scen_s, nxt_s, starts)
         lam = self.config.pruning
@@ -286,16 +324,17 @@ class DespotPlanner(BeliefPlanner):
         qnodes = []
         for a, (r, lo_a, up_a) in enumerate(zip(rho.tolist(), q_lower.tolist(),
                                                 q_upper.tolist())):
-            q = _QNode(a, r, v)
+            q = _QNode(a, r)
             q.lower, q.upper, q.uupper = lo_a, up_a, up_a + lam
             qnodes.append(q)
         bl = bounds.tolist()
+        block = (scen_s, nxt_s)
         for c, (a, lo_c, act_c, up_c) in enumerate(zip(child_action.tolist(), low.tolist(),
                                                        acts.tolist(), up.tolist())):
             s0, s1 = bl[c], bl[c + 1]
             q = qnodes[a]
-            q.children.append(_VNode(depth, scen_s[s0:s1], nxt_s[s0:s1], (s1 - s0) / K,
-                                     lo_c, act_c, up_c, q))
+            q.children.append(_VNode(depth, block, s0, s1, (s1 - s0) / K,
+                                     lo_c, act_c, up_c))
         v.children = qnodes
         self._nodes += starts.size
         if depth > self._max_depth:
@@ -306,18 +345,22 @@ class DespotPlanner(BeliefPlanner):
         v.lower = v.upper = v.uupper = v.lower0
         v.is_default = True
 
-    def _backup(self, v: _VNode) -> None:
-        """Recompute the bounds on the path from v to the root."""
+    def _backup(self, path: List[_VNode], qpath: List[_QNode]) -> None:
+        """Recompute the bounds on a trial's path, from its last node up to the root.
+
+        ``path`` holds the belief nodes from the root down, ``qpath[i]`` the action node between
+        ``path[i]`` and ``path[i + 1]``.
+        """
         lam = self.config.pruning
-        while v.parent is not None:
-            q = v.parent
+        for i in range(len(qpath) - 1, -1, -1):
+            q = qpath[i]
             lo = up = uu = q.rho
             for c in q.children:
                 lo += c.lower
                 up += c.upper
                 uu += c.uupper
             q.lower, q.upper, q.uupper = lo, up, uu + lam
-            v = q.parent
+            v = path[i]
             if v.is_default:
                 continue
             lower = upper = uupper = v.lower0
@@ -338,16 +381,19 @@ class DespotPlanner(BeliefPlanner):
             if uupper < v.uupper:
                 v.uupper = uupper
 
-    def _trial(self, root: _VNode, deadline: float) -> None:
+    def _trial(self, root: _VNode, deadline: float) -> bool:
         """One trial: descend, expanding leaves, until a stopping rule holds, then back up.
 
-        Past ``deadline`` the descent stops where it is (the path is still backed up), so one
-        deep trial cannot overrun the step's time budget by much.
+        The descent stops before an expansion that would end past ``deadline`` less the time to
+        free the tree (the path is still backed up), so a deep trial does not overrun the step's
+        budget; an expansion is predicted to take the recent expansions' mean time, scaled up
+        when it has more scenarios than their mean. True when it stopped for time.
         """
         cfg = self.config
         lam, xi, D = cfg.pruning, cfg.xi, cfg.depth
         v = root
         path = [root]
+        qpath: List[_QNode] = []
         # keys[i] = min over path[0..i] of weighted (U - ℓ0) + λ·depth: the blocking test for a
         # node at depth d is min over its ancestors of that key <= λ·d.
         keys = [root.uupper - root.lower0]
@@ -368,9 +414,16 @@ class DespotPlanner(BeliefPlanner):
                         break
                 break
             if v.children is None:
-                if v is not root and time.perf_counter() > deadline:
-                    break
+                n = v.hi - v.lo
+                if v is not root and self._out_of_time(deadline, n):
+                    self._backup(path, qpath)
+                    return True
+                began = time.perf_counter()
                 self._expand(v)
+                # Recent expansions' mean size and duration (they predict the next one's).
+                w = EXPAND_WEIGHT if self._expand_scenarios > 0.0 else 1.0
+                self._expand_scenarios += w * (n - self._expand_scenarios)
+                self._expand_seconds += w * (time.perf_counter() - began - self._expand_seconds)
             q = max(v.children, key=_upper_of)
             root_gap = root.upper - root.lower
             target = xi * root_gap
@@ -381,19 +434,73 @@ class DespotPlanner(BeliefPlanner):
                 if e > best_e:
                     best_e, best = e, c
             v = best
+            qpath.append(q)
             path.append(v)
             keys.append(min(keys[-1], v.uupper - v.lower0 + lam * v.depth))
-        self._backup(v)
+        self._backup(path, qpath)
+        return False
+
+    def _out_of_time(self, deadline: float, scenarios: int = 0) -> bool:
+        """Whether the search must stop now to free its tree (of ``_nodes``) by ``deadline``,
+        after expanding a node of ``scenarios`` scenarios first when that is not 0."""
+        reserve = FREE_MARGIN * self._free_per_node * self._nodes
+        if scenarios and self._expand_scenarios > 0.0:
+            reserve += self._expand_seconds * max(1.0, scenarios / self._expand_scenarios)
+        return time.perf_counter() + reserve >= deadline
 
     # -- the Planner interface -----------------------------------------------------------------
+    def reset(self, belief: Optional[np.ndarray] = None) -> None:
+        super().reset(belief)
+        self._update_seconds = 0.0
+
+    def update(self, action: int, observation: int) -> None:
+        """The belief update; its duration comes out of the next act()'s budget."""
+        start = time.perf_counter()
+        super().update(action, observation)
+        self._update_seconds += time.perf_counter() - start
+
     def act(self) -> int:
         """Build a DESPOT from the current belief within the budget and return its best action.
 
-        ``last_stats`` then holds the trials, seconds, the root's regularized bounds, the tree's
-        size and depth; ``root`` the tree itself (until the next call).
+        ``time_per_step`` bounds the whole decision, what a caller waits for: the belief updates
+        since the last act() (a decision loop updates, then acts), drawing the scenarios, the
+        search, choosing the action and freeing the tree. The search stops early enough for the
+        rest to fit (the time to free a tree is measured on each act). A search bounded by
+        ``max_trials`` under a generous budget makes the same trials and random draws whatever
+        the clock says. ``last_stats`` then holds the trials, the seconds act() took, the root's
+        regularized bounds, the tree's size and depth.
         """
-        cfg = self.config
         start = time.perf_counter()
+        budget = self.config.time_per_step - self._update_seconds
+        self._update_seconds = 0.0
+        # The cyclic garbage collector is paused for the call: the tree makes no reference
+        # cycles and is freed by reference counting before act() returns, so nothing is left
+        # for the collector, whose passes (triggered by the tree's allocations) walked the whole
+        # heap and cost up to ~190 ms of a 0.1 s budget.
+        paused = gc.isenabled()
+        gc.disable()
+        try:
+            root = self._search(start + budget)
+            action = self._best_action(root)
+            stats = PlannerStats(trials=self._trials, lower=root.lower, upper=root.upper,
+                                 nodes=self._nodes, depth=self._max_depth)
+            freeing = time.thread_time()              # CPU time: immune to preemption
+            del root                                  # the whole tree, by reference counting
+            end = time.perf_counter()
+            if stats.nodes >= FREE_MIN_NODES:
+                per_node = min((time.thread_time() - freeing) / stats.nodes, FREE_MAX_PER_NODE)
+                self._free_per_node = 0.5 * (self._free_per_node + per_node)
+        finally:
+            if paused:
+                gc.enable()
+        stats.seconds = end - start
+        self.last_stats = stats
+        return action
+
+    def _search(self, deadline: float) -> _VNode:
+        """The tree grown from the current belief by trials until ``deadline`` or a trial cap."""
+        cfg = self.config
+        self._deadline = deadline
         self._search_rng = np.random.default_rng(int(self.rng.integers(2**63)))
         self._u = []
         # Stratified start states: the scenarios' state mix matches the belief to within one
@@ -401,26 +508,29 @@ class DespotPlanner(BeliefPlanner):
         states = self._belief.sample_systematic(self._search_rng, cfg.scenarios)
         root = self._root(states)
         trials = 0
-        deadline = start + cfg.time_per_step
         while True:
             if cfg.max_trials is not None and trials >= cfg.max_trials:
                 break
             if root.upper - root.lower <= cfg.gap_tolerance:
                 break
-            if time.perf_counter() >= deadline and trials > 0:
+            if trials > 0 and self._out_of_time(deadline):
                 break
-            self._trial(root, deadline)
             trials += 1
+            if self._trial(root, deadline):
+                break
+        self._trials = trials
+        self._deadline = math.inf
+        return root
+
+    @staticmethod
+    def _best_action(root: _VNode) -> int:
+        """The root's action with the best lower bound, or its default action."""
         action = root.default_action
         best = root.lower0
         if root.children is not None:
             for q in root.children:
                 if q.lower > best:
                     best, action = q.lower, q.action
-        self.last_stats = PlannerStats(trials=trials, seconds=time.perf_counter() - start,
-                                       lower=root.lower, upper=root.upper, nodes=self._nodes,
-                                       depth=self._max_depth)
-        self.root = root
         return int(action)
 
 

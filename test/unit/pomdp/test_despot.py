@@ -174,3 +174,91 @@ def test_despot_plays_rocksample_on_a_particle_belief(tmp_path):
     assert planner.belief.sum() == pytest.approx(1.0)
     assert planner.last_stats.trials == 10
     assert np.isfinite(result.mean)
+
+
+# -- a trial-bounded search does not depend on the clock ------------------------------------------
+
+def _trial_bounded_run(path, particles=None, seed=1, acts=20, episode=5):
+    """20 acts of a DESPOT capped at 50 trials under a 30 s budget, with the world simulated
+    from its own seeded stream and a reset every ``episode`` steps: (actions, tree sizes,
+    trials, last root lower bound, final belief, the planner's next random draw)."""
+    from pathlib import Path
+
+    from ros_hrc.pomdp.io import load_model
+    from ros_hrc.pomdp.sampling import ModelSampler
+
+    model = load_model(Path(__file__).resolve().parents[3] / path)
+    planner = DespotPlanner(model, DespotConfig(time_per_step=30.0, max_trials=50,
+                                                particles=particles), seed=seed)
+    sampler = ModelSampler(model)
+    world = np.random.default_rng(seed + 1)
+    actions, nodes, trials = [], [], []
+    for t in range(acts):
+        if t % episode == 0:
+            planner.reset()
+            state = int(sampler.sample_initial(world, 1)[0])
+        a = planner.act()
+        actions.append(a)
+        nodes.append(planner.last_stats.nodes)
+        trials.append(planner.last_stats.trials)
+        u = world.random(2)
+        state, obs, _ = sampler.step1(state, a, float(u[0]), float(u[1]))
+        planner.update(a, obs)
+    return (actions, nodes, trials, planner.last_stats.lower, planner.belief,
+            int(planner.rng.integers(2**63)))
+
+
+#: Recorded before DESPOT's act() learnt to budget its own overheads (GC pause, tree freeing,
+#: predicted expansions, belief update): with a trial cap and a generous budget it must still
+#: make exactly these trials and random draws (the seeded runs of the stack use max_trials:=100).
+PINNED_TRIAL_BOUNDED_RUNS = [
+    ("test/fixtures/tiger.95.pomdp", None,
+     [0, 0, 2, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0],
+     [720, 703, 702, 715, 733, 709, 732, 661, 703, 709, 726, 767, 673, 705, 679, 685, 763, 701,
+      745, 708],
+     [50] * 20, -13.166060704374985, [0.15, 0.85], 6920892538979715961),
+    ("models/robot/robot.pomdp", None,
+     [0, 0, 2, 1, 1, 0, 2, 2, 2, 2, 0, 0, 2, 2, 2, 2, 2, 0, 2, 1],
+     [2591, 2734, 2826, 2489, 2728, 2539, 9, 9, 9, 9, 2768, 880, 38, 16, 9, 2586, 2632, 2719,
+      1483, 491],
+     [50, 50, 50, 50, 50, 50, 1, 1, 1, 1, 50, 45, 1, 1, 1, 50, 50, 50, 50, 36],
+     15.11525785134236, [0.0, 0.0, 0.1884057971014493, 0.0, 0.0, 0.8115942028985508, 0.0],
+     6920892538979715961),
+    ("test/fixtures/tiger.95.pomdp", 500,
+     [0, 0, 2, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0],
+     [697, 760, 731, 717, 762, 703, 745, 691, 745, 714, 714, 727, 709, 778, 720, 725, 739, 661,
+      750, 688],
+     [50] * 20, -13.089521664874983, [0.160347531678658, 0.8396524683213407],
+     779991602572204170),
+]
+
+
+@pytest.mark.parametrize("path, particles, actions, nodes, trials, lower, belief, draw",
+                         PINNED_TRIAL_BOUNDED_RUNS, ids=["tiger", "robot", "tiger-particles"])
+def test_despot_trial_bounded_run_is_pinned(path, particles, actions, nodes, trials, lower,
+                                             belief, draw):
+    got = _trial_bounded_run(path, particles)
+    assert got[0] == actions
+    assert got[1] == nodes
+    assert got[2] == trials
+    assert got[3] == pytest.approx(lower, rel=1e-12, abs=1e-12)
+    assert got[4] == pytest.approx(belief, rel=1e-12, abs=1e-12)
+    assert got[5] == draw
+
+
+def test_despot_act_leaves_no_garbage_and_restores_the_collector(tiger):
+    import gc
+
+    planner = DespotPlanner(tiger, DespotConfig(time_per_step=30.0, max_trials=50), seed=0)
+    planner.reset()
+    gc.collect()
+    planner.act()
+    planner.act()
+    assert gc.isenabled()
+    assert gc.collect() == 0                 # trees have no cycles: each freed as act() returns
+    gc.disable()
+    try:
+        planner.act()
+        assert not gc.isenabled()            # a caller's choice is left as it was
+    finally:
+        gc.enable()
