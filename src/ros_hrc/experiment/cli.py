@@ -1,7 +1,7 @@
 """hrc_experiment: the anticipatory robot against baselines, across kinds of human, in one command.
 
 Runs a grid of human models x robot policies x seeds x episodes through the real stack (one
-``hrc.launch`` per cell, headless, on simulated time, as fast as the machine goes; cells run in
+``hrc.launch`` per cell, headless, its world as fast as the machine goes; cells run in
 parallel, one per core by default), writes one CSV row per episode and per step as each
 episode ends, and at the end a summary with 95 % confidence intervals and PNG plots.
 Running the same command again resumes: recorded episodes are kept and skipped.
@@ -215,8 +215,10 @@ class Stopper:
             self._workers.discard(proc)
 
 
-def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None) -> None:
-    """Run one cell in its own process; ``deliver(row, steps)`` per episode as it ends."""
+def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None,
+                on_all_delivered=None) -> None:
+    """Run one cell in its own process; ``deliver(row, steps)`` per episode as it ends;
+    ``on_all_delivered()`` once its last episode is in (its stack is still shutting down)."""
     proc = subprocess.Popen(worker_command(cell), stdin=subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     if stopper is not None:
@@ -225,6 +227,7 @@ def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None)
         errors: List[str] = []
         reader = threading.Thread(target=lambda: errors.extend(proc.stderr), daemon=True)
         reader.start()
+        delivered = 0
         for line in proc.stdout:
             try:
                 episode = decode_episode(line)
@@ -233,6 +236,9 @@ def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None)
                 continue
             if episode is not None:
                 deliver(*episode)
+                delivered += 1
+                if delivered == len(cell.episodes) and on_all_delivered is not None:
+                    on_all_delivered()
         proc.wait()
         reader.join(5.0)
     finally:
@@ -270,19 +276,33 @@ def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int,
                                     f"{row.end_reason} in {row.steps} steps")
                 bar.update(1)
 
-        def run(cell: CellSpec) -> None:
-            if stopper.stopping:
-                return
-            name = cell_name(cell)
-            with open(logs / f"{name}.worker.log", "a") as log:
-                try:
-                    _run_worker(cell, deliver, log, stopper)
-                except (RuntimeError, OSError) as exc:
-                    with lock:
-                        failures.append(f"{name}: {exc}")
-                        bar.write(f"{NAME}: cell failed: {failures[-1]}")
+        # `jobs` cells step at a time. A cell whose episodes are all in gives its place to the
+        # next one while its stack shuts down, so that start-up and shut-down overlap.
+        stepping = threading.BoundedSemaphore(max(1, jobs))
 
-        with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        def run(cell: CellSpec) -> None:
+            stepping.acquire()
+            released = threading.Event()
+
+            def release() -> None:
+                if not released.is_set():
+                    released.set()
+                    stepping.release()
+            try:
+                if stopper.stopping:
+                    return
+                name = cell_name(cell)
+                with open(logs / f"{name}.worker.log", "a") as log:
+                    try:
+                        _run_worker(cell, deliver, log, stopper, on_all_delivered=release)
+                    except (RuntimeError, OSError) as exc:
+                        with lock:
+                            failures.append(f"{name}: {exc}")
+                            bar.write(f"{NAME}: cell failed: {failures[-1]}")
+            finally:
+                release()
+
+        with ThreadPoolExecutor(max_workers=2 * max(1, jobs)) as pool:
             list(pool.map(run, cells))
     wall = time.monotonic() - started
     episodes, sim = figures["episodes"], figures["simulated_seconds"]

@@ -3,7 +3,7 @@ starts and stops that stack. No ROS here.
 
 A cell is (human model, robot policy, seed). Its worker process (``python -m
 ros_hrc.nodes.experiment_cell SPEC_JSON``, see :func:`worker_command`; rospy allows one node per
-process) starts ``hrc.launch`` headless on simulated time, as fast as the machine goes, with a
+process) starts ``hrc.launch`` headless, the world's clock as fast as the machine goes, with a
 roscore and websocket ports of its own (:func:`start_stack`, so several cells run side by
 side), drives its episodes, and writes one line per episode on its standard output,
 ``EPISODE {json}`` (:func:`encode_episode`), as soon as the episode ends. The MDP and the robot
@@ -85,9 +85,11 @@ def _launch_text(value: Any) -> str:
 
 
 def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
-    """The ``hrc.launch`` arguments of a cell, name -> text: headless, simulated time, fastest
-    pace; the coordinator ends episodes by the world (someone holds the object, it left the
-    belt) or the step limit, and starts the next one at once.
+    """The ``hrc.launch`` arguments of a cell, name -> text: headless, fastest pace (the world's
+    clock stands still between actions, so the pace changes no result); the coordinator ends
+    episodes by the world (someone holds the object, it left the belt) or the step limit, and
+    starts the next one at once. Nodes keep the wall clock: the steps carry the simulated
+    time, and /clock would cost every node a thousand messages a second.
     ``spec.extra_args`` (``name:=value``) come last and win."""
     if spec.robot_policy not in ROBOT_POLICIES:
         raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
@@ -95,7 +97,7 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     values = {
         "human_model": spec.human_model, "robot_model": spec.robot_model,
         "planner": ROBOT_POLICIES[spec.robot_policy], "seed": spec.seed,
-        "mode": "auto", "gui": False, "use_sim_time": True, "real_time_factor": 0,
+        "mode": "auto", "gui": False, "use_sim_time": False, "real_time_factor": 0,
         "step_delay": 0, "max_steps": spec.step_limit, "on_episode_end": "reset",
         "end_on_goal": False, "read_stdin": False,
         "human_choice": spec.human_choice, "time_per_step": spec.time_per_step,

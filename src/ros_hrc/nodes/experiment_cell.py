@@ -110,7 +110,8 @@ class EpisodeInbox:
     def __init__(self) -> None:
         self.cond = threading.Condition()
         self.current: list = []
-        self.done: list = []         # finished episodes (lists of steps), oldest first
+        self.started = 0.0           # when the current episode's first step arrived
+        self.done: list = []         # finished episodes (steps, first and last arrival), oldest first
         self.abandoned: list = []    # the faults that cut epochs short
         self.last_seen = time.monotonic()
 
@@ -123,15 +124,18 @@ class EpisodeInbox:
                 self.abandoned.append(msg.fault)
                 self.current = []
             elif self.current or msg.step == 0:
+                if not self.current:
+                    self.started = self.last_seen
                 self.current.append(msg)
                 if msg.episode_over:
-                    self.done.append(self.current)
+                    self.done.append((self.current, self.started, self.last_seen))
                     self.current = []
             self.cond.notify_all()
 
-    def next_episode(self, timeout: float) -> list:
-        """The oldest finished episode not taken yet; raises CellFailed after ``timeout``
-        wall seconds without any status."""
+    def next_episode(self, timeout: float) -> tuple:
+        """The oldest finished episode not taken yet: (steps, monotonic time its first step
+        arrived, the same for its last step); raises CellFailed after ``timeout`` wall
+        seconds without any status."""
         with self.cond:
             while not self.done:
                 if time.monotonic() - self.last_seen > timeout:
@@ -161,19 +165,23 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
                                        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                        stderr=subprocess.STDOUT, start_new_session=True)
         delivered = 0
-        started = time.monotonic()
+        previous_end = None
         for episode in spec.episodes:
             if proc.poll() is not None:
                 raise CellFailed(f"{name}: hrc.launch exited ({proc.returncode}); see "
                                  f"{log_dir / (name + '.log')}")
-            steps = inbox.next_episode(spec.episode_timeout)
+            steps, first_arrived, last_arrived = inbox.next_episode(spec.episode_timeout)
+            # Wall time of the episode: since the previous one ended (its reset included);
+            # the first one from when its first step began, not from the stack's start-up.
+            began = previous_end if previous_end is not None else \
+                first_arrived - steps[0].step_ms / 1000.0
+            previous_end = last_arrived
             if len(inbox.abandoned) > MAX_ABANDONED:
                 raise CellFailed(f"{name}: {len(inbox.abandoned)} episodes cut short by "
                                  f"failed steps, the last: {inbox.abandoned[-1]}")
             key = (spec.human_model, spec.robot_policy, spec.seed, episode)
             row = score_episode(key, steps, steps[-1].end_reason, steps[0].episode_start_time,
-                                model, time.monotonic() - started)
-            started = time.monotonic()
+                                model, last_arrived - began)
             deliver(row, step_rows(key, steps))
             delivered += 1
         return delivered

@@ -96,7 +96,7 @@ def test_each_robot_policy_starts_its_own_planner_on_its_own_ports():
     args = launch_arguments(spec, {"master": 1, "pomdp": 7071, "robot": 8081, "human": 9091})
     assert "planner:=reactive" in args and "reactive_budget:=5" in args
     assert {"pomdp_port:=7071", "robot_port:=8081", "human_port:=9091"} <= set(args)
-    assert {"use_sim_time:=true", "real_time_factor:=0", "gui:=false", "seed:=4"} <= set(args)
+    assert {"use_sim_time:=false", "real_time_factor:=0", "gui:=false", "seed:=4"} <= set(args)
     assert set(ROBOT_POLICIES) == {"pomdp", "reactive", "no_robot"}
     with pytest.raises(ValueError, match="unknown robot policy"):
         launch_arguments(CellSpec("tired", "telepathic", 0, episodes=[0]), {

@@ -135,7 +135,7 @@ def test_every_cell_s_launch_arguments_pass_the_launch_s_checks():
     spec = CellSpec("tired", "reactive", 4, episodes=[0], scenarios=7, lambda_=0.5)
     config = check_launch_settings(spec)
     assert (config["planner"], config["scenarios"], config["lambda"]) == ("reactive", 7, 0.5)
-    assert config["pause_when_idle"] is True and config["use_sim_time"] is True
+    assert config["pause_when_idle"] is True and config["use_sim_time"] is False
     ports = {"master": 1, "pomdp": 7071, "robot": 8081, "human": 9091}
     assert {"scenarios:=7", "lambda:=0.5", "depth:=90"} <= set(launch_arguments(spec, ports))
     with pytest.raises(SettingError, match="^belt_speed:=9: must be a number from 0 to 0.5"):
