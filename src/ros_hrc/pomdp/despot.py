@@ -31,9 +31,14 @@ for a small model one is solved in about a second).
 
 Speed: each scenario's random numbers for one depth are drawn once, as a (K, 2) block, the first
 time any node of that depth needs them, so the same (scenario, depth) always gets the same numbers
-within a search. Expanding a node steps all its scenarios under all actions in one vectorised
-call into ``ModelSampler`` (flat cumulative tables and ``np.searchsorted``), groups them by
-observation with one sort, and reads the children's bounds with ``np.add.reduceat``.
+within a search. Expanding a node steps all its scenarios under all actions with two
+``np.searchsorted`` on ``ModelSampler``'s flat cumulative tables (read through tables aligned
+with T's and O's entries that give the next observation row and the child's (action,
+observation) key directly), groups them by key with one sort, and sums the children's bound and
+default-plan values in one ``np.add.reduceat``. Children are not objects until a trial enters
+them: one ``_Kids`` per expansion holds their ranges and bounds as parallel lists, which makes
+an expansion and freeing the tree cheaper (most children are never entered). Every sum keeps the
+order it always had, so a trial-bounded search builds the same tree to the last bit.
 
 Beliefs are exact for small models (scenarios are drawn from the exact belief) and particle
 filters for large ones (``DespotConfig.particles``).
@@ -49,6 +54,10 @@ from __future__ import annotations
 import gc
 import math
 import time
+from bisect import bisect_left
+from functools import reduce
+from itertools import accumulate
+from operator import add
 from dataclasses import dataclass
 from typing import List, Optional
 
@@ -79,7 +88,6 @@ FREE_MAX_PER_NODE = 1e-5
 
 #: Weight of the newest expansion in the running means that predict the next one's duration.
 EXPAND_WEIGHT = 0.1
-
 
 @dataclass
 class DespotConfig:
@@ -151,6 +159,20 @@ class DespotTables:
             if any(r.nnz < r.shape[0] * r.shape[1] for r in model.R):
                 rmax = max(rmax, 0.0)                                 # implicit zero rewards
             self.v_upper = np.full(model.n_states, rmax / (1.0 - gamma))
+        # For expanding a node: T's entries with their next state's observation row
+        # (action * S + s'), O's entries with their child's key (action * Z + o), and the
+        # per-state rows a node's bounds sum: the upper bound (or FIB's A rows), then the plans.
+        S, Z = model.n_states, model.n_observations
+        trans, obs = self.sampler.trans, self.sampler.obs
+        t_row = np.repeat(np.arange(trans.n_rows), np.diff(trans.indptr))
+        o_row = np.repeat(np.arange(obs.n_rows), np.diff(obs.indptr))
+        self.t_cum, self.t_cols, self.t_vals = trans.cum, trans.cols, trans.values
+        self.t_orow = (t_row // S) * S + trans.cols
+        self.o_cum = obs.cum
+        self.o_key = (o_row // S) * Z + obs.cols
+        up_rows = self.q_upper if self.q_upper is not None else self.v_upper[None, :]
+        self.n_up = up_rows.shape[0]
+        self.state_rows = np.ascontiguousarray(np.vstack([up_rows, self.plans]), dtype=float)
 
 
 class _VNode:
@@ -158,42 +180,78 @@ class _VNode:
 
     Those are ``block[0][lo:hi]`` and ``block[1][lo:hi]``: the arrays of all the siblings'
     scenarios and states, shared, sliced only when the node is expanded (most never are), which
-    saves two array views per node in making and in freeing the tree.
+    saves two array views per node in making and in freeing the tree. A node is made only when a
+    trial first enters it; until then its bounds live in its parent's ``_Kids`` lists.
     """
 
-    __slots__ = ("depth", "block", "lo", "hi", "frac", "lower0", "default_action", "lower",
-                 "upper", "uupper", "children", "is_default")
+    __slots__ = ("depth", "block", "lo", "hi", "frac", "lower0", "lower", "upper", "uupper",
+                 "children", "is_default")
 
     def __init__(self, depth: int, block: tuple, lo: int, hi: int, frac: float,
-                 lower0: float, default_action: int, upper0: float) -> None:
+                 lower0: float, lower: float, upper: float, uupper: float) -> None:
         self.depth = depth
         self.block = block                 # (scenario indices, states) of the sibling group
         self.lo = lo
         self.hi = hi
         self.frac = frac                   # |Φ_b| / K
         self.lower0 = lower0               # weighted default-policy value ℓ0
-        self.default_action = default_action
-        self.lower = lower0                # ℓ
-        self.upper = max(upper0, lower0)   # μ
-        self.uupper = max(upper0, lower0)  # U (weighted, not regularized)
+        self.lower = lower                 # ℓ
+        self.upper = upper                 # μ (at first max(U0, ℓ0))
+        self.uupper = uupper               # U (weighted, not regularized)
         self.children: Optional[List[_QNode]] = None
         self.is_default = False
 
 
+class _Kids:
+    """The children of one expanded belief node, all actions', in (action, observation) order,
+    as parallel lists: each child's scenario range in ``block``, share |Φ|/K, ℓ0 and current
+    bounds ℓ, μ, U, and its ``_VNode`` once a trial has entered it (None before). A child's
+    bounds change only in a trial through it, which writes them back here as it backs up."""
+
+    __slots__ = ("depth", "block", "lo", "size", "frac", "lower0", "lower", "upper", "uupper",
+                 "nodes")
+
+    def __init__(self, depth: int, block: tuple, lo: list, size: list, frac: list,
+                 lower0: list, upper: list) -> None:
+        self.depth = depth
+        self.block = block
+        self.lo = lo
+        self.size = size
+        self.frac = frac
+        self.lower0 = lower0
+        self.lower = lower0[:]
+        self.upper = upper
+        self.uupper = upper[:]
+        self.nodes: List[Optional[_VNode]] = [None] * len(lo)
+
+    def node(self, i: int) -> _VNode:
+        """Child ``i``'s belief node, made on first use."""
+        v = self.nodes[i]
+        if v is None:
+            lo = self.lo[i]
+            v = self.nodes[i] = _VNode(self.depth, self.block, lo, lo + self.size[i],
+                                       self.frac[i], self.lower0[i], self.lower[i],
+                                       self.upper[i], self.uupper[i])
+        return v
+
+
 class _QNode:
-    """An action node: the step reward of its scenarios and a child per observation.
+    """An action node: the step reward of its scenarios; its children are ``kids``' entries
+    ``c0`` to ``c1`` (one per observation).
 
     Nodes hold no pointer to their parent: the tree has no reference cycles, so a finished tree
     is freed by reference counting the moment it is dropped, never left to the cyclic garbage
     collector (whose full passes over dead trees cost up to ~190 ms inside a 0.1 s search).
     """
 
-    __slots__ = ("action", "rho", "children", "lower", "upper", "uupper")
+    __slots__ = ("action", "rho", "kids", "c0", "c1", "lower", "upper", "uupper")
 
-    def __init__(self, action: int, rho: float) -> None:
+    def __init__(self, action: int, rho: float, kids: _Kids, c0: int, c1: int) -> None:
         self.action = action
         self.rho = rho                     # weighted step reward minus λ
-        self.children: List[_VNode] = []
+        self.kids = kids
+        self.c0 = c0
+        self.c1 = c1
         self.lower = self.upper = self.uupper = 0.0
 
 
@@ -224,8 +282,14 @@ class DespotPlanner(BeliefPlanner):
         self._v_upper = tables.v_upper
         self._q_upper = tables.q_upper
         self._action_rows = (np.arange(self._A) * self._S)[:, None]
+        self._t_cum, self._t_cols, self._t_vals = tables.t_cum, tables.t_cols, tables.t_vals
+        self._t_orow, self._o_cum, self._o_key = tables.t_orow, tables.o_cum, tables.o_key
+        self._state_rows, self._n_up = tables.state_rows, tables.n_up
+        self._lower_rollout = self.config.lower == "rollout"
+        self._root_action = 0
         self._obs_offsets = (np.arange(self._A) * self._Z)[:, None]
         self._u: List[np.ndarray] = []
+        self._u_rows: List[tuple] = []                # each depth's uniforms, as two rows
         self._search_rng = np.random.default_rng(0)
         self._nodes = 0
         self._max_depth = 0
@@ -242,6 +306,7 @@ class DespotPlanner(BeliefPlanner):
         while len(self._u) <= depth:
             block = self._search_rng.random((2, self.config.scenarios))
             self._u.append(np.minimum(block, U_MAX, out=block))
+            self._u_rows.append((block[0], block[1]))
         return self._u[depth]
 
     # -- node bounds ---------------------------------------------------------------------------
@@ -291,7 +356,10 @@ class DespotPlanner(BeliefPlanner):
         low, acts, up = self._default_values(0, scen, states, starts)
         self._nodes = 1
         self._max_depth = 0
-        return _VNode(0, (scen, states), 0, K, 1.0, float(low[0]), int(acts[0]), float(up[0]))
+        self._root_action = int(acts[0])          # the default action (only the root's is used)
+        lower, upper = float(low[0]), float(up[0])
+        upper = max(upper, lower)
+        return _VNode(0, (scen, states), 0, K, 1.0, lower, lower, upper, upper)
 
     # -- tree ----------------------------------------------------------------------------------
     def _expand(self, v: _VNode) -> None:
@@ -300,43 +368,59 @@ class DespotPlanner(BeliefPlanner):
         lo, hi = v.lo, v.hi
         n = hi - lo
         scen = v.block[0][lo:hi]
-        u = self._uniforms(v.depth)[:, scen]                          # (2, n)
-        # The same two uniforms per scenario for every action: that is the determinized scenario.
-        nxt, obs, rew = self.sampler.step_block(self._action_rows, v.block[1][lo:hi], u[0], u[1])
-        key = (obs + self._obs_offsets).ravel()                       # action * Z + observation
-        order = np.argsort(key, kind="stable")
-        key_s = key[order]
-        change = np.empty(key_s.size + 1, dtype=bool)
-        change[0] = change[-1] = True
-        np.not_equal(key_s[1:], key_s[:-1], out=change[1:-1])
-        bounds = np.flatnonzero(change)                               # group starts, then the end
-        starts = bounds[:-1]
-        nxt_s = nxt.ravel()[order]
+        if v.depth >= len(self._u):
+            self._uniforms(v.depth)
+        u_t, u_o = self._u_rows[v.depth]
+        # ModelSampler.step_block for every action at once (the same two uniforms per scenario
+        # for every action: that is the determinized scenario), reading the next state's
+        # observation row and the child's key (action * Z + observation) from tables aligned
+        # with T's and O's entries, and the next state only for the sorted scenarios.
+        pos = self._t_cum.searchsorted((self._action_rows + v.block[1][lo:hi]) + u_t[scen],
+                                       side="right")                  # (A, n)
+        opos = self._o_cum.searchsorted(self._t_orow[pos] + u_o[scen], side="right")
+        key = self._o_key[opos].ravel()
+        order = key.argsort(kind="stable")
+        counts = np.bincount(key, minlength=A * Z)
+        keys = counts.nonzero()[0]                                    # the children's keys
+        sizes_l = counts[keys].tolist()
+        keys_l = keys.tolist()
+        starts_l = list(accumulate(sizes_l, initial=0))
+        del starts_l[-1]
+        nxt_s = self._t_cols[pos.ravel()[order]]
         scen_s = scen[order % n]
         depth = v.depth + 1
-        low, acts, up = self._default_values(depth, scen_s, nxt_s, starts)
+        if self._lower_rollout:
+            low, _, up = self._default_values(depth, scen_s, nxt_s, np.asarray(starts_l))
+        else:
+            # _default_values without the children's default actions (only the root's is used):
+            # the bound rows and the plans summed in one reduceat.
+            # Scaling by w > 0 before the maxima is exact: rounding is monotone.
+            sums = np.add.reduceat(self._state_rows[:, nxt_s], starts_l, axis=1)
+            sums *= self._gamma ** depth / K
+            nu = self._n_up
+            up = sums[0] if nu == 1 else sums[:nu].max(axis=0)
+            low = sums[nu:].max(axis=0)
         lam = self.config.pruning
-        rho = rew.sum(axis=1) * (self._gamma ** v.depth / K) - lam
-        child_action = key_s[starts] // Z
-        up = np.maximum(up, low)                                      # as _VNode sets it
-        q_lower = rho + np.bincount(child_action, weights=low, minlength=A)
-        q_upper = rho + np.bincount(child_action, weights=up, minlength=A)
+        wr = self._gamma ** v.depth / K
+        rho = [r * wr - lam for r in self._t_vals[pos].sum(axis=1).tolist()]
+        up = np.maximum(up, low)                                      # μ0 = max(U0, ℓ0)
+        # Children of action a: keys in [a·Z, (a+1)·Z); the action nodes' initial bounds sum
+        # them in order from 0 (as np.bincount), then add ρ.
+        cut = [0] + [bisect_left(keys_l, a * Z) for a in range(1, A)] + [len(keys_l)]
+        low_l = low.tolist()
+        up_l = up.tolist()
+        kids = _Kids(depth, (scen_s, nxt_s), starts_l, sizes_l, [m / K for m in sizes_l],
+                     low_l, up_l)
         qnodes = []
-        for a, (r, lo_a, up_a) in enumerate(zip(rho.tolist(), q_lower.tolist(),
-                                                q_upper.tolist())):
-            q = _QNode(a, r)
-            q.lower, q.upper, q.uupper = lo_a, up_a, up_a + lam
+        for a, r in enumerate(rho):
+            c0, c1 = cut[a], cut[a + 1]
+            q = _QNode(a, r, kids, c0, c1)
+            q.lower = r + reduce(add, low_l[c0:c1], 0.0)
+            q.upper = up_a = r + reduce(add, up_l[c0:c1], 0.0)
+            q.uupper = up_a + lam
             qnodes.append(q)
-        bl = bounds.tolist()
-        block = (scen_s, nxt_s)
-        for c, (a, lo_c, act_c, up_c) in enumerate(zip(child_action.tolist(), low.tolist(),
-                                                       acts.tolist(), up.tolist())):
-            s0, s1 = bl[c], bl[c + 1]
-            q = qnodes[a]
-            q.children.append(_VNode(depth, block, s0, s1, (s1 - s0) / K,
-                                     lo_c, act_c, up_c))
         v.children = qnodes
-        self._nodes += starts.size
+        self._nodes += len(keys_l)
         if depth > self._max_depth:
             self._max_depth = depth
 
@@ -345,21 +429,28 @@ class DespotPlanner(BeliefPlanner):
         v.lower = v.upper = v.uupper = v.lower0
         v.is_default = True
 
-    def _backup(self, path: List[_VNode], qpath: List[_QNode]) -> None:
+    def _backup(self, path: List[_VNode], qpath: List[_QNode], index: List[int]) -> None:
         """Recompute the bounds on a trial's path, from its last node up to the root.
 
         ``path`` holds the belief nodes from the root down, ``qpath[i]`` the action node between
-        ``path[i]`` and ``path[i + 1]``.
+        ``path[i]`` and ``path[i + 1]``, which is child ``index[i]`` of its ``kids``.
         """
         lam = self.config.pruning
         for i in range(len(qpath) - 1, -1, -1):
             q = qpath[i]
-            lo = up = uu = q.rho
-            for c in q.children:
-                lo += c.lower
-                up += c.upper
-                uu += c.uupper
-            q.lower, q.upper, q.uupper = lo, up, uu + lam
+            kids = q.kids
+            c = path[i + 1]
+            j = index[i]
+            kl, ku, kuu = kids.lower, kids.upper, kids.uupper
+            kl[j] = c.lower
+            ku[j] = c.upper
+            kuu[j] = c.uupper
+            # Sums from ρ in the children's order (a left fold, like the loop it replaces).
+            c0, c1 = q.c0, q.c1
+            r = q.rho
+            q.lower = reduce(add, kl[c0:c1], r)
+            q.upper = reduce(add, ku[c0:c1], r)
+            q.uupper = reduce(add, kuu[c0:c1], r) + lam
             v = path[i]
             if v.is_default:
                 continue
@@ -394,14 +485,17 @@ class DespotPlanner(BeliefPlanner):
         v = root
         path = [root]
         qpath: List[_QNode] = []
+        index: List[int] = []
         # keys[i] = min over path[0..i] of weighted (U - ℓ0) + λ·depth: the blocking test for a
         # node at depth d is min over its ancestors of that key <= λ·d.
         keys = [root.uupper - root.lower0]
+        # The root's bounds change only in the backup: its gap is fixed for the descent.
+        root_gap = root.upper - root.lower
+        target = xi * root_gap
         while True:
             if v.depth > D:
                 self._make_default(v)
                 break
-            root_gap = root.upper - root.lower
             if v is not root and (v.upper - v.lower) - xi * v.frac * root_gap <= 0.0:
                 break
             if len(path) > 1 and keys[-2] <= lam * v.depth:
@@ -416,7 +510,7 @@ class DespotPlanner(BeliefPlanner):
             if v.children is None:
                 n = v.hi - v.lo
                 if v is not root and self._out_of_time(deadline, n):
-                    self._backup(path, qpath)
+                    self._backup(path, qpath, index)
                     return True
                 began = time.perf_counter()
                 self._expand(v)
@@ -424,20 +518,25 @@ class DespotPlanner(BeliefPlanner):
                 w = EXPAND_WEIGHT if self._expand_scenarios > 0.0 else 1.0
                 self._expand_scenarios += w * (n - self._expand_scenarios)
                 self._expand_seconds += w * (time.perf_counter() - began - self._expand_seconds)
-            q = max(v.children, key=_upper_of)
-            root_gap = root.upper - root.lower
-            target = xi * root_gap
-            best = None
+            children = v.children
+            q = children[0]                    # the first action node of the largest μ
+            for x in children:
+                if x.upper > q.upper:
+                    q = x
+            kids = q.kids
+            up, lw, fr = kids.upper, kids.lower, kids.frac
+            best = -1
             best_e = -math.inf
-            for c in q.children:
-                e = (c.upper - c.lower) - target * c.frac
+            for i in range(q.c0, q.c1):
+                e = (up[i] - lw[i]) - target * fr[i]
                 if e > best_e:
-                    best_e, best = e, c
-            v = best
+                    best_e, best = e, i
+            v = kids.node(best)
             qpath.append(q)
+            index.append(best)
             path.append(v)
             keys.append(min(keys[-1], v.uupper - v.lower0 + lam * v.depth))
-        self._backup(path, qpath)
+        self._backup(path, qpath, index)
         return False
 
     def _out_of_time(self, deadline: float, scenarios: int = 0) -> bool:
@@ -481,7 +580,7 @@ class DespotPlanner(BeliefPlanner):
         gc.disable()
         try:
             root = self._search(start + budget)
-            action = self._best_action(root)
+            action = self._best_action(root, self._root_action)
             stats = PlannerStats(trials=self._trials, lower=root.lower, upper=root.upper,
                                  nodes=self._nodes, depth=self._max_depth)
             freeing = time.thread_time()              # CPU time: immune to preemption
@@ -503,6 +602,7 @@ class DespotPlanner(BeliefPlanner):
         self._deadline = deadline
         self._search_rng = np.random.default_rng(int(self.rng.integers(2**63)))
         self._u = []
+        self._u_rows = []
         # Stratified start states: the scenarios' state mix matches the belief to within one
         # scenario per state, which removes most of the noise in comparing close actions.
         states = self._belief.sample_systematic(self._search_rng, cfg.scenarios)
@@ -523,16 +623,12 @@ class DespotPlanner(BeliefPlanner):
         return root
 
     @staticmethod
-    def _best_action(root: _VNode) -> int:
+    def _best_action(root: _VNode, default_action: int) -> int:
         """The root's action with the best lower bound, or its default action."""
-        action = root.default_action
+        action = default_action
         best = root.lower0
         if root.children is not None:
             for q in root.children:
                 if q.lower > best:
                     best, action = q.lower, q.action
         return int(action)
-
-
-def _upper_of(q: _QNode) -> float:
-    return q.upper

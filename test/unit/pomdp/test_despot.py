@@ -262,3 +262,28 @@ def test_despot_act_leaves_no_garbage_and_restores_the_collector(tiger):
         assert not gc.isenabled()            # a caller's choice is left as it was
     finally:
         gc.enable()
+
+
+def test_despot_children_entered_keep_their_bounds_in_the_parent_lists(tiger):
+    """Children are objects only once a trial enters them; their parent's lists must follow
+    every change of their bounds (the action nodes' sums read the lists)."""
+    planner = DespotPlanner(tiger, DespotConfig(time_per_step=30.0, max_trials=50), seed=2)
+    planner.reset()
+    root = planner._search(float("inf"))
+    entered = 0
+    stack = [root]
+    while stack:
+        v = stack.pop()
+        for q in v.children or ():
+            kids = q.kids
+            for i in range(q.c0, q.c1):
+                c = kids.nodes[i]
+                if c is None:
+                    assert kids.lower[i] == kids.lower0[i]
+                    continue
+                entered += 1
+                assert (kids.lower[i], kids.upper[i], kids.uupper[i]) == (c.lower, c.upper,
+                                                                          c.uupper)
+                assert c.hi - c.lo == kids.size[i] and c.frac == kids.frac[i]
+                stack.append(c)
+    assert 0 < entered < planner._nodes - 1
