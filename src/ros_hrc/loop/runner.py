@@ -28,7 +28,7 @@ from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Call, Coordinator, Dec
                                       Fault, MdpRefused, MdpReset, MdpStepDone, Note,
                                       ObserveWorld, Outcome, PublishStep, ResetDone,
                                       ResetPlanner, ResetWorld, SeatRefused, Snapshot,
-                                      StepReport, StepRequest, Timer)
+                                      STEP_TIMINGS, StepReport, StepRequest, Timer)
 
 _log = logging.getLogger("ros_hrc.loop")
 
@@ -233,13 +233,14 @@ class LoopRunner:
         except Exception as exc:   # the dispatch point: any failure is the call's fault
             _log.debug("call %r failed", call, exc_info=True)
             result = Fault(f"{type(exc).__name__}: {exc}")
-        part = _TIMED_CALLS.get(type(call))
-        if isinstance(call, ObserveWorld):
-            part = call.purpose if call.purpose in ("observe", "outcome") else None
-        if part is not None:
-            elapsed = (time.perf_counter() - started) * 1000.0
-            self.post(lambda: self._timings.__setitem__(part, elapsed))
-        self.post(lambda: self.coordinator.call_done(call.id, result))
+        part = call.purpose if isinstance(call, ObserveWorld) else _TIMED_CALLS.get(type(call))
+        elapsed = (time.perf_counter() - started) * 1000.0
+
+        def done() -> None:
+            if part in STEP_TIMINGS:
+                self._timings[part] = elapsed
+            self.coordinator.call_done(call.id, result)
+        self.post(done)
 
     def _perform(self, call: Call) -> Any:
         if isinstance(call, ActHuman):

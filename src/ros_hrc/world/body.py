@@ -91,14 +91,17 @@ class ArticulatedBody:
         states = self.client.getJointStates(self.body_id, [self.joint(n).index for n in names])
         return {n: s[0] for n, s in zip(names, states)}
 
-    def link_frame(self, name: str) -> Tuple[np.ndarray, np.ndarray]:
-        """World position and 3x3 rotation of the URDF frame of link ``name``."""
+    def link_pose(self, name: str) -> Tuple[Sequence[float], Sequence[float]]:
+        """World position and quaternion (x, y, z, w) of the URDF frame of link ``name``."""
         index = self.link(name)
         if index < 0:
-            position, orientation = self.client.getBasePositionAndOrientation(self.body_id)
-        else:
-            state = self.client.getLinkState(self.body_id, index, computeForwardKinematics=True)
-            position, orientation = state[4], state[5]
+            return self.client.getBasePositionAndOrientation(self.body_id)
+        state = self.client.getLinkState(self.body_id, index, computeForwardKinematics=True)
+        return state[4], state[5]
+
+    def link_frame(self, name: str) -> Tuple[np.ndarray, np.ndarray]:
+        """World position and 3x3 rotation of the URDF frame of link ``name``."""
+        position, orientation = self.link_pose(name)
         return np.array(position), quat_to_matrix(orientation)
 
     # --- commanding -----------------------------------------------------------------------
@@ -108,7 +111,7 @@ class ArticulatedBody:
             return
         indices, values = [], []
         for name, value in targets.items():   # on the per-step path: plain loops, one call
-            joint = self.joints.get(name) or self.joint(name)
+            joint = self.joint(name)
             value = joint.clamp(value)
             indices.append(joint.index)
             values.append([value])

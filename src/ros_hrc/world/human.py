@@ -412,7 +412,7 @@ class Human(ArticulatedBody):
         arm = self.arms[side]
         gap = float(np.linalg.norm(self.hand_position(side) - self.object.position()))
         if gap <= self.config.grasp_tolerance and self.object.holder == NOBODY:
-            self.object.attach("human", self.body_id, self.link(arm.hand))
+            self.object.attach("human", lambda: self.link_pose(arm.hand))
             self._holding_side = side
             self.attempting = False
             yield from self.move({**self._arm_pose(side, _ARM_CARRY), "waist_pitch": 0.0}, 0.8)

@@ -12,7 +12,7 @@ the hand: it moves with the hand from then on and does not jump into it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple
+from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -26,6 +26,9 @@ OBJECT_GROUP = 1
 OBJECT_MASK = 1 | 2
 
 NOBODY = "none"
+
+#: A position and a quaternion (x, y, z, w), as PyBullet gives them.
+Pose = Tuple[Sequence[float], Sequence[float]]
 
 
 @dataclass(frozen=True)
@@ -59,9 +62,9 @@ class WorkObject:
                                activationState=physics.ACTIVATION_STATE_DISABLE_SLEEPING)
         self.body_id = self._create(client, 0.0)   # never simulated: only placed
         self.holder = NOBODY
-        # While held: (body, link) of the hand and the object's pose in the hand's frame.
-        self._hand: Optional[Tuple[int, int]] = None
-        self._in_hand: Optional[Tuple[Sequence[float], Sequence[float]]] = None
+        # While held: the hand's pose, and the object's pose in the hand's frame.
+        self._hand: Optional[Callable[[], Pose]] = None
+        self._in_hand: Optional[Pose] = None
 
     def _create(self, client: PhysicsClient, mass: float, rigid_body: bool = False) -> int:
         half = self.config.size / 2
@@ -83,24 +86,17 @@ class WorkObject:
         """Centre of the object in the world frame."""
         return np.array(self.physics.getBasePositionAndOrientation(self.physics_id)[0])
 
-    def pose(self) -> Tuple[Tuple[float, ...], Tuple[float, ...]]:
+    def pose(self) -> Pose:
         """Position and quaternion (x, y, z, w) of the object."""
         return self.physics.getBasePositionAndOrientation(self.physics_id)
 
-    def _hand_pose(self) -> Tuple[Sequence[float], Sequence[float]]:
-        body, link = self._hand
-        if link < 0:
-            return self.client.getBasePositionAndOrientation(body)
-        state = self.client.getLinkState(body, link, computeForwardKinematics=True)
-        return state[4], state[5]
-
-    def attach(self, holder: str, body_id: int, link_index: int) -> None:
-        """Hold the object rigidly, where it is now, in link ``link_index`` of ``body_id``
-        (a body of the scene server)."""
+    def attach(self, holder: str, hand: Callable[[], Pose]) -> None:
+        """Hold the object rigidly, where it is now, in the hand whose pose ``hand()`` gives
+        (a link of a body in the scene server)."""
         if self.holder != NOBODY:
             raise SimulationError(f"the object is already held by the {self.holder}")
-        self._hand = (body_id, link_index)
-        hand_position, hand_orientation = self._hand_pose()
+        self._hand = hand
+        hand_position, hand_orientation = hand()
         position, orientation = self.pose()
         inverse = self.client.invertTransform(hand_position, hand_orientation)
         self._in_hand = self.client.multiplyTransforms(inverse[0], inverse[1], position, orientation)
@@ -115,7 +111,7 @@ class WorkObject:
         """After a control step: a held object goes where the hand took it; the scene's copy
         goes where the physics put the object."""
         if self._hand is not None:
-            hand_position, hand_orientation = self._hand_pose()
+            hand_position, hand_orientation = self._hand()
             position, orientation = self.client.multiplyTransforms(
                 hand_position, hand_orientation, self._in_hand[0], self._in_hand[1])
             self.physics.resetBasePositionAndOrientation(self.physics_id, position, orientation)

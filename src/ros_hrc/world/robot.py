@@ -216,8 +216,7 @@ class Robot(ArticulatedBody):
             yield
         gap = float(np.linalg.norm(self.tool_position() - self.object.position()))
         if gap <= c.grasp_tolerance and self.object.holder == NOBODY:
-            gripper = self.link("r_gripper_palm_link")
-            self.object.attach("robot", self.body_id, gripper)
+            self.object.attach("robot", lambda: self.link_pose("r_gripper_palm_link"))
             lifted = self._lift_pose(self.object.position(), pitch)
             if lifted is None:
                 return Outcome(True, "grasped the object (no room to lift it: holding it on the belt)")
