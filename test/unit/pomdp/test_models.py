@@ -1,4 +1,5 @@
-"""The seed's models as shipped in models/: what the manual prints, what we completed, and
+"""The seed's models as shipped in models/: the seed authors' own figures (their first commit,
+615a156, of cangorur/human_robot_collaboration), what the manual prints, what we completed, and
 the numbers the manual reports (Figure 3.9's 212.34, the tired and beginner runs)."""
 from pathlib import Path
 
@@ -13,7 +14,8 @@ ROBOT = ROOT / "models" / "robot"
 STATES = ["task_assigned", "success", "failed_to_grasp", "no_attention", "evaluating", "tired",
           "recovery", "warningTheRobot"]
 ACTIONS = ["graspAttempt", "lookAround", "idle", "walkAway", "warnRobot"]
-SCENARIOS = ["humanModel", "expert", "beginner", "tired", "distracted"]
+SCENARIOS = ["humanModel", "evaluating", "humanModel_completed", "expert", "beginner", "tired",
+             "distracted"]
 SEED_CI = (212.202, 212.478)          # Figure 3.9: pomdpsim --simLen 100 --simNum 1000
 
 
@@ -67,45 +69,57 @@ def test_each_human_model_is_a_valid_8_state_5_action_mdp_as_in_figure_3_5(name)
 
 def test_the_scenarios_behave_differently():
     first_actions = {name: ACTIONS[optimal_policy(human(name))[0][0]] for name in SCENARIOS}
-    assert first_actions == {"humanModel": "warnRobot", "expert": "graspAttempt",
+    assert first_actions == {"humanModel": "graspAttempt", "evaluating": "idle",
+                             "humanModel_completed": "warnRobot", "expert": "graspAttempt",
                              "beginner": "idle", "tired": "idle", "distracted": "lookAround"}
 
 
-# -- humanModel: Figures 3.5-3.9 ---------------------------------------------------------------------
-def test_human_model_uses_the_printed_tables():
-    m = human("humanModel")
-    grasp = [[0.1, 0.45, 0.45, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0, 0, 0], [0, 0.6, 0.4, 0, 0, 0, 0, 0],
-             [0, 0.4, 0.6, 0, 0, 0, 0, 0], [0, 0.6, 0.3, 0, 0.1, 0, 0, 0], [0, 0, 0, 0, 0, 1, 0, 0],
-             [0, 0, 0, 0, 0, 0, 1, 0], [0, 0.5, 0.5, 0, 0, 0, 0, 0]]            # Figure 3.7
-    assert np.array_equal(m.dense_T[0], grasp)
-    idle = np.eye(8)
-    idle[0] = [0.1, 0, 0, 0, 0, 0.9, 0, 0]                                  # Figure 3.14
-    assert np.array_equal(m.dense_T[2], idle)
-    assert np.array_equal(m.dense_T[3], np.eye(8))                          # Figure 3.14
-    for action, target in (("lookAround", "no_attention"), ("warnRobot", "warningTheRobot")):
-        t = m.dense_T[ACTIONS.index(action)]
-        assert t[0, STATES.index(target)] == 1
-        assert np.array_equal(t[1:], np.eye(8)[1:])                         # others stay
+# -- humanModel: the authors' figures ----------------------------------------------------------------
+def rows(eye_rows: dict) -> np.ndarray:
+    """An 8 x 8 table that keeps every state where it is except the rows given."""
+    t = np.eye(8)
+    for s, row in eye_rows.items():
+        t[STATES.index(s)] = row
+    return t
 
 
-def test_human_model_rewards_are_figure_3_8_on_the_next_state():
+GRASP_FIGURE_3_7 = [[0.1, 0.45, 0.45, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0, 0, 0],
+                    [0, 0.6, 0.4, 0, 0, 0, 0, 0], [0, 0.4, 0.6, 0, 0, 0, 0, 0],
+                    [0, 0.6, 0.3, 0, 0.1, 0, 0, 0], [0, 0, 0, 0, 0, 1, 0, 0],
+                    [0, 0, 0, 0, 0, 0, 1, 0], [0, 0.5, 0.5, 0, 0, 0, 0, 0]]
+FIGURE_3_8 = {("warnRobot", "warningTheRobot"): 4.6, ("graspAttempt", "success"): 5,
+              ("idle", "evaluating"): 4.9, ("lookAround", "no_attention"): 2,
+              ("walkAway", "recovery"): 4}
+
+
+def test_human_model_has_the_authors_tables():
     m = human("humanModel")
-    printed = {("warnRobot", "warningTheRobot"): 4.6, ("graspAttempt", "success"): 5,
-               ("idle", "evaluating"): 4.9, ("lookAround", "no_attention"): 2,
-               ("walkAway", "recovery"): 4}
+    assert np.array_equal(m.dense_T[0], GRASP_FIGURE_3_7)                   # as printed too
+    expected = {
+        "lookAround": rows({"task_assigned": np.eye(8)[3],
+                            "no_attention": [0, 0, 0, 0.5, 0, 0, 0, 0.5]}),
+        "idle": rows({"task_assigned": [0.1, 0, 0, 0, 0.7, 0.2, 0, 0],
+                      "failed_to_grasp": np.eye(8)[7],
+                      "evaluating": [0, 0, 0, 0, 0.5, 0, 0, 0.5],
+                      "tired": [0, 0, 0, 0, 0, 0.8, 0, 0.2]}),
+        "walkAway": rows({"tired": np.eye(8)[6]}),
+        "warnRobot": rows({"warningTheRobot": [0, 0, 0, 0, 0.6, 0, 0, 0.4]}),
+    }
+    for action, table in expected.items():
+        assert np.array_equal(m.dense_T[ACTIONS.index(action)], table), action
+
+
+@pytest.mark.parametrize("name", ["humanModel", "humanModel_completed"])
+def test_human_model_rewards_are_figure_3_8_on_the_next_state(name):
+    m = human(name)
     for a, action in enumerate(ACTIONS):
         for j, state in enumerate(STATES):
-            assert np.all(m.R[a].toarray()[:, j] == printed.get((action, state), 0))
+            assert np.all(m.R[a].toarray()[:, j] == FIGURE_3_8.get((action, state), 0))
 
 
-def test_human_model_reproduces_figure_3_9():
-    m = human("humanModel")
-    policy, _ = optimal_policy(m)
-    exact = expected_return(m, policy)
-    assert SEED_CI[0] < exact < SEED_CI[1], exact              # 212.4155
-    # 1000 simulated runs of 100 steps, as pomdpsim: the 95 % intervals overlap.
-    rng = np.random.default_rng(2024)
-    runs = 1000
+def simulated_return(m, policy, runs: int = 1000, seed: int = 2024):
+    """pomdpsim --simLen 100 --simNum runs: mean and 95 % interval of the discounted total."""
+    rng = np.random.default_rng(seed)
     s = np.zeros(runs, dtype=int)
     total = np.zeros(runs)
     cumulative = np.cumsum(m.dense_T, axis=2)
@@ -116,7 +130,66 @@ def test_human_model_reproduces_figure_3_9():
         total += m.discount ** t * R[a, s, s2]
         s = s2
     half = 1.96 * total.std(ddof=1) / np.sqrt(runs)
-    low, high = total.mean() - half, total.mean() + half
+    return total.mean() - half, total.mean() + half
+
+
+def test_human_model_simulates_as_figure_3_9():
+    """The authors' model, simulated as the seed's Figure 3.9 (`hrc_pomdp simulate --planner mdp
+    --sim-len 100 --sim-num 1000`, seed 0: 212.065 (211.704, 212.425)), gives an interval that
+    overlaps the seed's (212.202, 212.478), though its exact value, 212.188, lies just below it."""
+    from ros_hrc.pomdp.planner import MdpPlanner
+    from ros_hrc.pomdp.simulate import simulate
+
+    m = human("humanModel")
+    policy, _ = optimal_policy(m)
+    assert ACTIONS[policy[0]] == "graspAttempt"
+    assert expected_return(m, policy) == pytest.approx(212.1881, abs=1e-3)
+    planner = MdpPlanner(m)
+    result = simulate(m, lambda seed: planner, sim_len=100, sim_num=1000, seed=0)
+    assert result.ci95_low < SEED_CI[1] and result.ci95_high > SEED_CI[0], result
+    assert result.mean == pytest.approx(212.065, abs=1e-3)
+
+
+def test_evaluating_human_has_the_authors_tables_and_keeps_evaluating():
+    m = human("evaluating")
+    for action in ("graspAttempt", "lookAround", "walkAway"):
+        assert np.array_equal(m.dense_T[ACTIONS.index(action)], np.eye(8)), action
+    assert np.array_equal(m.dense_T[ACTIONS.index("idle")], rows({
+        "task_assigned": [0.1, 0, 0, 0, 0.9, 0, 0, 0],
+        "evaluating": [0.1, 0, 0, 0, 0.6, 0, 0, 0.3],
+        "warningTheRobot": [0.9, 0, 0, 0, 0, 0, 0, 0.1]}))
+    assert np.array_equal(m.dense_T[ACTIONS.index("warnRobot")], rows({
+        "warningTheRobot": [0.2, 0.4, 0, 0, 0, 0, 0, 0.4]}))
+    printed = {("graspAttempt", "warningTheRobot"): 10, ("graspAttempt", "success"): 10,
+               ("idle", "evaluating"): 10, ("idle", "warningTheRobot"): -10}
+    for a, action in enumerate(ACTIONS):
+        for j, state in enumerate(STATES):
+            assert np.all(m.R[a].toarray()[:, j] == printed.get((action, state), 0))
+    policy, _ = optimal_policy(m)
+    assert [ACTIONS[policy[STATES.index(s)]] for s in ("task_assigned", "evaluating")] == \
+        ["idle", "idle"]
+
+
+# -- humanModel_completed: our completion of Figures 3.5-3.9 ---------------------------------------
+def test_completed_human_model_uses_the_printed_tables():
+    m = human("humanModel_completed")
+    assert np.array_equal(m.dense_T[0], GRASP_FIGURE_3_7)
+    idle = np.eye(8)
+    idle[0] = [0.1, 0, 0, 0, 0, 0.9, 0, 0]                                  # Figure 3.14
+    assert np.array_equal(m.dense_T[2], idle)
+    assert np.array_equal(m.dense_T[3], np.eye(8))                          # Figure 3.14
+    for action, target in (("lookAround", "no_attention"), ("warnRobot", "warningTheRobot")):
+        t = m.dense_T[ACTIONS.index(action)]
+        assert t[0, STATES.index(target)] == 1
+        assert np.array_equal(t[1:], np.eye(8)[1:])                         # others stay
+
+
+def test_completed_human_model_reproduces_figure_3_9():
+    m = human("humanModel_completed")
+    policy, _ = optimal_policy(m)
+    exact = expected_return(m, policy)
+    assert SEED_CI[0] < exact < SEED_CI[1], exact              # 212.4155
+    low, high = simulated_return(m, policy)
     assert low < SEED_CI[1] and high > SEED_CI[0], (low, high)
 
 
@@ -159,35 +232,91 @@ def test_expert_grasps_at_once_and_distracted_loses_attention():
     assert prob(expert, "idle", "task_assigned", "tired") == 0                # never tires
 
 
-# -- the robot: Figures 3.17-3.20 ----------------------------------------------------------------------
+# -- the robot: the authors' figures (pomdp_FINAL.pomdpx) -------------------------------------------
+ROBOT_ACTIONS = ["rIdle", "rPoint_obj", "rGrasp_obj", "rStop_all"]
+ROBOT_OBSERVATIONS = [f"O{b}" for b in (0, 1, 2, 3, 7, 10, 11, 16, 17, 18, 19, 32, 33, 34, 35)]
+
+
+def robot(name: str = "robot"):
+    return cassandra.load(ROBOT / f"{name}.pomdp")
+
+
 def test_robot_pomdp_and_pomdpx_are_the_same_model():
-    a = cassandra.load(ROBOT / "robot.pomdp")
+    a = robot()
     b = pomdpx.load(ROBOT / "robot.pomdpx")
     assert io.differences(a, b) == []
     # and the .pomdpx is exactly what `hrc_pomdp convert` writes from the .pomdp
     assert pomdpx.dump(a) == (ROBOT / "robot.pomdpx").read_text()
 
 
-def test_robot_model_has_the_seeds_sizes_names_and_start():
-    m = cassandra.load(ROBOT / "robot.pomdp")
+@pytest.mark.parametrize("name", ["robot", "robot_completed"])
+def test_robot_model_has_the_seeds_sizes_names_and_start(name):
+    m = robot(name)
     assert m.states == [f"S{i}" for i in range(7)]
-    assert m.actions == ["rIdle", "rPoint_obj", "rGrasp_obj", "rStop_all"]
-    assert m.observations == [f"O{b}" for b in (0, 1, 2, 3, 7, 10, 11, 16, 17, 18, 19, 32, 33, 34, 35)]
+    assert m.actions == ROBOT_ACTIONS and m.observations == ROBOT_OBSERVATIONS
     assert m.discount == 0.9 and not m.minimise and not m.fully_observable
     assert np.array_equal(m.initial_belief, np.eye(7)[0])
 
 
-def test_robot_transitions_use_the_printed_rows():
-    m = cassandra.load(ROBOT / "robot.pomdp")
+@pytest.mark.parametrize("name", ["robot", "robot_completed"])
+def test_robot_transitions_use_the_printed_rows(name):
+    m = robot(name)
     assert np.array_equal(m.dense_T[0][0], [0.3, 0.4, 0.15, 0, 0.15, 0, 0])   # Figure 3.18
     assert np.array_equal(m.dense_T[0][4], [0, 0.3, 0, 0, 0.3, 0.4, 0])
     assert np.array_equal(m.dense_T[1][5], [0, 0.5, 0.15, 0, 0.025, 0.3, 0.025])
     assert np.array_equal(m.dense_T[2][0], [1, 0, 0, 0, 0, 0, 0])
-    assert m.dense_T[2][3, 1] > 0.5 and m.dense_T[3][6, 1] > 0                  # completed
 
 
-def test_robot_observations_are_figure_3_19_aligned_and_normalised():
-    m = cassandra.load(ROBOT / "robot.pomdp")
+def test_robot_model_has_the_authors_figures():
+    m = robot()
+    grasp, stop = np.eye(7), np.eye(7)
+    grasp[3] = [0, 0.6, 0, 0.3, 0, 0, 0.1]
+    stop[6] = [0, 0.5, 0.1, 0, 0.1, 0, 0.3]
+    assert np.array_equal(m.dense_T[2], grasp) and np.array_equal(m.dense_T[3], stop)
+    col = {name: i for i, name in enumerate(m.observations)}
+
+    def row(**cells):
+        r = np.zeros(15)
+        for name, p in cells.items():
+            r[col[name]] = p
+        return r
+    shared = [row(O3=0.1, O35=0.9), row(O10=0.2, O11=0.8),
+              row(O1=0.325, O3=0.1, O7=0.1, O33=0.325, O35=0.15), None,
+              row(O0=0.2, O2=0.5, O32=0.1, O34=0.2), row(O0=0.3, O2=0.7),
+              row(O16=0.05, O17=0.15, O18=0.1, O19=0.7)]
+    s3 = {"rIdle": row(O0=0.1, O1=0.15, O2=0.05, O3=0.05, O7=0.1, O32=0.1, O33=0.25, O34=0.05,
+                       O35=0.15),
+          "rPoint_obj": row(O0=0.1, O1=0.25, O2=0.05, O3=0.05, O32=0.1, O33=0.25, O34=0.05,
+                            O35=0.15),
+          "rGrasp_obj": row(O35=1),
+          "rStop_all": row(O0=0.1, O1=0.25, O2=0.05, O3=0.05, O32=0.1, O33=0.25, O34=0.05,
+                           O35=0.15)}
+    for a, action in enumerate(ROBOT_ACTIONS):
+        expected = np.array([s3[action] if r is None else r for r in shared])
+        assert np.array_equal(m.dense_O[a], expected), action
+    rewards = {("rIdle", "S2"): -2, ("rIdle", "S3"): -5, ("rIdle", "S4"): -2,
+               ("rIdle", "S5"): -5, ("rIdle", "S6"): -5, ("rPoint_obj", "S3"): -1,
+               ("rPoint_obj", "S4"): -1, ("rPoint_obj", "S5"): 2.625,
+               ("rGrasp_obj", "S2"): -1, ("rGrasp_obj", "S3"): 60, ("rGrasp_obj", "S4"): -1,
+               ("rGrasp_obj", "S5"): -1, ("rStop_all", "S3"): -1, ("rStop_all", "S5"): -1,
+               ("rStop_all", "S6"): 2.4}
+    for a, action in enumerate(ROBOT_ACTIONS):            # on the start state, whatever follows
+        for s, state in enumerate(m.states):
+            assert np.all(m.R[a].toarray()[s] == rewards.get((action, state), 0))
+
+
+def test_robot_models_optimal_value_is_the_authors():
+    """HSVI from the initial belief: 6.8988, as `hrc_pomdp solve models/robot/robot.pomdp`."""
+    from ros_hrc.pomdp import hsvi
+
+    policy = hsvi.solve(robot(), timeout=120, precision=1e-3)
+    assert policy.lower <= 6.8988 + 1e-3 and policy.upper >= 6.8988 - 1e-3
+    assert policy.upper - policy.lower <= 1e-3
+
+
+# -- robot_completed: our completion of Figures 3.17-3.20 ---------------------------------------------
+def test_completed_robot_observations_are_figure_3_19_aligned_and_normalised():
+    m = robot("robot_completed")
     O = m.dense_O[0]
     col = {name: i for i, name in enumerate(m.observations)}
     assert O[0, col["O35"]] == 0.9 and O[1, col["O11"]] == 0.8               # 14-column rows
@@ -196,10 +325,11 @@ def test_robot_observations_are_figure_3_19_aligned_and_normalised():
     printed_s3 = np.array([0, 0.1, 0.15, 0.05, 0.05, 0.05, 0.1, 0, 0, 0, 0, 0.1, 0.25, 0.05, 0.15])
     assert np.allclose(O[3], printed_s3 / 1.05)                               # summed to 1.05
     assert all(np.array_equal(m.dense_O[a], O) for a in range(4))
+    assert m.dense_T[2][3, 1] > 0.5 and m.dense_T[3][6, 1] > 0                  # completed
 
 
-def test_robot_rewards_encourage_helping_and_punish_idling():
-    m = cassandra.load(ROBOT / "robot.pomdp")
+def test_completed_robot_rewards_encourage_helping_and_punish_idling():
+    m = robot("robot_completed")
     assert step_reward(m, "rGrasp_obj", "S3", "S1") > 10
     assert step_reward(m, "rPoint_obj", "S5", "S1") > 10
     assert step_reward(m, "rStop_all", "S6", "S1") > 10
