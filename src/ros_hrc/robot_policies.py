@@ -27,6 +27,11 @@ human needs help; only their *decisions* ignore that belief.
 ``NoRobotPlanner``
     Always ``rIdle``: the human works alone.
 
+``ExplorePlanner``
+    A uniformly random action of the model at every step, from its own seeded stream: the
+    exploring robot whose experience ``hrc_fit`` counts, so that every action is tried in every
+    state the human reaches.
+
 Actions and observations are looked up by name in the loaded model; a model that lacks one
 the policy needs is refused with a ValueError naming it. No ROS, no PyBullet.
 """
@@ -178,3 +183,19 @@ class NoRobotPlanner(BeliefPlanner):
     def act(self) -> int:
         self.last_stats = PlannerStats()
         return self._idle
+
+
+class ExplorePlanner(BeliefPlanner):
+    """A uniformly random action at every step (seeded); keeps the exact belief."""
+
+    def __init__(self, model: Model, seed: Optional[int] = None) -> None:
+        super().__init__(model, seed)
+        # Its own stream, so the belief's sampling (if any) does not shift the actions.
+        self._choices = np.random.default_rng(seed)
+
+    def reset(self, belief: Optional[np.ndarray] = None) -> None:
+        super().reset(belief)
+
+    def act(self) -> int:
+        self.last_stats = PlannerStats()
+        return int(self._choices.integers(self.model.n_actions))

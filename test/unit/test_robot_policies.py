@@ -138,7 +138,7 @@ def test_the_exact_belief_is_kept(model, make):
     assert np.allclose(planner.belief, b)
     action = act(model, "rIdle")
     # A run the model allows under either robot's actions (no zero-probability fallback).
-    for bits in (NOTHING_WRONG, NOT_ATTENDING, FAILED_GRASP, HAS_OBJECT):
+    for bits in (NOTHING_WRONG, FAILED_GRASP, HAS_OBJECT, HAS_OBJECT):
         o = obs(model, bits)
         planner.update(action, o)
         expected, _ = belief_mod.update(model, b, action, o)

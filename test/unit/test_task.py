@@ -59,6 +59,17 @@ def test_robot_state_follows_the_humans_history():
     assert tracker.update("evaluating") == "S0"
 
 
+def test_a_human_who_keeps_evaluating_comes_to_need_help():
+    tracker = task.RobotStateTracker()
+    labels = [tracker.update("evaluating") for _ in range(6)]
+    assert labels == ["S0", "S2", "S2", "S3", "S3", "S3"]
+    assert tracker.update("task_assigned") == "S0"
+    assert tracker.update("evaluating") == "S0"          # a new streak starts
+    tracker.reset()
+    tracker.update("failed_to_grasp")
+    assert [tracker.update("evaluating") for _ in range(5)] == ["S2"] * 5   # he did grasp
+
+
 def test_tired_and_recovering_humans_need_help_grasping():
     tracker = task.RobotStateTracker()
     assert tracker.update("tired") == "S3"

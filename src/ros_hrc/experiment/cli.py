@@ -39,7 +39,8 @@ from ros_hrc.experiment.stack import (CellSpec, cell_name, check_launch_settings
 from ros_hrc.experiment.statistics import summarize, write_summary
 from ros_hrc.experiment.store import DirectoryLocked, ResultsStore, lock_directory
 from ros_hrc.loop import settings
-from ros_hrc.loop.models import ModelNotFound, load_human_model, load_robot_model
+from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model,
+                                 positional_mapping_line)
 from ros_hrc.loop.settings import SettingError
 
 NAME = "hrc_experiment"
@@ -121,23 +122,28 @@ def build_parser() -> argparse.ArgumentParser:
 def validate_grid(args: argparse.Namespace) -> None:
     """Check the whole grid before any stack starts: the policies, every human model and the
     robot model against the task's tables, every cell's launch settings. Raises HrcError with
-    one line naming the argument or the file and the offending names."""
+    one line naming the argument or the file and the offending names. Once all is good, each
+    model file named by position gets its mapping printed, one line per file."""
     unknown = [p for p in args.policies if p not in ROBOT_POLICIES]
     if unknown:
         raise GridError(f"--policies: unknown robot policies {', '.join(unknown)}; known: "
                         f"{', '.join(ROBOT_POLICIES)}")
+    loaded = []
     try:
-        load_robot_model(args.robot_model)
+        loaded.append(load_robot_model(args.robot_model))
     except ModelNotFound as exc:
         raise GridError(f"--robot-model: {exc}") from None
     for human in dict.fromkeys(args.human_models):
         try:
-            load_human_model(human)
+            loaded.append(load_human_model(human))
         except ModelNotFound as exc:
             raise GridError(f"--human-models: {exc}") from None
     for spec in plan_cells(args, set()):
         if spec.seed == args.seeds[0]:   # the settings do not depend on the seed otherwise
             check_launch_settings(spec)
+    mappings = (positional_mapping_line(model) for model in loaded)
+    for line in dict.fromkeys(m for m in mappings if m):   # once per file, by its line
+        print(f"{NAME}: {line}", flush=True)
 
 
 def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:

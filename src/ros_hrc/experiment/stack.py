@@ -96,7 +96,7 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
                          f"{', '.join(ROBOT_POLICIES)}")
     values = {
         "human_model": spec.human_model, "robot_model": spec.robot_model,
-        "planner": ROBOT_POLICIES[spec.robot_policy], "seed": spec.seed,
+        "planner": ROBOT_POLICIES[spec.robot_policy].planner, "seed": spec.seed,
         "mode": "auto", "gui": False, "use_sim_time": False, "real_time_factor": 0,
         "step_delay": 0, "max_steps": spec.step_limit, "on_episode_end": "reset",
         "end_on_goal": False, "read_stdin": False,

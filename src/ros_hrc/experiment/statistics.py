@@ -80,6 +80,7 @@ SUMMARY_COLUMNS: Tuple[str, ...] = (
     "reward_mean", "reward_low", "reward_high",
     "intrusive_actions_mean", "intrusive_actions_low", "intrusive_actions_high",
     "warnings_mean", "warnings_low", "warnings_high",
+    "zero_probability_observations", "observations", "zero_probability_rate",
     "mean_decision_ms")
 
 # summary prefix -> EpisodeRow column, for the quantities given as mean + t interval
@@ -119,6 +120,11 @@ def summarize(rows: Iterable[Union[EpisodeRow, Mapping[str, Any]]],
         for prefix, column in _MEAN_CI_QUANTITIES:
             mean, low, high = mean_ci([getattr(r, column) for r in group], confidence)
             entry.update({f"{prefix}_mean": mean, f"{prefix}_low": low, f"{prefix}_high": high})
+        # The rate per observation, pooled: every step's observation is one chance to disagree.
+        zero = sum(r.zero_probability_observations for r in group)
+        seen = sum(r.steps for r in group)
+        entry.update({"zero_probability_observations": zero, "observations": seen,
+                      "zero_probability_rate": zero / seen if seen else math.nan})
         timed = [r.mean_decision_ms for r in group if not math.isnan(r.mean_decision_ms)]
         entry["mean_decision_ms"] = math.fsum(timed) / len(timed) if timed else math.nan
         summary.append(entry)
@@ -132,6 +138,11 @@ def format_ci(mean: float, low: float, high: float, digits: int = 2) -> str:
     if math.isnan(low) or math.isnan(high):
         return f"{mean:.{digits}f} [n/a]"
     return f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
+
+
+def _rate_text(count: int, total: int) -> str:
+    """``"3 / 120 (2.5 %)"``."""
+    return f"{count} / {total} ({100.0 * count / total:.1f} %)" if total else "n/a"
 
 
 def _markdown_cell(text: str) -> str:
@@ -155,7 +166,8 @@ def write_summary(summary: Sequence[Mapping[str, Any]], csv_path: Union[str, os.
     level = "/".join(f"{100 * c:g} %" for c in sorted(levels))
     headers = ["Human model", "Robot policy", "n", f"Success rate [{level} CI]",
                "Successes (human / robot)", "Steps", "Sim time (s)", "Discounted reward",
-               "Intrusive actions", "Warnings", "Decision time (ms)"]
+               "Intrusive actions", "Warnings", "Zero-probability observations",
+               "Decision time (ms)"]
     lines = ["| " + " | ".join(headers) + " |",
              "|" + "|".join(["---", "---", "--:"] + ["--:"] * (len(headers) - 3)) + "|"]
     for e in summary:
@@ -170,11 +182,13 @@ def write_summary(summary: Sequence[Mapping[str, Any]], csv_path: Union[str, os.
                  format_ci(e["intrusive_actions_mean"], e["intrusive_actions_low"],
                            e["intrusive_actions_high"]),
                  format_ci(e["warnings_mean"], e["warnings_low"], e["warnings_high"]),
+                 _rate_text(e["zero_probability_observations"], e["observations"]),
                  "n/a" if math.isnan(ms) else f"{ms:.1f}"]
         lines.append("| " + " | ".join(cells) + " |")
     note = (f"Mean [{level} confidence interval] over episodes: Wilson score interval for the "
             "success rate, Student's t for the other quantities; [n/a] where an interval "
-            "needs two episodes or more.")
+            "needs two episodes or more. Zero-probability observations: how many of the "
+            "episodes' observations the robot's model gave probability 0, of all, and the rate.")
     ensure_parent(markdown_path)
     with open(markdown_path, "w", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n\n" + note + "\n")

@@ -42,11 +42,12 @@ from ros_hrc.errors import HrcError
 EPISODE_COLUMNS: Tuple[str, ...] = (
     "human_model", "robot_policy", "seed", "episode", "success", "succeeded_by", "end_reason",
     "steps", "sim_seconds", "robot_discounted_reward", "intrusive_actions", "warnings",
-    "mean_decision_ms", "wall_seconds")
+    "zero_probability_observations", "mean_decision_ms", "wall_seconds")
 
 STEP_COLUMNS: Tuple[str, ...] = (
     "human_model", "robot_policy", "seed", "episode", "step", "human_action", "human_state",
-    "robot_state", "robot_action", "observation", "belief_needs_help", "needs_help")
+    "robot_state", "robot_action", "observation", "belief_needs_help", "needs_help",
+    "zero_probability")
 
 SUCCEEDED_BY: Tuple[str, ...] = ("human", "robot", "none")
 END_REASONS: Tuple[str, ...] = ("success", "object_left_belt", "step_limit")
@@ -196,6 +197,7 @@ class EpisodeRow(_Row):
     robot_discounted_reward: float
     intrusive_actions: int
     warnings: int
+    zero_probability_observations: int
     mean_decision_ms: float
     wall_seconds: float
 
@@ -212,7 +214,7 @@ class EpisodeRow(_Row):
         if bool(self.success) != (self.succeeded_by != "none"):
             raise self._bad("succeeded_by", f"contradicts success {self.success}")
         self._non_negative("seed", "episode", "steps", "sim_seconds", "intrusive_actions",
-                           "warnings", "wall_seconds")
+                           "warnings", "zero_probability_observations", "wall_seconds")
         if not math.isfinite(self.robot_discounted_reward):
             raise self._bad("robot_discounted_reward", "must be finite")
         self._non_negative("mean_decision_ms", finite=False)
@@ -225,7 +227,8 @@ class StepRow(_Row):
     """One step of an episode.
 
     belief_needs_help is the robot's belief mass on the needs-help states S2..S5 (NaN for a
-    policy without a belief); needs_help is 1 when the true robot state is one of them.
+    policy without a belief); needs_help is 1 when the true robot state is one of them;
+    zero_probability is 1 when the robot's model gave the step's observation probability 0.
     """
 
     COLUMNS: ClassVar[Tuple[str, ...]] = STEP_COLUMNS
@@ -242,11 +245,13 @@ class StepRow(_Row):
     observation: str
     belief_needs_help: float
     needs_help: int
+    zero_probability: int
 
     def _check(self) -> None:
         self._nonempty("human_model", "robot_policy")
         self._non_negative("seed", "episode", "step")
         self._zero_one("needs_help")
+        self._zero_one("zero_probability")
         b = self.belief_needs_help
         if not math.isnan(b) and not -_BELIEF_TOLERANCE <= b <= 1 + _BELIEF_TOLERANCE:
             raise self._bad("belief_needs_help", "must be a probability in [0, 1] or nan")

@@ -12,6 +12,13 @@ when it fails::
     <param name="/hrc/config" type="yaml"
            command="$(find ros_hrc)/scripts/hrc_check human_model:=$(arg human_model) ..."/>
 
+A model whose names are generic (``s0..``, ``a0..``, ``o0..``, as POMDPX ``<NumValues>`` gives
+them) in the task's sizes is read by position (:mod:`ros_hrc.loop.models`); the mapping is one
+line per such model on stderr, ``hrc.launch: <file>: names by position: states s0=S0 ...``,
+before the YAML. Not on stdout: roslaunch reads stdout as the value of ``/hrc/config`` and
+never shows it, while it passes the command's stderr through to the terminal, so the line is
+seen when the launch starts; a YAML comment would be parsed away unseen.
+
 ``--no-port-check`` skips binding the ports (to check a configuration for later). The
 POMDP's port is only checked with ``start_pomdp:=true``: started by hand, the POMDP process
 may already serve it.
@@ -52,10 +59,12 @@ def parse_words(words: Sequence[str]) -> Dict[str, str]:
     return values
 
 
-def check_models(config: Mapping[str, object]) -> None:
+def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None) -> None:
     """Load both models and check them against the task's tables (and the policy file against
-    the robot model for planner:=policy)."""
-    from ros_hrc.loop.models import ModelNotFound, load_human_model, load_robot_model
+    the robot model for planner:=policy). The start-up line of each model named by position
+    is appended to ``notes``."""
+    from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model,
+                                     positional_mapping_line)
 
     loaded = {}
     for name, load in (("human_model", load_human_model), ("robot_model", load_robot_model)):
@@ -63,6 +72,9 @@ def check_models(config: Mapping[str, object]) -> None:
             loaded[name] = load(str(config[name]))
         except ModelNotFound as exc:
             raise CheckError(f"{name}:={config[name]}: {exc}") from None
+        line = positional_mapping_line(loaded[name])
+        if line is not None and notes is not None:
+            notes.append(line)
     if config["planner"] == "policy":
         from ros_hrc.pomdp.policy import load as load_policy
 
@@ -109,12 +121,13 @@ def check_ports(config: Mapping[str, object]) -> None:
                                  f"({exc.strerror or exc})") from None
 
 
-def check(words: Sequence[str], port_check: bool = True) -> Dict[str, object]:
+def check(words: Sequence[str], port_check: bool = True,
+          notes: Optional[List[str]] = None) -> Dict[str, object]:
     """The resolved configuration of the launch arguments ``words``; raises HrcError (a
     SettingError, ModelError, ModelFormatError or CheckError) with one line on the first
-    problem."""
+    problem. Each model named by position adds its mapping line to ``notes``."""
     config = settings.resolve(parse_words(words))
-    check_models(config)
+    check_models(config, notes)
     if port_check:
         check_ports(config)
     return config
@@ -142,7 +155,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         options = [w for w in words if w.startswith("-")]
         if options:
             raise CheckError(f"{options[0]}: unknown option; {USAGE}")
-        config = check(words, port_check)
+        notes: List[str] = []
+        config = check(words, port_check, notes)
+        for line in notes:   # only once every check passed: a refusal stays one line
+            print(f"{PREFIX}: {line}", file=sys.stderr, flush=True)
         import yaml
 
         sys.stdout.write(yaml.safe_dump(dict(config), sort_keys=False, default_flow_style=False))

@@ -13,25 +13,59 @@ Robot models: states :data:`task.ROBOT_STATES`, actions the keys of
 :data:`task.ROBOT_ACTION_SERVICES`, observations ``O<bits>`` for :data:`task.LEGAL_BITS` (names
 in any order).
 
+Names by position: a list of names (states, actions or observations, each judged on its own)
+that is exactly the generic ``s0 s1 ...``, ``a0 ...`` or ``o0 ...`` (what POMDPX ``<NumValues>``
+and Cassandra counts produce, as the seed's robot ``pomdp_FINAL.pomdpx`` does) *and* has the
+task's size for that list is read as the task's names in the task's order: ``s0`` is ``S0``,
+``a1`` is ``rPoint_obj``, ``o4`` is ``O7`` (:data:`task.LEGAL_BITS` order), and for a human
+model ``s1`` is ``success``, ``a0`` is ``graspAttempt`` (a fully observable model's
+observations, being its states, follow them). The loaded model then carries the task's names
+(the tables are the file's, untouched), ``model.meta["positional_names"]`` records the pairs,
+and :func:`positional_mapping_line` gives the one line every entry point prints at start-up::
+
+    models/robot/x.pomdpx: names by position: states s0=S0 s1=S1 ...; actions a0=rIdle ...
+
+Generic names in another size are refused (``states s0..s5 are positional but the task has 7
+states: S0, ...``); any other names must match the task's as above.
+
 A file that cannot be parsed raises the parsers' ModelFormatError (it names file:line); a
 model that is not there raises :class:`ModelNotFound`, naming the scenario and what exists.
 """
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Iterable, Optional, Sequence
+import dataclasses
+from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 
 from ros_hrc.errors import ModelError
 from ros_hrc.loop import task
 from ros_hrc.model_files import MODELS_DIR, resolve_model
+from ros_hrc.pomdp.fileformat import default_names
 from ros_hrc.pomdp.io import load_model
 from ros_hrc.pomdp.model import Model
 
 __all__ = ["ModelNotFound", "load_human_model", "load_robot_model", "check_human_model",
-           "check_robot_model", "model_path", "ROBOT_OBSERVATIONS"]
+           "check_robot_model", "model_path", "ROBOT_OBSERVATIONS", "POSITIONAL_PREFIXES",
+           "task_names", "name_by_position", "positional_mapping_lines",
+           "positional_mapping_line"]
 
 #: The robot model's observation names the observer sends (O0 ... O35).
 ROBOT_OBSERVATIONS = tuple(task.observation_name(b) for b in task.LEGAL_BITS)
+
+
+#: The generic name prefix of each list, as POMDPX ``<NumValues>`` names its values.
+POSITIONAL_PREFIXES: Dict[str, str] = {"states": "s", "actions": "a", "observations": "o"}
+
+
+def task_names(kind: str) -> Dict[str, Tuple[str, ...]]:
+    """The task's names, in the task's order, of each list a ``kind`` ("human" or "robot")
+    model must name: states and actions (and observations for the robot)."""
+    if kind == "human":
+        return {"states": task.HUMAN_STATES, "actions": tuple(task.HUMAN_ACTION_SERVICES)}
+    if kind == "robot":
+        return {"states": task.ROBOT_STATES, "actions": tuple(task.ROBOT_ACTION_SERVICES),
+                "observations": ROBOT_OBSERVATIONS}
+    raise ValueError(f"unknown model kind {kind!r}: expected human or robot")
 
 
 class ModelNotFound(ModelError):
@@ -65,17 +99,80 @@ def _load(name_or_path: str, kind: str) -> Model:
 
 
 def load_human_model(name_or_path: str) -> Model:
-    """A human MDP by scenario name or path, checked against the task's tables."""
-    model = _load(name_or_path, "human")
+    """A human MDP by scenario name or path, checked against the task's tables (generic
+    names of the task's sizes are renamed by position, see :func:`name_by_position`)."""
+    model = name_by_position(_load(name_or_path, "human"), "human")
     check_human_model(model, model.source)
     return model
 
 
 def load_robot_model(name_or_path: str) -> Model:
-    """The robot POMDP by name or path, checked against the task's tables."""
-    model = _load(name_or_path, "robot")
+    """The robot POMDP by name or path, checked against the task's tables (generic names of
+    the task's sizes are renamed by position, see :func:`name_by_position`)."""
+    model = name_by_position(_load(name_or_path, "robot"), "robot")
     check_robot_model(model, model.source)
     return model
+
+
+def _span(names: Sequence[str]) -> str:
+    """``s0..s6`` for a run of generic names (``s0`` for one)."""
+    return names[0] if len(names) == 1 else f"{names[0]}..{names[-1]}"
+
+
+def _is_positional(names: Sequence[str], prefix: str) -> bool:
+    return bool(names) and list(names) == default_names(prefix, len(names))
+
+
+def name_by_position(model: Model, kind: str, path: Optional[str] = None) -> Model:
+    """``model`` with each list of generic names (``s0..``, ``a0..``, ``o0..``) of the task's
+    size renamed to the task's names by position: a shallow copy (the same tables) whose
+    ``meta["positional_names"]`` maps each renamed list to its ``(generic, task)`` pairs, e.g.
+    ``{"states": [("s0", "S0"), ...]}``. ``model`` itself when no list is generic.
+
+    ModelError (one line naming ``path``) when a list is generic in another size than the
+    task's. Other names are left alone: :func:`check_human_model` / :func:`check_robot_model`
+    judge them. ``kind`` is "human" or "robot"."""
+    where = _shown(path or model.source or model.name or f"{kind} model")
+    renamed: Dict[str, List[Tuple[str, str]]] = {}
+    changes: Dict[str, List[str]] = {}
+    for label, expected in task_names(kind).items():
+        names = list(getattr(model, label))
+        if not _is_positional(names, POSITIONAL_PREFIXES[label]):
+            continue
+        if len(names) != len(expected):
+            raise ModelError(f"{where}: {label} {_span(names)} are positional but the task has "
+                             f"{len(expected)} {label}: {_names(expected)}")
+        renamed[label] = list(zip(names, expected))
+        changes[label] = list(expected)
+    if not renamed:
+        return model
+    if model.fully_observable and "states" in changes \
+            and list(model.observations) == list(model.states):
+        changes["observations"] = list(changes["states"])   # an MDP observes its states
+    meta = dict(model.meta or {})
+    meta["positional_names"] = renamed
+    return dataclasses.replace(model, meta=meta, **changes)
+
+
+def positional_mapping_lines(model: Model) -> List[str]:
+    """One line per list ``model`` had renamed by position, e.g. ``states s0=S0 s1=S1 ...``;
+    [] when none was."""
+    pairs = (model.meta or {}).get("positional_names") or {}
+    return [f"{label} " + " ".join(f"{old}={new}" for old, new in pairs[label])
+            for label in POSITIONAL_PREFIXES if pairs.get(label)]
+
+
+def positional_mapping_line(model: Model, path: Optional[str] = None) -> Optional[str]:
+    """The one start-up line of a model renamed by position, naming the file and every pair::
+
+        models/robot/x.pomdpx: names by position: states s0=S0 ...; actions a0=rIdle ...
+
+    None when its names were the task's own."""
+    lines = positional_mapping_lines(model)
+    if not lines:
+        return None
+    where = _shown(path or model.source or model.name or "model")
+    return f"{where}: names by position: " + "; ".join(lines)
 
 
 def _names(names: Iterable[str]) -> str:

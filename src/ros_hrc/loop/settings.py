@@ -278,7 +278,8 @@ _TABLE: Iterable[Setting] = (
     _s("start_pomdp", "bool", True, "start the POMDP process"),
     _s("planner", "choice", "despot", "despot; policy with policy_file; reactive (baseline: "
        "rules on the current observation, see reactive_budget); none (baseline: the robot "
-       "never acts)", choices=("despot", "policy", "reactive", "none")),
+       "never acts); explore (a uniformly random action each step, seeded: hrc_fit's "
+       "exploring robot)", choices=("despot", "policy", "reactive", "none", "explore")),
     _s("policy_file", "file", "",
        "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that planner"),
     _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision", minimum=0,

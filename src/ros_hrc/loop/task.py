@@ -108,31 +108,46 @@ def describe_bits(bits: int) -> str:
     return "+".join(n for b, n in names if bits & b) or "nothing"
 
 
+#: Consecutive steps spent evaluating (without a failure first) after which a human "may need
+#: help" (S2) and "needs help" (S3): a human who keeps evaluating and never grasps is stuck.
+EVALUATING_MAY_NEED_HELP = 2
+EVALUATING_NEEDS_HELP = 4
+
+
 @dataclass
 class RobotStateTracker:
     """Maps the human's MDP state, with its history since reset, to the robot's true state.
 
-    S0 no help needed (task just assigned, or evaluating with no failure so far);
+    The robot's states say whether the human needs help to get the object, so the label looks
+    at what the human has been doing, not only at where he is now:
+
+    S0 no help needed: the task was just assigned, or he has evaluated for less than
+       :data:`EVALUATING_MAY_NEED_HELP` steps in a row with no failure so far;
     S1 the human has the object (success);
-    S2 may need help grasping (a first failed grasp, or evaluating after a failure);
-    S3 needs help grasping (failed twice or more, tired, or recovering after walking away);
-    S4 may need help grasping or finding (attention lost once);
-    S5 needs help finding (attention lost twice or more in a row);
+    S2 may need help grasping: one failed grasp, evaluating after a failure, or evaluating for
+       :data:`EVALUATING_MAY_NEED_HELP` steps in a row;
+    S3 needs help grasping: failed twice or more, tired, recovering after walking away, or
+       evaluating for :data:`EVALUATING_NEEDS_HELP` steps in a row without ever grasping;
+    S4 may need help grasping or finding: attention lost once;
+    S5 needs help finding: attention lost twice or more in a row;
     S6 the human warned the robot.
     """
 
     failures: int = 0
     inattention_streak: int = 0
+    evaluating_streak: int = 0
 
     def reset(self) -> None:
         self.failures = 0
         self.inattention_streak = 0
+        self.evaluating_streak = 0
 
     def update(self, human_state: str) -> str:
         """Account for the human's new state and return the robot's true state."""
         if human_state not in HUMAN_STATES:
             raise ValueError(f"unknown human state {human_state!r}")
         self.inattention_streak = self.inattention_streak + 1 if human_state == "no_attention" else 0
+        self.evaluating_streak = self.evaluating_streak + 1 if human_state == "evaluating" else 0
         if human_state == "failed_to_grasp":
             self.failures += 1
             return "S2" if self.failures == 1 else "S3"
@@ -145,5 +160,9 @@ class RobotStateTracker:
         if human_state == "no_attention":
             return "S4" if self.inattention_streak == 1 else "S5"
         if human_state == "evaluating":
-            return "S2" if self.failures else "S0"
+            if self.evaluating_streak >= EVALUATING_NEEDS_HELP and not self.failures:
+                return "S3"
+            if self.failures or self.evaluating_streak >= EVALUATING_MAY_NEED_HELP:
+                return "S2"
+            return "S0"
         return "S0"  # task_assigned

@@ -33,7 +33,7 @@ from ros_hrc.experiment.episode import score_episode, step_rows
 from ros_hrc.experiment.stack import (CellFailed, CellSpec, cell_name, encode_episode,
                                       pick_ports, stack_environment, start_stack, stop_launched)
 from ros_hrc.experiment.store import EpisodeRow
-from ros_hrc.loop.models import load_robot_model
+from ros_hrc.loop.models import load_robot_model, positional_mapping_line
 from ros_hrc.msg import Status
 from ros_hrc.nodes.common import init_node_when_master_is_up
 from ros_hrc.pomdp.model import Model
@@ -199,6 +199,9 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
     if not spec.episodes:
         return 0
     model = load_robot_model(spec.robot_model)
+    mapping = positional_mapping_line(model)
+    if mapping:   # stdout carries the episodes; stderr goes to the cell's worker log
+        print(f"{cell_name(spec)}: {mapping}", file=sys.stderr, flush=True)
     ports = pick_ports()
     log_dir = Path(spec.log_dir)
     # This process's own node talks to the cell's master too.

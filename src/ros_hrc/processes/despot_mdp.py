@@ -32,7 +32,7 @@ from ros_hrc.link.protocol import (ERR_INVALID, Ack, Error, Message, NextState, 
                                    is_reply_to, reply_error)
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc.loop import settings
-from ros_hrc.loop.models import load_human_model
+from ros_hrc.loop.models import load_human_model, positional_mapping_line
 from ros_hrc.processes.human_agent import HumanAgent, HumanAgentConfig
 
 NAME = "despot_mdp"
@@ -295,6 +295,9 @@ def main(argv: Optional[list] = None) -> int:
                            send_timeout=args.reply_timeout)
     process = MdpProcess(agent, client, args)
     read_stdin = args.stdin == "on" or (args.stdin == "auto" and sys.stdin.isatty())
+    mapping = positional_mapping_line(model)
+    if mapping:
+        print(f"{NAME}: {mapping}", file=sys.stderr, flush=True)
     print(f"{NAME}: {model.source or args.human_model}: {model.n_states} states, "
           f"{model.n_actions} actions, {args.mode} mode; connecting to {client.url}", flush=True)
     code = 0

@@ -29,12 +29,13 @@ from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, Dispat
                                    Message, Observation, Reset, reply_error)
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import settings
-from ros_hrc.loop.models import load_robot_model
+from ros_hrc.loop.models import load_robot_model, positional_mapping_line
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
-from ros_hrc.robot_policies import NoRobotConfig, NoRobotPlanner, ReactiveConfig, ReactivePlanner
+from ros_hrc.robot_policies import (ExplorePlanner, NoRobotConfig, NoRobotPlanner, ReactiveConfig,
+                                    ReactivePlanner)
 
 NAME = "despot_pomdp"
 
@@ -128,7 +129,7 @@ class PomdpProcess:
 
 def build_planner(model: Model, args: argparse.Namespace) -> Planner:
     """The planner the command line asks for: DESPOT, a saved offline policy, the reactive
-    robot or no robot."""
+    robot, no robot or the exploring robot."""
     if args.planner == "despot":
         config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.lambda_,
                               time_per_step=args.time_per_step,
@@ -143,6 +144,8 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
         return ReactivePlanner(model, ReactiveConfig(budget=args.reactive_budget), seed=args.seed)
     if args.planner == "none":
         return NoRobotPlanner(model, NoRobotConfig(), seed=args.seed)
+    if args.planner == "explore":
+        return ExplorePlanner(model, seed=args.seed)
     raise ValueError(f"unknown planner {args.planner!r}: "
                      f"{', '.join(settings.SETTINGS['planner'].choices)}")
 
@@ -180,6 +183,9 @@ def main(argv: Optional[list] = None) -> int:
     except LinkError as exc:
         print(f"{NAME}: {exc}", file=sys.stderr)
         return 2
+    mapping = positional_mapping_line(model)
+    if mapping:
+        print(f"{NAME}: {mapping}", file=sys.stderr, flush=True)
     print(f"{NAME}: {model.source or args.robot_model}: {model.n_states} states, {model.n_actions} "
           f"actions, {model.n_observations} observations; planner {args.planner}; "
           f"observations on {server.url}", flush=True)

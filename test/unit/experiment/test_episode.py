@@ -97,7 +97,8 @@ def test_each_robot_policy_starts_its_own_planner_on_its_own_ports():
     assert "planner:=reactive" in args and "reactive_budget:=5" in args
     assert {"pomdp_port:=7071", "robot_port:=8081", "human_port:=9091"} <= set(args)
     assert {"use_sim_time:=false", "real_time_factor:=0", "gui:=false", "seed:=4"} <= set(args)
-    assert set(ROBOT_POLICIES) == {"pomdp", "reactive", "no_robot"}
+    assert set(ROBOT_POLICIES) == {"pomdp", "pomdp_fitted", "reactive", "no_robot", "explore"}
+    assert ROBOT_POLICIES["pomdp_fitted"].robot_model == "robot_fitted"
     with pytest.raises(ValueError, match="unknown robot policy"):
         launch_arguments(CellSpec("tired", "telepathic", 0, episodes=[0]), {
             "master": 1, "pomdp": 2, "robot": 3, "human": 4})

@@ -88,7 +88,8 @@ def test_a_missing_human_model_is_refused_before_any_stack(tmp_path, fake_ros):
     line = the_line(done)
     assert line.startswith("hrc_experiment: --human-models: no human model named "
                            "'does_not_exist'")
-    assert "known: beginner, distracted, expert, humanModel, tired" in line
+    assert "known: beginner, distracted, evaluating, expert, humanModel, humanModel_completed, " \
+           "tired" in line
     assert not log.exists() and not out.exists()
 
 

@@ -26,14 +26,14 @@ def episode(human="careful", policy="pomdp", seed=0, number=0, outcome="human", 
                   success=int(success), succeeded_by=outcome if success else "none",
                   end_reason="success" if success else outcome, steps=12, sim_seconds=6.5,
                   robot_discounted_reward=-3.25, intrusive_actions=1, warnings=0,
-                  mean_decision_ms=4.5, wall_seconds=9.75)
+                  zero_probability_observations=1, mean_decision_ms=4.5, wall_seconds=9.75)
     values.update(over)
     return EpisodeRow(**values)
 
 
 def steps_of(row, needs=(0, 1, 1, 0), beliefs=(0.1, 0.4, 0.8, 0.3)):
     return [StepRow(row.human_model, row.robot_policy, row.seed, row.episode, i, "idle",
-                    "evaluating", "S2" if n else "S0", "rIdle", "O3", b, n)
+                    "evaluating", "S2" if n else "S0", "rIdle", "O3", b, n, 0)
             for i, (n, b) in enumerate(zip(needs, beliefs))]
 
 
@@ -48,11 +48,11 @@ def test_columns_are_in_the_agreed_order_and_match_the_dataclasses():
     assert EPISODE_COLUMNS == (
         "human_model", "robot_policy", "seed", "episode", "success", "succeeded_by",
         "end_reason", "steps", "sim_seconds", "robot_discounted_reward", "intrusive_actions",
-        "warnings", "mean_decision_ms", "wall_seconds")
+        "warnings", "zero_probability_observations", "mean_decision_ms", "wall_seconds")
     assert STEP_COLUMNS == (
         "human_model", "robot_policy", "seed", "episode", "step", "human_action",
         "human_state", "robot_state", "robot_action", "observation", "belief_needs_help",
-        "needs_help")
+        "needs_help", "zero_probability")
     assert tuple(episode().as_dict()) == EPISODE_COLUMNS
     assert tuple(steps_of(episode())[0].as_dict()) == STEP_COLUMNS
 
@@ -66,7 +66,7 @@ def test_rows_round_trip_through_their_csv_cells():
     assert math.isnan(back.mean_decision_ms)
     assert back.as_dict() == cells
     step = StepRow("a,b", "p", 1, 2, 3, "graspAttempt", "failed_to_grasp", "S2", "rPoint_obj",
-                   "O35", 0.625, 1)
+                   "O35", 0.625, 1, 0)
     assert StepRow.from_dict(step.as_dict()) == step
 
 
@@ -91,7 +91,7 @@ def test_rows_refuse_values_outside_their_domain():
     with pytest.raises(ValueError, match="line breaks"):
         episode(human="two\nlines")
     with pytest.raises(ValueError, match="belief_needs_help"):
-        StepRow("h", "p", 0, 0, 0, "idle", "s", "S0", "rIdle", "O0", 1.5, 0)
+        StepRow("h", "p", 0, 0, 0, "idle", "s", "S0", "rIdle", "O0", 1.5, 0, 0)
     with pytest.raises(ValueError, match="missing column"):
         EpisodeRow.from_dict({"human_model": "h"})
 
@@ -296,7 +296,7 @@ def test_plot_belief_warns_when_runs_disagree_on_the_truth(tmp_path):
 def test_the_plots_need_no_display_and_leave_pyplot_alone(tmp_path):
     code = ("import sys; from ros_hrc.experiment import plots, statistics, store; "
             "rows = [store.EpisodeRow('h', 'p', 0, 0, 1, 'human', 'success', 3, 1.0, 0.0, 0, 0, "
-            "1.0, 1.0)]; "
+            "0, 1.0, 1.0)]; "
             f"plots.plot_outcomes(statistics.summarize(rows), {str(tmp_path / 'o.png')!r}); "
             "assert 'matplotlib.pyplot' not in sys.modules; "
             "assert not {'rospy', 'pybullet'} & set(sys.modules)")

@@ -17,7 +17,7 @@ TIGER = ROOT / "test" / "fixtures" / "tiger.95.pomdp"
 def test_the_repository_has_the_models_this_suite_converts():
     names = {p.name for p in MODELS}
     assert {"robot.pomdp", "robot.pomdpx", "humanModel.pomdpx"} <= names
-    assert len([p for p in MODELS if p.parent.name == "human"]) == 5
+    assert len([p for p in MODELS if p.parent.name == "human"]) == 7
 
 
 # -- extension ---------------------------------------------------------------------------------------
