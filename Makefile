@@ -3,7 +3,7 @@
 SHELL := /bin/bash
 ARGS ?=
 
-.PHONY: setup run test unit rostest bench experiment lint clean
+.PHONY: setup run test unit rostest bench experiment fit lint clean
 
 setup:
 	@bash tools/setup.sh
@@ -23,6 +23,10 @@ bench: setup
 # A small default grid (README, "Experiments"); ARGS="--episodes 10 --seeds 0,1,2" for more.
 experiment: setup
 	@source env.sh && rosrun ros_hrc hrc_experiment --out results/experiment $(ARGS)
+
+# Fit the robot model's T and O to the world (docs/fitting.md); rewrites models/robot/robot_fitted.pomdp.
+fit: setup
+	@source env.sh && rosrun ros_hrc hrc_fit --out models/robot/robot_fitted.pomdp $(ARGS)
 
 lint: setup
 	@source env.sh && catkin_lint --strict -W2 .ws/src/ros_hrc

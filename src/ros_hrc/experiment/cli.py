@@ -32,6 +32,7 @@ from typing import Callable, Dict, List, Optional, Set
 
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
+from ros_hrc.experiment.episode import DEFAULT_POLICIES as POLICIES_BY_DEFAULT
 from ros_hrc.experiment.episode import ROBOT_POLICIES
 from ros_hrc.experiment.plots import plot_belief, plot_outcomes
 from ros_hrc.experiment.stack import (CellSpec, cell_name, check_launch_settings, decode_episode,
@@ -44,8 +45,8 @@ from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_mod
 from ros_hrc.loop.settings import SettingError
 
 NAME = "hrc_experiment"
-DEFAULT_HUMANS = "beginner,tired,distracted"
-DEFAULT_POLICIES = ",".join(ROBOT_POLICIES)
+DEFAULT_HUMANS = "beginner,tired,distracted,humanModel"
+DEFAULT_POLICIES = ",".join(POLICIES_BY_DEFAULT)
 
 
 class GridError(HrcError):
@@ -133,6 +134,15 @@ def validate_grid(args: argparse.Namespace) -> None:
         loaded.append(load_robot_model(args.robot_model))
     except ModelNotFound as exc:
         raise GridError(f"--robot-model: {exc}") from None
+    for policy in dict.fromkeys(args.policies):
+        own = ROBOT_POLICIES[policy].robot_model
+        if own is not None:
+            try:
+                loaded.append(load_robot_model(own))
+            except ModelNotFound as exc:
+                hint = " (make fit writes it)" if own == "robot_fitted" else ""
+                raise GridError(f"--policies: {policy} runs robot model {own}: {exc}"
+                                f"{hint}") from None
     for human in dict.fromkeys(args.human_models):
         try:
             loaded.append(load_human_model(human))
@@ -144,6 +154,11 @@ def validate_grid(args: argparse.Namespace) -> None:
     mappings = (positional_mapping_line(model) for model in loaded)
     for line in dict.fromkeys(m for m in mappings if m):   # once per file, by its line
         print(f"{NAME}: {line}", flush=True)
+
+
+def robot_model_of(policy: str, grid_model: str) -> str:
+    """The robot model a policy runs with: its own (pomdp_fitted: robot_fitted) or the grid's."""
+    return ROBOT_POLICIES[policy].robot_model or grid_model
 
 
 def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
@@ -159,7 +174,8 @@ def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
                     cells.append(CellSpec(
                         human_model=human, robot_policy=policy, seed=seed, episodes=missing,
                         step_limit=args.step_limit, log_dir=log_dir,
-                        robot_model=args.robot_model, human_choice=args.human_choice,
+                        robot_model=robot_model_of(policy, args.robot_model),
+                        human_choice=args.human_choice,
                         time_per_step=args.time_per_step, max_trials=args.max_trials,
                         reactive_budget=args.reactive_budget, scenarios=args.scenarios,
                         depth=args.depth, lambda_=args.lambda_, record_bag=args.bag))

@@ -1,0 +1,276 @@
+"""hrc_fit: fit the robot model's T and O to the world, by running episodes through the stack.
+
+    hrc_fit --human-models beginner,tired,distracted,humanModel --episodes 100 --seed 0 \\
+            --prior robot --strength 5 --out models/robot/robot_fitted.pomdp
+
+It runs ``--episodes`` episodes per human model through the real stack (one ``hrc.launch`` per
+human model, as ``hrc_experiment`` does) with the exploring robot (``planner:=explore``: a
+uniformly random robot action each step, seeded), so that every robot action is tried in every
+state the humans reach. From each episode it counts what the robot model describes:
+
+* transitions ``(s, a, s')``: the robot's true state at a step (the observer's label,
+  :class:`ros_hrc.loop.task.RobotStateTracker`), the robot's action then, and the label at the
+  next step. The first step starts from the model's start state with ``rIdle``, as the robot
+  process does (its first belief update). An episode that ends in success adds one more
+  transition into the success state S1 (the robot's grasp or the human's ended it); one that
+  ends otherwise (the object left the belt, the step limit) adds none: nothing says where the
+  human would have gone.
+* observations ``(a, s', o)``: the action before the step, the step's label, and the
+  observation the observer sent.
+
+It combines the counts with the prior model as a Dirichlet prior of ``--strength``
+pseudo-counts per row (:func:`ros_hrc.pomdp.fit.fit_model`: rows the episodes never reached keep
+the prior's), keeps the prior's rewards, discount and start, and writes a Cassandra ``.pomdp``
+whose header says how it was made (human models, episodes, seed, prior, strength, counts).
+
+The episodes are kept in ``--runs`` (a results directory as ``hrc_experiment`` writes, with a
+``fit.json`` naming the configuration), so running the same command again reuses them and
+only refits; a ``--runs`` holding another configuration is refused. The stack is seeded
+(the human MDP, the exploring robot, a deterministic world), so the same seed gives the same
+episodes and the same model. ``make fit`` regenerates the shipped
+``models/robot/robot_fitted.pomdp``. No ROS here: the stacks run as ``hrc_experiment``'s cells.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import signal
+import sys
+from collections import defaultdict
+from pathlib import Path
+from typing import Dict, Iterable, List, Optional, Sequence, Tuple
+
+from ros_hrc.command_line import own_arguments
+from ros_hrc.errors import HrcError
+from ros_hrc.experiment.cli import (GridError, OneLineParser, Stopper, _at_least, _names,
+                                    run_grid)
+from ros_hrc.experiment.stack import CellSpec
+from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
+                                      lock_directory)
+from ros_hrc.loop import settings
+from ros_hrc.loop.models import ModelNotFound, load_human_model, load_robot_model, model_path
+from ros_hrc.pomdp.fit import ExperienceCounts, fit_model, support_lines, write_fitted
+from ros_hrc.pomdp.model import Model
+
+NAME = "hrc_fit"
+POLICY = "explore"
+DEFAULT_HUMANS = "beginner,tired,distracted,humanModel"
+#: The robot's action before its first decision: the robot process's first belief update.
+FIRST_ACTION = "rIdle"
+#: The state an episode that ends in success reaches (someone holds the object).
+SUCCESS_STATE = "S1"
+CONFIG_FILE = "fit.json"
+
+
+class FitError(HrcError):
+    """hrc_fit cannot run: one line naming the argument or the file."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = OneLineParser(prog=NAME, description=__doc__.split("\n\n")[0],
+                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--human-models", type=_names, default=_names(DEFAULT_HUMANS),
+                   help=f"human scenarios or .pomdpx files, comma-separated ({DEFAULT_HUMANS})")
+    p.add_argument("--episodes", type=_at_least(1), default=100,
+                   help="episodes per human model (100)")
+    p.add_argument("--seed", type=_at_least(0), default=0,
+                   help="seed of the stacks: the human MDP and the exploring robot (0)")
+    p.add_argument("--step-limit", type=_at_least(1), default=15,
+                   help="steps before an episode ends (15, as hrc_experiment)")
+    p.add_argument("--prior", default="robot",
+                   help="the robot model whose rows are the prior and whose rewards are kept "
+                        "(a scenario name under models/robot or a file; robot)")
+    p.add_argument("--strength", type=_non_negative, default=5.0,
+                   help="the prior's pseudo-counts per row; 0: the episodes' frequencies "
+                        "wherever a row has any (5)")
+    p.add_argument("--jobs", type=_at_least(0), default=0,
+                   help="stacks run side by side (0: one per core)")
+    p.add_argument("--runs", default="results/fit",
+                   help="where the episodes are kept, and found again (results/fit)")
+    p.add_argument("--out", default="models/robot/robot_fitted.pomdp",
+                   help="the .pomdp to write (models/robot/robot_fitted.pomdp)")
+    return p
+
+
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}") from None
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}")
+    return value
+
+
+def configuration(args: argparse.Namespace) -> dict:
+    """What decides the episodes: a ``--runs`` directory holds the episodes of one of these."""
+    return {"human_models": list(args.human_models), "seed": args.seed,
+            "step_limit": args.step_limit, "policy": POLICY}
+
+
+def check_arguments(args: argparse.Namespace) -> Model:
+    """The models load and fit the task; the output is a .pomdp. Returns the prior."""
+    if Path(args.out).suffix != ".pomdp":
+        raise FitError(f"--out {args.out}: the fitted model is written as a Cassandra .pomdp")
+    try:
+        prior = load_robot_model(args.prior)
+    except ModelNotFound as exc:
+        raise FitError(f"--prior: {exc}") from None
+    for human in dict.fromkeys(args.human_models):
+        try:
+            load_human_model(human)
+        except ModelNotFound as exc:
+            raise FitError(f"--human-models: {exc}") from None
+    return prior
+
+
+def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
+    """One cell per human model, the exploring robot, episodes not yet in ``--runs``."""
+    cells = []
+    for human in args.human_models:
+        missing = [e for e in range(args.episodes) if (human, POLICY, args.seed, e) not in done]
+        if missing:
+            cells.append(CellSpec(human_model=human, robot_policy=POLICY, seed=args.seed,
+                                  episodes=missing, step_limit=args.step_limit,
+                                  log_dir=str(Path(args.runs) / "logs"),
+                                  robot_model=str(args.prior)))
+    return cells
+
+
+def count_experience(model: Model, episodes: Iterable[EpisodeRow],
+                     steps: Iterable[StepRow]) -> ExperienceCounts:
+    """The transitions and observations of the given episodes (module docstring)."""
+    by_episode: Dict[Tuple[str, str, int, int], List[StepRow]] = defaultdict(list)
+    for step in steps:
+        by_episode[(step.human_model, step.robot_policy, step.seed, step.episode)].append(step)
+    start = model.states[int(model.initial_belief.argmax())]
+    counts = ExperienceCounts.for_model(model)
+    for row in episodes:
+        trace = sorted(by_episode.get((row.human_model, row.robot_policy, row.seed, row.episode),
+                                      []), key=lambda s: s.step)
+        state, action = start, FIRST_ACTION
+        for step in trace:
+            counts.add_step(state, action, step.robot_state, step.observation, model)
+            state, action = step.robot_state, step.robot_action
+        if trace and row.end_reason == "success":
+            counts.add_transition(state, action, SUCCESS_STATE, model)
+    return counts
+
+
+def header_lines(args: argparse.Namespace, prior_path: str, episodes: int, steps: int,
+                 counts: ExperienceCounts) -> List[str]:
+    return [
+        f"The robot model fitted to the world by hrc_fit: T and O are Dirichlet posterior "
+        f"means of {prior_path} (strength {args.strength:g} pseudo-counts per row) and "
+        f"{episodes} episodes of the stack;",
+        "rewards, discount, start, names: the prior's. Regenerate with `make fit`:",
+        f"  hrc_fit {shlex.join(args.words)}" if args.words else "  hrc_fit",
+        f"human models: {', '.join(args.human_models)}; episodes per model: {args.episodes}; "
+        f"step limit: {args.step_limit}; seed: {args.seed}",
+        "robot: planner:=explore (a uniformly random action each step); true states: the "
+        "observer's labels (ros_hrc.loop.task.RobotStateTracker)",
+        f"experience: {steps} steps; {counts.n_transitions} transitions, "
+        f"{counts.n_observations_counted} observations",
+        "",
+    ]
+
+
+def _error(text: object) -> int:
+    print(f"{NAME}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
+    return 2
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    words = own_arguments(argv)
+    try:
+        args = build_parser().parse_args(words)
+        args.words = list(words)
+        prior = check_arguments(args)
+    except HrcError as exc:
+        return _error(exc)
+    runs = Path(args.runs).expanduser()
+    args.jobs = args.jobs or os.cpu_count() or 1
+    try:
+        lock = lock_directory(runs)
+    except DirectoryLocked as exc:
+        return _error(exc)
+    except OSError as exc:
+        return _error(f"--runs {runs}: {exc.strerror or exc}")
+    with lock:
+        try:
+            return _run_locked(args, runs, prior, words)
+        except HrcError as exc:
+            return _error(exc)
+
+
+def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[str]) -> int:
+    config_path = runs / CONFIG_FILE
+    config = configuration(args)
+    if config_path.exists():
+        try:
+            kept = json.loads(config_path.read_text())
+        except (OSError, ValueError) as exc:
+            raise FitError(f"{config_path}: unreadable ({exc})") from None
+        if kept != config:
+            raise FitError(f"--runs {runs} holds the episodes of another configuration "
+                           f"({json.dumps(kept)}); choose another --runs or delete it")
+    try:
+        store = ResultsStore(runs)
+    except (OSError, ValueError) as exc:
+        raise FitError(exc) from None
+    config_path.write_text(json.dumps(config) + "\n")
+    cells = plan_cells(args, store.done())
+    wanted = len(args.human_models) * args.episodes
+    todo = sum(len(c.episodes) for c in cells)
+    print(f"{NAME}: {len(args.human_models)} human models x {args.episodes} episodes with the "
+          f"exploring robot = {wanted} episodes; {wanted - todo} already in {runs}, {todo} to "
+          f"run", flush=True)
+    if cells:
+        stopper = Stopper()
+        stopper.install()
+        try:
+            figures = run_grid(cells, store, args.jobs, stopper)
+        except KeyboardInterrupt:
+            stopper.stop(signal.SIGINT)
+            figures = None
+        finally:
+            stopper.uninstall()
+        if stopper.stopping:
+            name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
+            print(f"\n{NAME}: stopped by {name}; the episodes so far are kept in {runs}. "
+                  f"Resume with: {shlex.join([NAME] + list(words))}", file=sys.stderr, flush=True)
+            return 128 + int(stopper.signum)  # type: ignore[arg-type]
+        if figures and figures["failed_cells"]:
+            raise FitError(f"{len(figures['failed_cells'])} stacks failed (logs in "
+                           f"{runs / 'logs'}): {figures['failed_cells'][0]}; run again to retry")
+    keys = {(h, POLICY, args.seed, e) for h in args.human_models for e in range(args.episodes)}
+    episodes = [r for r in store.episodes()
+                if (r.human_model, r.robot_policy, r.seed, r.episode) in keys]
+    steps = [s for s in store.steps() if (s.human_model, s.robot_policy, s.seed, s.episode) in keys]
+    if len(episodes) < len(keys):
+        raise FitError(f"only {len(episodes)} of {len(keys)} episodes are in {runs}; run again")
+    counts = count_experience(prior, episodes, steps)
+    fitted = fit_model(prior, counts, args.strength, name=Path(args.out).stem)
+    prior_path = _shown(model_path(args.prior, "robot"))
+    out = Path(args.out).expanduser()
+    write_fitted(fitted, out, header_lines(args, prior_path, len(episodes), len(steps), counts))
+    for line in support_lines(prior, counts):
+        print(f"{NAME}: {line}")
+    print(f"{NAME}: wrote {out} ({len(episodes)} episodes, {len(steps)} steps, prior "
+          f"{prior_path}, strength {args.strength:g})", flush=True)
+    return 0
+
+
+def _shown(path: Path) -> str:
+    from ros_hrc.model_files import MODELS_DIR
+
+    try:
+        return str(Path(path).resolve().relative_to(MODELS_DIR.parent))
+    except ValueError:
+        return str(path)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
