@@ -274,8 +274,9 @@ def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None,
 
 
 def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int,
-             stopper: Optional[Stopper] = None) -> dict:
-    """Run the cells side by side; record episodes as they come. Returns run figures."""
+             stopper: Optional[Stopper] = None, program: str = NAME) -> dict:
+    """Run the cells side by side; record episodes as they come. Returns run figures.
+    ``program`` names the progress bar and the messages (hrc_fit runs grids too)."""
     from tqdm import tqdm
 
     stopper = stopper or Stopper()
@@ -286,7 +287,7 @@ def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int,
     lock = threading.Lock()   # the store and the bar, from every worker's thread
     logs = Path(cells[0].log_dir)
     logs.mkdir(parents=True, exist_ok=True)
-    with tqdm(total=total, unit="episode", desc=NAME, dynamic_ncols=True,
+    with tqdm(total=total, unit="episode", desc=program, dynamic_ncols=True,
               mininterval=0.5 if sys.stderr.isatty() else 10.0) as bar:
 
         def deliver(row, steps) -> None:
@@ -320,7 +321,7 @@ def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int,
                     except (RuntimeError, OSError) as exc:
                         with lock:
                             failures.append(f"{name}: {exc}")
-                            bar.write(f"{NAME}: cell failed: {failures[-1]}")
+                            bar.write(f"{program}: cell failed: {failures[-1]}")
             finally:
                 release()
 

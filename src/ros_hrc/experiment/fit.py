@@ -231,7 +231,7 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
         stopper = Stopper()
         stopper.install()
         try:
-            figures = run_grid(cells, store, args.jobs, stopper)
+            figures = run_grid(cells, store, args.jobs, stopper, program=NAME)
         except KeyboardInterrupt:
             stopper.stop(signal.SIGINT)
             figures = None

@@ -1,0 +1,87 @@
+"""hrc_fit around the stacks: what it counts from recorded episodes, and what it refuses before
+any stack starts. (The fit itself, recovering known tables from synthetic experience, is
+test/unit/pomdp/test_fit.py; the stack's episodes are test/rostest's.)"""
+import json
+
+import numpy as np
+import pytest
+
+from ros_hrc.experiment import fit
+from ros_hrc.experiment.store import EpisodeRow, StepRow
+from ros_hrc.loop.models import load_robot_model
+
+
+def episode(number, end_reason="success", succeeded_by="robot", steps=3):
+    success = end_reason == "success"
+    return EpisodeRow(human_model="beginner", robot_policy="explore", seed=0, episode=number,
+                      success=int(success), succeeded_by=succeeded_by if success else "none",
+                      end_reason=end_reason, steps=steps, sim_seconds=1.0,
+                      robot_discounted_reward=0.0, intrusive_actions=0, warnings=0,
+                      zero_probability_observations=0, mean_decision_ms=0.1, wall_seconds=1.0)
+
+
+def step(number, index, state, action, observation):
+    return StepRow("beginner", "explore", 0, number, index, "idle", "evaluating", state, action,
+                   observation, 0.5, int(state in ("S2", "S3", "S4", "S5")), 0)
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot_model("robot")
+
+
+def idx(model, kind, name):
+    return model.index(kind, name)
+
+
+def test_an_episode_counts_from_the_start_state_and_ends_in_success(robot):
+    steps = [step(0, 0, "S0", "rGrasp_obj", "O35"), step(0, 1, "S2", "rIdle", "O35"),
+             step(0, 2, "S3", "rGrasp_obj", "O35")]
+    counts = fit.count_experience(robot, [episode(0)], reversed(steps))   # any order
+    T, O = counts.transitions, counts.observations
+    s, a, o = (lambda n: idx(robot, "state", n)), (lambda n: idx(robot, "action", n)), \
+        (lambda n: idx(robot, "observation", n))
+    # the robot process's first belief update: rIdle from the start state S0
+    assert T[a("rIdle"), s("S0"), s("S0")] == 1 and O[a("rIdle"), s("S0"), o("O35")] == 1
+    assert T[a("rGrasp_obj"), s("S0"), s("S2")] == 1 and O[a("rGrasp_obj"), s("S2"), o("O35")] == 1
+    assert T[a("rIdle"), s("S2"), s("S3")] == 1 and O[a("rIdle"), s("S3"), o("O35")] == 1
+    assert T[a("rGrasp_obj"), s("S3"), s("S1")] == 1          # the grasp that ended it
+    assert counts.n_transitions == 4 and counts.n_observations_counted == 3
+
+
+@pytest.mark.parametrize("reason", ["object_left_belt", "step_limit"])
+def test_an_episode_that_fails_adds_no_last_transition(robot, reason):
+    steps = [step(1, 0, "S0", "rIdle", "O35"), step(1, 1, "S3", "rPoint_obj", "O0")]
+    counts = fit.count_experience(robot, [episode(1, reason, steps=2)], steps)
+    assert counts.n_transitions == 2 and counts.n_observations_counted == 2
+    assert counts.transitions[idx(robot, "action", "rPoint_obj")].sum() == 0
+
+
+def test_counts_fit_the_prior_and_keep_its_rewards(robot):
+    steps = [step(e, 0, "S3", "rGrasp_obj", "O0") for e in range(40)]
+    counts = fit.count_experience(robot, [episode(e, steps=1) for e in range(40)], steps)
+    fitted = fit.fit_model(robot, counts, strength=5)
+    a, s3, s1 = idx(robot, "action", "rGrasp_obj"), idx(robot, "state", "S3"), \
+        idx(robot, "state", "S1")
+    # 40 grasps from S3, all successful, against the prior's 0.6 with 5 pseudo-counts
+    assert fitted.dense_T[a][s3, s1] == pytest.approx((5 * 0.6 + 40) / 45)
+    assert all(np.array_equal(f.toarray(), p.toarray()) for f, p in zip(fitted.R, robot.R))
+
+
+def test_bad_arguments_are_refused_before_any_stack(tmp_path, capsys):
+    assert fit.main(["--out", str(tmp_path / "x.pomdpx"), "--runs", str(tmp_path)]) == 2
+    assert "Cassandra .pomdp" in capsys.readouterr().err
+    assert fit.main(["--prior", "nonesuch", "--runs", str(tmp_path)]) == 2
+    assert "--prior: no robot model named 'nonesuch'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        fit.build_parser().parse_args(["--strength", "-1"])
+    assert "must be a number >= 0" in capsys.readouterr().err
+
+
+def test_runs_of_another_configuration_are_refused(tmp_path, capsys):
+    (tmp_path / fit.CONFIG_FILE).write_text(json.dumps({"human_models": ["tired"], "seed": 3,
+                                                         "step_limit": 15, "policy": "explore"}))
+    out = tmp_path / "fitted.pomdp"
+    assert fit.main(["--runs", str(tmp_path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "holds the episodes of another configuration" in err and not out.exists()
