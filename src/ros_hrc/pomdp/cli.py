@@ -185,8 +185,12 @@ def _register_solve(subparsers) -> None:
         "solve", help="solve offline: bounds at the initial belief, optional policy file",
         description="Solve MODEL offline: HSVI2 (a point-based solver with lower and upper "
                     "bounds) for a POMDP, value iteration for an MDP. Prints the bounds on the "
-                    "optimal value at the initial belief and the time taken; stops when the "
-                    "bounds are within PRECISION or after the timeout.")
+                    "optimal value from the initial belief and the time taken; stops when the "
+                    "bounds are within PRECISION or after the timeout. With fully observable "
+                    "state variables (POMDPX fullyObs, mixed observability) their values are "
+                    "known from the first step, as in SARSOP: the value from the initial belief "
+                    "is the average, over the start values of those variables, of the value "
+                    "given them (an MDP: the average over start states of their values).")
     p.add_argument("model", help="a .pomdp or .pomdpx file")
     p.add_argument("--timeout", type=_non_negative, default=60.0, metavar="S",
                    help="stop after S seconds (default 60)")
@@ -257,8 +261,12 @@ def _register_simulate(subparsers) -> None:
         "simulate", help="expected total discounted reward of a policy or of DESPOT",
         description="Simulate MODEL like SARSOP's pomdpsim: SIM-NUM runs of SIM-LEN steps from "
                     "the initial belief, true states drawn from T, observations from O, rewards "
-                    "R(s,a,s') discounted. Prints the mean total with its 95 %% confidence "
-                    "interval (mean +/- 1.96 sd / sqrt(runs)) and the planner's time per step.")
+                    "R(s,a,s') discounted. With fully observable state variables (POMDPX "
+                    "fullyObs, mixed observability) the planner knows their values from the "
+                    "first step, as in SARSOP: it starts from the initial belief conditioned on "
+                    "the start state's fully observable values (an MDP: on the start state). "
+                    "Prints the mean total with its 95 % confidence interval "
+                    "(mean +/- 1.96 sd / sqrt(runs)) and the planner's time per step.")
     p.add_argument("model", help="a .pomdp or .pomdpx file")
     how = p.add_mutually_exclusive_group(required=True)
     how.add_argument("--policy", metavar="POLICY", help="a policy file written by 'solve -o'")

@@ -549,6 +549,9 @@ class DespotPlanner(BeliefPlanner):
 
     # -- the Planner interface -----------------------------------------------------------------
     def reset(self, belief: Optional[np.ndarray] = None) -> None:
+        """Start again from ``belief`` (e.g. ``model.start_belief(state)``) or the initial
+        belief: every search draws its scenarios from the current belief, the particles of a
+        particle belief are drawn from this one."""
         super().reset(belief)
         self._update_seconds = 0.0
 

@@ -8,17 +8,25 @@ Two bounds on the optimal value function V* are kept and tightened along sampled
 * upper bound: corner values plus a set of (belief, value) points, read with the sawtooth
   interpolation; it starts from the fast informed bound.
 
-A trial starts at the initial belief and descends, taking the action with the best upper bound
-and the observation with the largest weighted excess gap, until the gap at depth t is below
-``precision / γ^t``; it then backs both bounds up along the path, deepest first. The solver stops
-when the gap at the initial belief is below ``precision`` or the time is up, and returns the
-lower-bound vectors as a ``Policy``. Both bounds are valid at every moment (anytime).
+A trial starts at the initial belief (a root: see mixed observability below) and descends,
+taking the action with the best upper bound and the observation with the largest weighted excess
+gap, until the gap at depth t is below ``precision / γ^t``; it then backs both bounds up along the
+path, deepest first. The solver stops when the gap at the start is below ``precision`` or the
+time is up, and returns the lower-bound vectors as a ``Policy``. Both bounds are valid at every
+moment (anytime).
 
 Our addition to HSVI2: after each trial, synchronous sweeps back both bounds up at once at every
 belief the trials have met and at their one-step successors, for as long as a sweep narrows the
-gap at b0 by 1 % or more. Trials find the beliefs that matter; sweeps, which cost about one
+gap at the start by 1 % or more. Trials find the beliefs that matter; sweeps, which cost about one
 backup each in numpy, propagate values around them. On Tiger this turns ~6000 sequential
 backups into a few dozen batched ones.
+
+Mixed observability (POMDPX ``fullyObs`` variables, ``Model.observed_key``): the fully observed
+values are seen before the first action, so the value to bound is Σ_k P(k) V*(b_k) over the
+initial belief split by them (``Model.start_split``), as in SARSOP. Each b_k is a root: all are
+in the belief set and the upper bound's points, a trial starts at the root with the largest
+weighted excess gap P(k)·(gap(b_k) − precision), and the bounds reported at the start (and the
+policy's) are the weighted sums. Without a key there is one root, the initial belief.
 
 A fully observable model is an MDP: ``solve`` then runs value iteration instead.
 """
@@ -210,9 +218,10 @@ class _UpperBound:
 class _BeliefSet:
     """Distinct beliefs met by the trials and the sweeps, each with a reach weight.
 
-    The weight of a belief is the largest γ^t·P(path) over the ways it has been reached from b0;
-    sweeps back up the heaviest beliefs (those that matter most to the value at b0) and add the
-    successors of each belief the first time it is swept, so the set grows toward closure.
+    The weight of a belief is the largest P(k)·γ^t·P(path) over the ways it has been reached from
+    a root b_k; sweeps back up the heaviest beliefs (those that matter most to the value at the
+    start) and add the successors of each belief the first time it is swept, so the set grows
+    toward closure.
     """
 
     def __init__(self, S: int) -> None:
@@ -272,13 +281,20 @@ class HsviSolver:
         self.model = model
         self.t = _Tables(model)
         self.b0 = np.asarray(model.initial_belief, dtype=float)
+        # The roots: the initial belief split by the fully observed values seen at the start
+        # (one root, the initial belief, when there are none).
+        split = model.start_split()
+        self.root_weights = np.array([w for w, _ in split])
+        self.roots = np.array([b for _, b in split]).reshape(len(split), self.t.S)
         blind = mdp.blind_lower_bound(model)
         self.lower = _LowerBound(blind.copy(), np.arange(model.n_actions))
         fib = mdp.fast_informed_bound(model)
         self.upper = _UpperBound(fib.max(axis=0))
-        self.upper.add(self.b0, float((fib @ self.b0).max()))
+        for root in self.roots:
+            self.upper.add(root, float((fib @ root).max()))
         self.beliefs = _BeliefSet(self.t.S)
-        self.beliefs.add(self.b0, 1.0)
+        for w, root in zip(self.root_weights, self.roots):
+            self.beliefs.add(root, w)
         self.trials = 0
         self.sweeps = 0
         self.backups = 0
@@ -286,9 +302,17 @@ class HsviSolver:
 
     # -- bounds at one belief ------------------------------------------------------------------
     def bounds(self, b: Optional[np.ndarray] = None) -> Tuple[float, float]:
-        """(lower, upper) at ``b`` (default: the initial belief)."""
-        x = self.b0 if b is None else np.asarray(b, dtype=float)
+        """(lower, upper) at ``b``; by default at the start: Σ_k P(k)·bound(b_k) over the roots
+        (the bounds at the initial belief when nothing is fully observed)."""
+        if b is None:
+            lo, up = self._root_bounds()
+            return float(self.root_weights @ lo), float(self.root_weights @ up)
+        x = np.asarray(b, dtype=float)
         return float(self.lower.values(x[None])[0]), float(self.upper.values(x[None])[0])
+
+    def _root_bounds(self) -> Tuple[np.ndarray, np.ndarray]:
+        """The lower and upper bounds at each root."""
+        return self.lower.values(self.roots), self.upper.values(self.roots)
 
     def _q_upper(self, b: np.ndarray, p: np.ndarray,
                  B: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
@@ -300,10 +324,14 @@ class HsviSolver:
     # -- one trial -----------------------------------------------------------------------------
     def _trial(self, precision: float, deadline: float) -> None:
         gamma = self.t.gamma
-        b = self.b0
+        # The root whose weighted gap exceeds the target the most: while the weighted sum of
+        # the gaps is above ``precision``, some root's gap is, and this picks one of those.
+        lo, up = self._root_bounds()
+        k = int(np.argmax(self.root_weights * (up - lo - precision)))
+        b = self.roots[k]
         width = precision
         path: List[Tuple[np.ndarray, np.ndarray, np.ndarray, float]] = []
-        weight = 1.0
+        weight = float(self.root_weights[k])
         while True:
             p, B = self.t.successors(b)
             q_up, ub_succ = self._q_upper(b, p, B)
@@ -421,9 +449,9 @@ class HsviSolver:
         self.sweeps += 1
 
     def _sweeps(self, precision: float, deadline: float, max_sweeps: int = 10_000) -> None:
-        """Sweep while it pays: while the gap at b0 shrinks by at least half of what exact value
-        iteration would achieve per sweep (a factor γ). The first sweeps after a trial always
-        run: each also adds a level of successors to the belief set."""
+        """Sweep while it pays: while the gap at the start shrinks by at least half of what exact
+        value iteration would achieve per sweep (a factor γ). The first sweeps after a trial
+        always run: each also adds a level of successors to the belief set."""
         lo, up = self.bounds()
         wanted = 0.5 * (1.0 - self.t.gamma)
         for k in range(max_sweeps):
@@ -437,14 +465,15 @@ class HsviSolver:
 
     def _prune(self) -> None:
         self.upper.prune()
-        beliefs = np.vstack([np.eye(self.t.S), self.b0[None], self.beliefs.all_rows()])
+        beliefs = np.vstack([np.eye(self.t.S), self.roots, self.beliefs.all_rows()])
         self.lower.prune(beliefs)
 
     # -- the loop ------------------------------------------------------------------------------
     def run(self, timeout: Optional[float] = 60.0, precision: float = 1e-3,
             progress: Optional[Callable[[SolveProgress], None]] = None,
             max_trials: Optional[int] = None) -> Tuple[float, float]:
-        """Improve the bounds until their gap at b0 is <= ``precision`` or time is up."""
+        """Improve the bounds until their gap at the start (see ``bounds``) is <= ``precision``
+        or time is up."""
         if precision <= 0:
             raise SolverError(f"precision must be positive, got {precision}")
         start = time.perf_counter()
@@ -468,7 +497,7 @@ class HsviSolver:
         return lo, up
 
     def policy(self) -> Policy:
-        """The lower-bound vectors as a Policy, with the bounds at b0 and statistics."""
+        """The lower-bound vectors as a Policy, with the bounds at the start and statistics."""
         self._prune()
         lo, up = self.bounds()
         m = self.model
@@ -485,9 +514,10 @@ def solve(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3
           progress: Optional[Callable[[SolveProgress], None]] = None) -> Policy:
     """Solve ``model`` offline: HSVI2 for a POMDP, value iteration for an MDP.
 
-    The returned policy carries ``lower``/``upper``, bounds on the optimal value at the initial
-    belief, and ``stats`` (seconds, trials, ...). Stops when ``upper - lower <= precision`` or
-    after ``timeout`` seconds (None: no limit).
+    The returned policy carries ``lower``/``upper``, bounds on the optimal value at the start
+    (the initial belief; with fully observed variables Σ_k P(k) V*(b_k) over
+    ``model.start_split()``, what SARSOP reports), and ``stats`` (seconds, trials, ...). Stops
+    when ``upper - lower <= precision`` or after ``timeout`` seconds (None: no limit).
     """
     if model.fully_observable:
         return solve_mdp(model, timeout=timeout, precision=precision)
@@ -497,7 +527,11 @@ def solve(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3
 
 
 def solve_mdp(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3) -> Policy:
-    """Value iteration, stored as a policy with one vector Q[a] per action (kind "mdp")."""
+    """Value iteration, stored as a policy with one vector Q[a] per action (kind "mdp").
+
+    Its bounds are b0·V ± the error bound: the start value of an MDP, whose start state is seen
+    (each state its own key, so Σ_k P(k) V(b_k) = b0·V).
+    """
     start = time.perf_counter()
     # The bracket b0·V ± error_bound must be narrower than the precision asked for.
     sol = mdp.value_iteration(model, epsilon=min(precision / 2.0, 1e-6), timeout=timeout)

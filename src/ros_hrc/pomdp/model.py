@@ -5,12 +5,21 @@ O(o | s', a) is ``O[a][s', o]``, and rewards are R(s, a, s') in ``R[a][s, s']``
 (an observation-dependent reward is folded into its expectation over o).
 Tables are scipy CSR matrices so large models (RockSample_7_8: 12,545 states) stay small;
 ``dense_*`` give numpy arrays for the small models where dense algebra is faster.
+
+Mixed observability (a MOMDP, as SARSOP reads POMDPX): ``observed_key`` gives each state the
+values of its fully observed variables as one integer; states with equal keys are told apart
+only by the hidden variables. Those values are known at every step, the first included: after
+a step they arrive in the observation (the POMDPX reader puts them there), and at the start the
+true state's key is seen before the first action. So a run starts from
+:meth:`Model.start_belief` of its true start state, and the optimal value at the start is
+Σ_k P(k) V*(b_k) over :meth:`Model.start_split` (at least V*(initial belief): knowing k can
+only help). Without a key (a plain POMDP) both are the initial belief itself.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,7 +35,8 @@ PROBABILITY_TOLERANCE = 1e-4
 class Model:
     """A discrete POMDP (an MDP when ``fully_observable``).
 
-    For an MDP the observations are the states themselves (``O[a]`` is the identity).
+    For an MDP the observations are the states themselves (``O[a]`` is the identity), and each
+    state is its own ``observed_key`` (set here when not given).
     """
 
     states: List[str]
@@ -42,6 +52,12 @@ class Model:
     name: str = ""
     source: Optional[str] = None               # the file it came from, for messages
     meta: dict = field(default_factory=dict)   # format-specific extras (e.g. POMDPX variables)
+    observed_key: Optional[np.ndarray] = None  # (S,) int: the fully observed variables' values
+
+    def __post_init__(self) -> None:
+        if self.observed_key is None and self.fully_observable:
+            # An MDP: the whole state is seen, so every state is a key of its own.
+            self.observed_key = np.arange(len(self.states))
 
     # -- sizes -----------------------------------------------------------------
     @property
@@ -73,6 +89,52 @@ class Model:
         """O as a dense (A, S', O) array; only for small models."""
         return np.stack([o.toarray() for o in self.O])
 
+    # -- mixed observability -------------------------------------------------------------------
+    def start_belief(self, state: int) -> np.ndarray:
+        """The belief at the start of a run whose true start state is ``state``: the initial
+        belief conditioned on the fully observed values of ``state`` (a copy of the initial
+        belief when nothing is fully observed, or when the condition holds with probability one).
+        """
+        b = np.asarray(self.initial_belief, dtype=float)
+        if self.observed_key is None:
+            return b.copy()
+        if not 0 <= state < self.n_states:
+            raise ModelError(f"state {state} out of range 0..{self.n_states - 1}")
+        same = self.observed_key == self.observed_key[state]
+        if np.all(same | (b == 0)):
+            # Conditioning on a certain event changes nothing; returning b itself keeps such
+            # models (one start key, e.g. RockSample's rover position) bit for bit as before.
+            return b.copy()
+        conditioned = np.where(same, b, 0.0)
+        mass = conditioned.sum()
+        if mass <= 0:
+            raise ModelError(f"state {self.states[state]!r} has probability zero in the "
+                             f"initial belief")
+        return conditioned / mass
+
+    def start_split(self) -> List[Tuple[float, np.ndarray]]:
+        """The initial belief split by what is seen at the start: (P(k), belief given k) for
+        each fully observed value k of positive initial probability, in key order.
+
+        The weights sum to one and the weighted beliefs add up to the initial belief b0
+        (normalised), so Σ_k P(k) α·b_k = α·b0 for every vector α: a policy's value splits
+        exactly; the optimum V* does not, which is the point. Without a key, or with one key
+        only, this is ``[(1.0, b0)]``.
+        """
+        b = np.asarray(self.initial_belief, dtype=float)
+        if self.observed_key is None:
+            return [(1.0, b.copy())]
+        keys = np.unique(self.observed_key[b > 0])
+        if keys.size <= 1:
+            return [(1.0, b.copy())]
+        total = float(b.sum())
+        split = []
+        for k in keys:
+            conditioned = np.where(self.observed_key == k, b, 0.0)
+            mass = float(conditioned.sum())
+            split.append((mass / total, conditioned / mass))
+        return split
+
     # -- lookups -----------------------------------------------------------------
     def index(self, kind: str, name: str) -> int:
         """Index of a state, action or observation by name; ModelError when unknown."""
@@ -91,6 +153,11 @@ class Model:
         if self.initial_belief.shape != (S,):
             raise ModelError(f"initial belief has {self.initial_belief.size} entries, expected {S}")
         _check_distribution("initial belief", self.initial_belief[None, :], tolerance)
+        if self.observed_key is not None:
+            key = np.asarray(self.observed_key)
+            if key.shape != (S,) or not np.issubdtype(key.dtype, np.integer):
+                raise ModelError(f"observed_key must be {S} integers, one per state "
+                                 f"(got {key.dtype} of shape {key.shape})")
         for table, width, label in ((self.T, S, "T"), (self.O, O, "O"), (self.R, S, "R")):
             if len(table) != A:
                 raise ModelError(f"{label} has {len(table)} actions, expected {A}")

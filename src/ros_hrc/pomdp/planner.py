@@ -6,6 +6,11 @@ A planner keeps a belief and is driven in lockstep::
     a = planner.act()                # choose from the current belief (stats in last_stats)
     planner.update(a, o)             # the world answered with observation o
 
+A run starts from ``reset(model.start_belief(state))`` (``simulate`` does so): with fully
+observable state variables (mixed observability) the planner knows their values from the first
+step, so it starts from the initial belief conditioned on them (an MDP: a point mass on the start
+state). Every planner here then works from that belief as from any other.
+
 ``update`` never raises on an observation the belief gives probability zero: the belief falls
 back to the prediction through T alone (``Belief.predict``), ``last_update_zero_probability``
 is set, ``zero_probability_events`` counts it and a warning is logged. Planners:

@@ -17,7 +17,8 @@ written to exactly the path given, with these arrays:
     state_names    str     (S,)
     action_names   str     (A,)
     discount       float64 ()
-    lower, upper   float64 ():     bounds on the optimal value at the model's initial belief
+    lower, upper   float64 ():     bounds on the optimal value from the model's initial belief
+                                   (with mixed observability Σ_k P(k) V*(b_k): Model.start_split)
     model_name     str     ()
     stats_json     str     ():     solver statistics (seconds, trials, ...) as a JSON object
 

@@ -35,6 +35,9 @@ How a factored file becomes one flat model
   variables become part of the observation: the observation is the product of the fully
   observable state variables' next values and the observation variables, in declaration
   order, named as joint states are. A model with neither has the single observation ``none``.
+  Either way ``observed_key`` numbers the fully observable variables' joint value of each
+  state (an MDP: the state itself), so that a run and the solvers know it from the start, as
+  SARSOP does; it is None when no state variable is ``fullyObs``.
 * ``R[a]`` keeps every (s, s') up to
   :data:`~ros_hrc.pomdp.fileformat.FULL_REWARD_STATES` states, and only the cells where
   ``T(s'|s,a) > 0`` above it.
@@ -50,7 +53,9 @@ variable, one observation variable (none for an MDP, whose state variable is ``f
 one reward function over (action, state_0, state_1). Names come from the model's own POMDPX
 variables when it was read from a one-variable file. A ``values: cost`` model is marked
 ``[values: cost]`` in the ``<Description>`` (rewards are still written as rewards = -cost) so
-the flag survives a round trip.
+the flag survives a round trip. A model with mixed observability is written as a POMDP whose
+observation still carries the fully observed values after each step, but its ``observed_key``
+is not kept: read back, the start is no longer conditioned on them.
 """
 from __future__ import annotations
 
@@ -597,11 +602,18 @@ class _Reader:
             T.append(sp.csr_matrix(reduce(rowwise_kron, parts)))
 
         state_names = joint_names([prev.values for prev, _, _ in self.state_vars])
+        # The fully observed variables' joint value, numbered like joint states (an MDP: the
+        # state itself); None when every state variable is hidden.
+        seen = [i for i, (_, _, fo) in enumerate(self.state_vars) if fo]
+        observed_key = None
+        if seen:
+            observed_key = np.zeros(S, dtype=np.int64)
+            for i in seen:
+                observed_key = observed_key * sizes[i] + digits[i]
         if fully:
             observations = list(state_names)
             O = [sp.identity(S, format="csr") for _ in range(A)]
         else:
-            seen = [i for i, (_, _, fo) in enumerate(self.state_vars) if fo]
             obs_f = []
             if self.obs_vars:
                 found = {f.var.index: f for f in obs}
@@ -654,7 +666,7 @@ class _Reader:
         model = Model(states=list(state_names), actions=list(self.action.values),
                       observations=observations, discount=discount, initial_belief=b,
                       T=T, O=O, R=R, fully_observable=fully, minimise=minimise, name=name,
-                      source=self.source, meta=meta)
+                      source=self.source, meta=meta, observed_key=observed_key)
         try:
             model.validate()
         except ModelError as exc:

@@ -1,9 +1,13 @@
 """Policy evaluation by simulation, like SARSOP's ``pomdpsim``.
 
-Each run draws a true start state from the initial belief, then for ``sim_len`` steps asks the
-planner for an action, draws s' ~ T(.|s,a) and o ~ O(.|s',a), collects the realised reward
-R(s,a,s') discounted by γ^t, and tells the planner (a, o). The result is the mean discounted total
-over ``sim_num`` runs with its 95 % confidence interval, mean ± 1.96·sd/√n (sd the sample standard
+Each run draws a true start state from the initial belief and resets the planner to
+``model.start_belief(state)``: with mixed observability (POMDPX ``fullyObs`` variables) the fully
+observed part of the state is known from the first step, as in SARSOP, so the planner starts from
+the initial belief conditioned on it (an MDP: a point mass on the start state); a plain POMDP
+starts from the initial belief itself. Then for ``sim_len`` steps it asks the planner for an
+action, draws s' ~ T(.|s,a) and o ~ O(.|s',a), collects the realised reward R(s,a,s')
+discounted by γ^t, and tells the planner (a, o). The result is the mean discounted total over
+``sim_num`` runs with its 95 % confidence interval, mean ± 1.96·sd/√n (sd the sample standard
 deviation), and the time the planner took per step.
 
 Seeds: one ``numpy.random.SeedSequence(seed)`` is split into one child per run; a run's child
@@ -89,8 +93,9 @@ def simulate(model: Model, planner_factory: Callable[[int], Planner], sim_len: i
     for run, child in enumerate(children):
         world = np.random.default_rng(child)
         planner = planner_factory(int(child.generate_state(1)[0]))
-        planner.reset()
         state = int(sampler.sample_initial(world, 1)[0])
+        # The fully observed variables are seen before the first action (mixed observability).
+        planner.reset(model.start_belief(state))
         u = world.random((sim_len, 2)).tolist()
         total = 0.0
         plain = 0.0
