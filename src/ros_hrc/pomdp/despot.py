@@ -83,6 +83,8 @@ FREE_SECONDS_PER_NODE = 1e-6
 #: Safety factor on that estimate, the fewest nodes a measurement is taken from, and the most
 #: a measurement may say (a stall while freeing must not starve the next searches).
 FREE_MARGIN = 1.5
+#: Relative difference below which two actions' values are a tie (see _best_action).
+TIE_TOLERANCE = 1e-6
 FREE_MIN_NODES = 100
 FREE_MAX_PER_NODE = 1e-5
 
@@ -357,6 +359,13 @@ class DespotPlanner(BeliefPlanner):
         self._nodes = 1
         self._max_depth = 0
         self._root_action = int(acts[0])          # the default action (only the root's is used)
+        if self.config.lower != "rollout":
+            # Ties among the plans' values at the root go to the model's first action, as in
+            # _best_action (the plans' numerical slack must not choose the robot's action).
+            means = self._plans[:, states].mean(axis=1)
+            best = means.max()
+            near = means >= best - TIE_TOLERANCE * max(1.0, abs(best))
+            self._root_action = int(self._plan_actions[near].min())
         lower, upper = float(low[0]), float(up[0])
         upper = max(upper, lower)
         return _VNode(0, (scen, states), 0, K, 1.0, lower, lower, upper, upper)
@@ -627,11 +636,17 @@ class DespotPlanner(BeliefPlanner):
 
     @staticmethod
     def _best_action(root: _VNode, default_action: int) -> int:
-        """The root's action with the best lower bound, or its default action."""
-        action = default_action
-        best = root.lower0
+        """The root's action with the best lower bound, or its default action.
+
+        Values within :data:`TIE_TOLERANCE` (relative) of the best are ties, and a tie goes to
+        the action the model lists first. The bounds carry numerical slack (the blind policies'
+        convergence margin, a few 1e-7), so without this rule a robot that has nothing left
+        to gain (the human holds the object: every action is worth 0) would pick whichever
+        action's slack happens to be smallest, e.g. pointing; the model's first action, rIdle
+        in the robot model, is the one that does nothing."""
+        candidates = [(root.lower0, default_action)]
         if root.children is not None:
-            for q in root.children:
-                if q.lower > best:
-                    best, action = q.lower, q.action
-        return int(action)
+            candidates += [(q.lower, q.action) for q in root.children]
+        best = max(value for value, _ in candidates)
+        tolerance = TIE_TOLERANCE * max(1.0, abs(best))
+        return int(min(a for value, a in candidates if value >= best - tolerance))
