@@ -101,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--policies", type=_names, default=_names(DEFAULT_POLICIES),
                    help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)}")
     p.add_argument("--seeds", type=_seeds, default=[0, 1], help="seeds, comma-separated (0,1)")
-    p.add_argument("--episodes", type=_at_least(1), default=3, help="episodes per cell (3)")
+    p.add_argument("--episodes", type=_at_least(1), default=10, help="episodes per cell (10)")
     p.add_argument("--step-limit", type=_at_least(1), default=15,
                    help="steps before an episode ends (15)")
     p.add_argument("--jobs", type=_at_least(0), default=0,
