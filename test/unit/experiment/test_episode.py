@@ -21,13 +21,14 @@ def robot_model():
 
 
 def step(n, robot_state="S0", robot_action="rIdle", bits=35, holder="none", left=False,
-         sim_time=None, belief=None, human_action="idle", human_state="evaluating"):
+         sim_time=None, belief=None, human_action="idle", human_state="evaluating",
+         surprise=False):
     return SimpleNamespace(
         step=n, human_action=human_action, human_state=human_state, observation_bits=bits,
         robot_observation=f"O{bits}", robot_state=robot_state, robot_action=robot_action,
         belief_states=STATES, belief=belief or [1.0, 0, 0, 0, 0, 0, 0], decision_ms=2.0 * (n + 1),
         sim_time=10.0 + n if sim_time is None else sim_time, object_holder=holder,
-        object_left_belt=left)
+        object_left_belt=left, surprise=surprise)
 
 
 def test_scoring_counts_who_succeeded_intrusions_warnings_and_times(robot_model):
@@ -46,6 +47,21 @@ def test_scoring_counts_who_succeeded_intrusions_warnings_and_times(robot_model)
     assert row.sim_seconds == pytest.approx(14.0 - 9.5)
     assert row.mean_decision_ms == pytest.approx((2 + 4 + 6 + 8 + 10) / 5)
     assert row.wall_seconds == 1.25
+
+
+def test_observations_the_model_gave_probability_0_are_counted(robot_model):
+    steps = [step(0, bits=19, surprise=True),       # a warning the model did not expect at once
+             step(1), step(2, surprise=True), step(3)]
+    row = score_episode(("humanModel_completed", "pomdp", 0, 0), steps, "step_limit", 10.0,
+                        robot_model, 1.0)
+    assert row.zero_probability_observations == 2
+    assert [r.zero_probability for r in step_rows(("h", "pomdp", 0, 0), steps)] == [1, 0, 1, 0]
+    from ros_hrc.experiment.statistics import summarize
+    other = score_episode(("humanModel_completed", "pomdp", 0, 1), steps[1:2], "step_limit",
+                          10.0, robot_model, 1.0)
+    (entry,) = summarize([row, other])
+    assert (entry["zero_probability_observations"], entry["observations"]) == (2, 5)
+    assert entry["zero_probability_rate"] == pytest.approx(0.4)
 
 
 def test_a_missed_object_is_no_success_whoever_was_near(robot_model):

@@ -339,3 +339,18 @@ def test_completed_robot_rewards_encourage_helping_and_punish_idling():
     assert -5 <= step_reward(m, "rGrasp_obj", "S5", "S5") < 0
     policy, _ = optimal_policy(m)              # as if the robot saw the state
     assert [m.actions[policy[i]] for i in (3, 5, 6)] == ["rGrasp_obj", "rPoint_obj", "rStop_all"]
+
+
+# -- robot_fitted: the authors' model fitted to the world by hrc_fit (make fit) ------------------------
+def test_fitted_robot_says_how_it_was_made_and_keeps_the_authors_rewards():
+    text = (ROBOT / "robot_fitted.pomdp").read_text()
+    header = [line for line in text.splitlines()[:12] if line.startswith("#")]
+    for word in ("hrc_fit", "make fit", "human models:", "episodes per model:", "seed:", "strength", "experience:"):
+        assert any(word in line for line in header), word
+    fitted, authors = robot("robot_fitted"), robot()
+    assert fitted.states == authors.states and fitted.actions == authors.actions
+    assert fitted.observations == authors.observations and fitted.discount == authors.discount
+    assert all(np.array_equal(f.toarray(), a.toarray()) for f, a in zip(fitted.R, authors.R))
+    assert np.array_equal(fitted.initial_belief, authors.initial_belief)
+    # The world, not the authors' guess: a grasp in S3 gets the object far less often than 0.6.
+    assert fitted.dense_T[2][3, 1] < 0.5
