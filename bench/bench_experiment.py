@@ -35,7 +35,9 @@ def main(argv=None) -> int:
                         default=Path(__file__).resolve().parent / "results" / "experiment.json")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bench_experiment_") as work:
+        # The policies named: the grid stays the one the recorded figures were measured on.
         rc = hrc_experiment(["--human-models", "expert,distracted", "--seeds", "0",
+                             "--policies", "pomdp,reactive,no_robot",
                              "--episodes", str(args.episodes), "--step-limit", "10",
                              "--jobs", str(args.jobs), "--out", work, "--no-plots"])
         if rc != 0:
