@@ -25,7 +25,8 @@ whose header says how it was made (human models, episodes, seed, prior, strength
 
 The episodes are kept in ``--runs`` (a results directory as ``hrc_experiment`` writes, with a
 ``fit.json`` naming the configuration), so running the same command again reuses them and
-only refits; a ``--runs`` holding another configuration is refused. The stack is seeded
+only refits; a ``--runs`` holding another configuration (or steps labelled by other labelling
+code) is refused. The stack is seeded
 (the human MDP, the exploring robot, a deterministic world), so the same seed gives the same
 episodes and the same model. ``make fit`` regenerates the shipped
 ``models/robot/robot_fitted.pomdp``. No ROS here: the stacks run as ``hrc_experiment``'s cells.
@@ -104,10 +105,23 @@ def _non_negative(text: str) -> float:
     return value
 
 
+def labels_fingerprint() -> str:
+    """A digest of the labelling code: steps recorded under other labels must not be counted
+    (the steps keep the label they were given)."""
+    import hashlib
+    import inspect
+
+    from ros_hrc.loop import task
+
+    text = inspect.getsource(task.RobotStateTracker) + repr(
+        (task.EVALUATING_MAY_NEED_HELP, task.EVALUATING_NEEDS_HELP))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def configuration(args: argparse.Namespace) -> dict:
     """What decides the episodes: a ``--runs`` directory holds the episodes of one of these."""
     return {"human_models": list(args.human_models), "seed": args.seed,
-            "step_limit": args.step_limit, "policy": POLICY}
+            "step_limit": args.step_limit, "policy": POLICY, "labels": labels_fingerprint()}
 
 
 def check_arguments(args: argparse.Namespace) -> Model:
