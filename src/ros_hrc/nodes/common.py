@@ -1,4 +1,5 @@
 """What every ros_hrc node shares: reading its parameters once, calling Trigger services,
+waiting (however long it takes, saying so) for the services a node needs before it starts,
 and routing the ROS-free rooms' Python logging to the node's terminal."""
 from __future__ import annotations
 
@@ -6,8 +7,9 @@ import logging
 import threading
 import time
 from dataclasses import fields
-from typing import Any, Dict, Tuple, Type, TypeVar
+from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Tuple, Type, TypeVar
 
+import rosgraph
 import rospy
 from std_srvs.srv import Trigger
 
@@ -61,6 +63,114 @@ def init_node_when_master_is_up(name: str, wait: float = 60.0) -> None:
 
 class ServiceUnavailable(HrcError):
     """A ROS service the node needs could not be reached or failed in transport."""
+
+
+def registered_services() -> set:
+    """The names of the services the ROS master knows now (empty when it cannot be asked)."""
+    try:
+        _pubs, _subs, services = rosgraph.Master(rospy.get_name()).getSystemState()
+    except (rosgraph.MasterException, OSError):
+        return set()
+    return {name for name, _providers in services}
+
+
+class ServiceWait:
+    """Waits, with no timeout, until every named service is registered, saying every
+    ``every`` seconds which are still awaited (``say``, one line), and once, when they are
+    all up after such a line, how long it took.
+
+    ``groups``: (what, names) pairs, e.g. ``("the world", ["/hrc/world/reset", ...])``; the
+    line reads ``waiting for the world: /hrc/world/reset, ...; for the robot planner
+    (hrc_obs): /hrc/obs/decide (30 s)``. ``registered()`` gives the names registered now
+    (:func:`registered_services`; the tests give a fake). :meth:`run` does the waiting (on a
+    thread of its own); :meth:`wait` blocks a caller until it is done, and raises
+    :class:`ServiceUnavailable` if the wait was stopped (shutdown) first."""
+
+    def __init__(self, groups: Sequence[Tuple[str, Iterable[str]]],
+                 say: Callable[[str], None], every: float = 10.0, poll: float = 0.5,
+                 registered: Callable[[], set] = registered_services,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.groups: List[Tuple[str, Tuple[str, ...]]] = [(what, tuple(names))
+                                                          for what, names in groups]
+        self.say = say
+        self.every = every
+        self.poll = poll
+        self.registered = registered
+        self.clock = clock
+        self._lock = threading.Lock()
+        self._missing: List[str] = [n for _what, names in self.groups for n in names]
+        self._done = threading.Event()
+        self._stopped = threading.Event()
+        self.waited = 0.0   # seconds it took
+
+    @property
+    def ready(self) -> bool:
+        return self._done.is_set() and not self._stopped.is_set()
+
+    def missing(self) -> List[str]:
+        with self._lock:
+            return list(self._missing)
+
+    def describe(self) -> str:
+        """``waiting for <what>: names; for <what>: names`` of the services still awaited."""
+        missing = set(self.missing())
+        parts = []
+        for what, names in self.groups:
+            awaited = [n for n in names if n in missing]
+            if awaited:
+                parts.append(f"{'waiting ' if not parts else ''}for {what}: {', '.join(awaited)}")
+        return "; ".join(parts)
+
+    def check(self) -> bool:
+        """Ask once; True when every service is registered."""
+        up = self.registered()
+        with self._lock:
+            self._missing = [n for n in self._missing if n not in up]
+            return not self._missing
+
+    def run(self) -> None:
+        """Wait until every service is registered (or :meth:`stop`)."""
+        started = self.clock()
+        next_line = started + self.every
+        said = False
+        while not self._stopped.is_set():
+            if self.check():
+                self.waited = self.clock() - started
+                if said:
+                    self.say(f"{self._what_all()} up after {self.waited:.0f} s: the loop "
+                             "starts (its first reset, then step 0)")
+                self._done.set()
+                return
+            now = self.clock()
+            if now >= next_line:
+                self.say(f"{self.describe()} ({now - started:.0f} s; no step is taken "
+                         "before they are up)")
+                said = True
+                while next_line <= now:
+                    next_line += self.every
+            self._stopped.wait(self.poll)
+
+    def _what_all(self) -> str:
+        whats = [what for what, _names in self.groups]
+        joined = " and ".join(whats) if len(whats) < 3 else \
+            ", ".join(whats[:-1]) + " and " + whats[-1]
+        return joined[0].upper() + joined[1:] + (" are" if len(whats) > 1 else " is")
+
+    def wait(self, timeout: Optional[float] = None) -> bool:
+        """Block until the services are up (True), ``timeout`` ran out (False); raises
+        :class:`ServiceUnavailable` when the wait was stopped before."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while not self._done.is_set():
+            if self._stopped.is_set():
+                raise ServiceUnavailable(f"stopped while {self.describe()}")
+            left = 0.5 if deadline is None else min(0.5, deadline - time.monotonic())
+            if left <= 0:
+                return False
+            self._done.wait(left)
+        return True
+
+    def stop(self) -> None:
+        self._stopped.set()
 
 
 class TriggerCaller:

@@ -16,14 +16,29 @@ what it asks, through four adapters:
 Each step prints one block in the terminal and is published on ``/hrc/status`` (also a step
 that failed: its ``fault`` says what failed, and the loop starts again from a reset).
 
+**Start-up.** The world (a GUI world under load can take a minute) and hrc_obs may come up
+after this node. No call goes to them before every service the loop uses is registered: the
+node waits for them with no timeout, naming those still awaited every ``~wait_report_every``
+seconds (``waiting for the world (hrc_world): /hrc/world/reset, ... (30 s; ...)``). Until
+then the first reset waits, so the MDP gets no ``reset`` and takes no step: step 0 is taken
+once, when the world and the planner can carry it out.
+
+**This terminal.** Enter resets everything. In manual mode a line typed here that is not
+empty is the human's next state for the MDP (a number; anything else lets the model choose),
+sent as ``/hrc/set_human_state`` sends it: without a display the MDP has no terminal of its
+own and its prompt shows here, so what is typed at it must not be taken for Enter. When the
+input ends (Ctrl-D) the node says so: Enter no longer resets, ``/hrc/reset`` still does.
+
 Topics: /hrc/status (ros_hrc/Status), one message per step.
 Services offered: /hrc/reset (std_srvs/Trigger: reset everything and wait until it is done),
 /hrc/set_human_state (ros_hrc/SetHumanState: the human's next state, for manual mode without
 a terminal).
 Parameters: ~host, ~port, ~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episode_end,
 ~end_on_goal, ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
-~service_timeout (s to wait for a world service to appear), ~action_timeout (s a world or
-robot action may take), ~decide_timeout (s to wait for a decision), ~reset_timeout.
+~service_timeout (s to wait for a service that went away during the run, e.g. a respawning
+hrc_obs; at start-up the node waits however long it takes), ~wait_report_every (s between
+the lines saying what the start-up still waits for), ~action_timeout (s a world or robot
+action may take), ~decide_timeout (s to wait for a decision), ~reset_timeout.
 """
 from __future__ import annotations
 
@@ -32,7 +47,7 @@ import os
 import sys
 import threading
 from dataclasses import dataclass
-from typing import Dict, Optional
+from typing import Callable, Dict, Optional, TextIO, Tuple
 
 import rospy
 from std_srvs.srv import Trigger, TriggerResponse
@@ -48,7 +63,7 @@ from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, 
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.msg import Status
-from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
+from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, read_config,
                                   route_python_logging)
 from ros_hrc.srv import (Decide, GetWorldState, ResetPlanner, SetHumanState,
                          SetHumanStateResponse)
@@ -66,10 +81,20 @@ class HumanNodeConfig:
     read_stdin: bool = True
     print_steps: bool = True
     service_timeout: float = 30.0
+    wait_report_every: float = 10.0
     action_timeout: float = 120.0
     decide_timeout: float = 120.0
     reset_timeout: float = 120.0
     reply_timeout: float = 10.0
+
+
+#: What the loop calls, by who offers it: the node waits for all of them before the first reset.
+WORLD_SERVICES = ("/hrc/world/reset", "/hrc/world/state") + tuple(
+    f"/human/{service}" for service in sorted(
+        {s for s in task.HUMAN_ACTION_SERVICES.values() if s} | {"grasp"}))
+PLANNER_SERVICES = ("/hrc/obs/reset_planner", "/hrc/obs/decide")
+STARTUP_SERVICES = (("the world (hrc_world)", WORLD_SERVICES),
+                    ("the robot planner (hrc_obs)", PLANNER_SERVICES))
 
 
 # -- what the terminal shows ----------------------------------------------------------------------
@@ -128,17 +153,24 @@ def status_message(report: StepReport, mode: str) -> Status:
 
 # -- the four adapters ------------------------------------------------------------------------
 
-class RosWorld(WorldPort):
-    """The world's services."""
+def _no_wait() -> None:
+    return None
 
-    def __init__(self, call: TriggerCaller) -> None:
+
+class RosWorld(WorldPort):
+    """The world's services. ``ready()`` blocks until the start-up wait is over."""
+
+    def __init__(self, call: TriggerCaller, ready: Callable[[], object] = _no_wait) -> None:
         self.call = call
+        self.ready = ready
 
     def act_human(self, service: str) -> Outcome:
+        self.ready()
         ok, message = self.call(f"/human/{service}")
         return Outcome(ok, message)
 
     def snapshot(self) -> Snapshot:
+        self.ready()
         state = self.call.call("/hrc/world/state", GetWorldState).state
         return Snapshot(predicates={
             "is_ov": state.object_visible, "is_oir": state.object_in_reach,
@@ -147,17 +179,20 @@ class RosWorld(WorldPort):
             sim_time=state.sim_time, holder=state.holder, left_belt=state.object_left_belt)
 
     def reset(self, interrupt: bool) -> Outcome:
+        self.ready()
         ok, message = self.call("/hrc/world/reset")
         return Outcome(ok, message)
 
 
 class RosPlanner(PlannerPort):
-    """The robot planner behind hrc_obs."""
+    """The robot planner behind hrc_obs. ``ready()`` blocks until the start-up wait is over."""
 
-    def __init__(self, call: TriggerCaller) -> None:
+    def __init__(self, call: TriggerCaller, ready: Callable[[], object] = _no_wait) -> None:
         self.call = call
+        self.ready = ready
 
     def decide(self, epoch: int, step: int, observation: str, bits: int, state: str) -> Decision:
+        self.ready()
         answer = self.call.call("/hrc/obs/decide", Decide, epoch, step, observation, bits, state)
         if not answer.success:
             raise ServiceUnavailable(answer.message)
@@ -167,6 +202,7 @@ class RosPlanner(PlannerPort):
                         rule=answer.rule)
 
     def reset(self, epoch: int, episode: int) -> Outcome:
+        self.ready()
         answer = self.call.call("/hrc/obs/reset_planner", ResetPlanner, epoch, episode)
         return Outcome(answer.success, answer.message)
 
@@ -238,6 +274,37 @@ class Terminal(ReportPort):
             "hrc_human: %s", text)
 
 
+# -- this node's terminal ---------------------------------------------------------------------
+
+RESET = "reset"
+
+
+def typed_line(line: str, mode: str) -> Tuple[str, Optional[int]]:
+    """What a line typed on this node's terminal asks for: ``("reset", None)``, or in manual
+    mode ``("state", n)`` for a line that is not empty: the human's next state (``None``: the
+    model chooses, for a negative number or anything that is not a number, as the MDP's
+    prompt reads it). In auto mode every line is Enter."""
+    text = line.strip()
+    if mode != "manual" or not text:
+        return RESET, None
+    try:
+        value = int(text)
+    except ValueError:
+        return "state", None
+    return "state", (value if value >= 0 else None)
+
+
+def input_ended_line(mode: str, tty: bool) -> str:
+    """What this node says when its standard input ends."""
+    how = "Ctrl-D" if tty else "standard input closed"
+    line = (f"hrc_human: input ended ({how}): Enter here no longer resets; "
+            "`rosservice call /hrc/reset` still does")
+    if mode == "manual":
+        line += (", and `rosservice call /hrc/set_human_state N` gives the human's next state "
+                 "(typed states here no longer reach the MDP)")
+    return line
+
+
 # -- the node ---------------------------------------------------------------------------------
 
 class HumanNode:
@@ -246,6 +313,10 @@ class HumanNode:
     def __init__(self, config: HumanNodeConfig) -> None:
         self.config = config
         self.call = TriggerCaller(config.service_timeout)
+        # No call reaches the world or the planner before their services are up: the first
+        # reset (and so the MDP's step 0) waits, however long the world takes to start.
+        self.startup = ServiceWait(STARTUP_SERVICES, say=lambda text: rospy.loginfo(
+            "hrc_human: %s", text), every=config.wait_report_every)
         # A random first epoch: a respawned node never mints an epoch its predecessor used.
         first_epoch = int.from_bytes(os.urandom(3), "big") << 4
         coordinator = Coordinator(CoordinatorConfig(
@@ -254,7 +325,8 @@ class HumanNode:
         self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
                                    send_timeout=config.action_timeout)
         self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)
-        self.runner = LoopRunner(coordinator, RosWorld(self.call), RosPlanner(self.call),
+        self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait),
+                                 RosPlanner(self.call, self.startup.wait),
                                  LinkExecutor(self.robot, config.action_timeout), LinkMdp(),
                                  Terminal(self.status_pub, config.mode, config.print_steps))
         table = DispatchTable("hrc_human")
@@ -270,11 +342,13 @@ class HumanNode:
         self._answered = threading.Condition()
 
     def start(self) -> None:
+        threading.Thread(target=self.startup.run, name="startup-wait", daemon=True).start()
         self.runner.start()
         self.robot.start()
         self.server.start()
 
     def stop(self) -> None:
+        self.startup.stop()
         self.server.stop()
         self.runner.stop()
         self.robot.close()
@@ -305,32 +379,60 @@ class HumanNode:
     # -- services -------------------------------------------------------------------------------
     def reset_service(self, _req) -> TriggerResponse:
         ok, text = self.runner.reset("/hrc/reset called", self.config.reset_timeout)
+        if not ok and not self.startup.ready:
+            text += f" ({self.startup.describe()}; the reset is done once they are up)"
         return TriggerResponse(success=ok, message=text)
 
     def set_human_state(self, req) -> SetHumanStateResponse:
+        ok, text = self.send_next_state(None if req.state < 0 else int(req.state))
+        return SetHumanStateResponse(success=ok, message=text)
+
+    def send_next_state(self, state: Optional[int]) -> Tuple[bool, str]:
+        """Give the served MDP its next state (None: the model chooses): (success, what the
+        MDP answered)."""
         seat = self.runner.coordinator.seat
         if seat is None:
-            return SetHumanStateResponse(success=False, message="no MDP process is connected")
+            return False, "no MDP process is connected"
         request_id = next(self._next_state_ids)
-        state = None if req.state < 0 else int(req.state)
         if not seat.send(NextState(state=state, id=request_id)):
-            return SetHumanStateResponse(success=False, message="the MDP process is gone")
+            return False, "the MDP process is gone"
         with self._answered:
             self._answered.wait_for(lambda: request_id in self._answers,
                                     self.config.reply_timeout)
             answer = self._answers.pop(request_id, None)
         if answer is None:
-            return SetHumanStateResponse(success=False, message="the MDP process did not answer")
+            return False, "the MDP process did not answer"
         if isinstance(answer, Error):
-            return SetHumanStateResponse(success=False, message=answer.message)
-        return SetHumanStateResponse(success=True, message=answer.result or "next state queued")
+            return False, answer.message
+        return True, answer.result or "next state queued"
 
-    def read_enter(self) -> None:
-        """Each Enter on this node's terminal resets everything."""
-        for _line in sys.stdin:
+    def read_enter(self, stream: Optional[TextIO] = None) -> None:
+        """Enter on this node's terminal resets everything; in manual mode a typed state goes
+        to the MDP (:func:`typed_line`). Says so when the input ends."""
+        stream = sys.stdin if stream is None else stream
+        for line in stream:
             if rospy.is_shutdown():
-                break
-            self.runner.request_reset("Enter pressed")
+                return
+            what, state = typed_line(line, self.config.mode)
+            if what == RESET:
+                self.runner.request_reset("Enter pressed")
+                continue
+            ok, text = self.send_next_state(state)
+            typed = line.strip()
+            if ok:
+                print(f"hrc_human: typed {typed!r}: {text}", flush=True)
+            else:
+                print(f"hrc_human: typed {typed!r} did not reach the MDP: {text} (Enter alone "
+                      "resets everything)", flush=True)
+        if not rospy.is_shutdown():
+            print(input_ended_line(self.config.mode, _isatty(stream)), flush=True)
+
+
+def _isatty(stream: TextIO) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError, OSError):
+        return False
 
 
 def main() -> None:
@@ -347,6 +449,12 @@ def main() -> None:
     rospy.Service("/hrc/set_human_state", SetHumanState, node.set_human_state)
     if node.config.read_stdin and sys.stdin is not None and not sys.stdin.closed:
         threading.Thread(target=node.read_enter, name="enter-resets", daemon=True).start()
-        print("hrc_human: press Enter in this terminal to reset the whole scenario", flush=True)
+        if node.config.mode == "manual":
+            print("hrc_human: press Enter in this terminal to reset the whole scenario; a state "
+                  "typed here (a number, then Enter) is the human's next state, as "
+                  "/hrc/set_human_state gives it", flush=True)
+        else:
+            print("hrc_human: press Enter in this terminal to reset the whole scenario",
+                  flush=True)
     rospy.loginfo("hrc_human: waiting for the MDP process on %s", node.server.url)
     rospy.spin()

@@ -11,7 +11,11 @@ answer (which carries the robot's action) before the next.
 Manual mode asks ``Please enter the next state [integer from 0 to 7, press any non-int key
 for autogen]``: an integer gives that state (with ``--manual-share`` of the belief), anything
 else lets the model choose. The answer can also come as a ``next_state`` message (the
-``/hrc/set_human_state`` service of the human node), so no terminal is needed.
+``/hrc/set_human_state`` service of the human node, or a state typed on the human node's
+terminal), so no terminal of its own is needed: without one (``hrc.launch`` gives it an
+xterm only when there is a display) it says so once, in one line, and each prompt says where
+to answer. When its input ends (Ctrl-D at the prompt) it says so and goes on in auto mode:
+the model chooses every next state from then on; restart it to type states again.
 
 A ``reset`` message (Enter in the ROS terminal, ``/hrc/reset``, the end of an episode, a
 recovery) puts the human back to its initial state, step 0, zero reward.
@@ -20,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import queue
 import sys
 import threading
@@ -72,12 +77,24 @@ class MdpProcess:
         self._next_states: "queue.Queue[Tuple[Optional[int], str]]" = queue.Queue()
         self._stop = threading.Event()
         self.state_var = agent.model.meta.get("state_var", "state_1")
+        #: auto or manual; manual becomes auto when the terminal's input ends (Ctrl-D).
+        self.mode = args.mode
+        self.reads_terminal = False
 
     # -- input: the link and the terminal ------------------------------------------------------
-    def start_threads(self, read_stdin: bool) -> None:
+    def start_threads(self, read_stdin: bool, stdin: Optional[TextIO] = None) -> None:
+        """Read the link; in manual mode also the terminal (``read_stdin``), or else say
+        once where the states come from."""
         threading.Thread(target=self._dispatch_link, name="mdp-link", daemon=True).start()
+        if self.mode != "manual":
+            return
         if read_stdin:
-            threading.Thread(target=self._read_terminal, name="mdp-stdin", daemon=True).start()
+            self.reads_terminal = True
+            stream = sys.stdin if stdin is None else stdin
+            threading.Thread(target=self._read_terminal, args=(stream,), name="mdp-stdin",
+                             daemon=True).start()
+        else:
+            self.print(no_terminal_line(bool(os.environ.get("DISPLAY"))))
 
     def _dispatch_link(self) -> None:
         while not self._stop.is_set():
@@ -100,9 +117,11 @@ class MdpProcess:
             self._send(reply_error(msg, f"state must be an integer from 0 to {n - 1}, "
                                         f"not {msg.state}", ERR_INVALID))
             return
-        if self.args.mode != "manual":
-            self._send(reply_error(msg, "the MDP runs in auto mode: it chooses the next state "
-                                        "itself (start it with mode:=manual)", ERR_INVALID))
+        if self.mode != "manual":
+            why = ("its input ended (Ctrl-D), so it" if self.args.mode == "manual"
+                   else "start it with mode:=manual; it")
+            self._send(reply_error(msg, f"the MDP runs in auto mode ({why} chooses every next "
+                                        "state itself)", ERR_INVALID))
             return
         self._next_states.put((msg.state, "message"))
         self._events.put(("next_state", None))
@@ -110,10 +129,17 @@ class MdpProcess:
         self._send(Ack(step=self.agent.step, of=msg.type, result=f"next state: {name}",
                        reply_to=msg.id))
 
-    def _read_terminal(self) -> None:
-        for line in sys.stdin:
+    def _read_terminal(self, stream: TextIO) -> None:
+        for line in stream:
             self._next_states.put((self._parse_typed(line.strip()), "terminal"))
             self._events.put(("next_state", None))
+        if self._stop.is_set():
+            return
+        # The input ended (Ctrl-D at the prompt, or a closed pipe): never silently. The MDP
+        # goes on in auto mode; a prompt waiting now is answered by the model.
+        self.mode = "auto"
+        self.print(input_ended_line(_isatty(stream)))
+        self._events.put(("next_state", None))
 
     def _parse_typed(self, text: str) -> Optional[int]:
         try:
@@ -153,18 +179,25 @@ class MdpProcess:
         while True:
             self.print(f"\nPlease enter the next state [integer from 0 to {n - 1}, "
                        "press any non-int key for autogen]: ")
+            if not self.reads_terminal:
+                self.print("(this MDP reads no terminal: type the state in the roslaunch "
+                           "terminal, or `rosservice call /hrc/set_human_state N`)")
             while True:
                 try:
                     value, source = self._next_states.get_nowait()
                     break
                 except queue.Empty:
+                    if self.mode != "manual":   # the input ended while asking
+                        value, source = None, "ended"
+                        break
                     self._wait_event("next_state")
             if value is None:
                 self.print("State is generated by the model")
                 return None
             if 0 <= value < n:
                 self.print(f"State is manually entered: {value}"
-                           + (" (from /hrc/set_human_state)" if source == "message" else ""))
+                           + (" (through hrc_human: its terminal or /hrc/set_human_state)"
+                              if source == "message" else ""))
                 return value
             self.print(f"{value} is not a state: enter an integer from 0 to {n - 1}")
 
@@ -200,7 +233,7 @@ class MdpProcess:
                 try:
                     if self.one_step():
                         self._wait_for_reset()
-                    elif self.args.mode == "auto" and self.args.step_delay > 0:
+                    elif self.mode == "auto" and self.args.step_delay > 0:
                         self._wait_event("never", self.args.step_delay)
                 except _ResetRequested as reset:
                     self.start_episode(reset.reset)
@@ -224,7 +257,7 @@ class MdpProcess:
         self.print(f"\n-----Round {self.episode} Step {agent.step}-----")
         self.print(f"Agent Took: a{action}:{agent.model.actions[action]}, in the State: "
                    f"[{self.state_var}:{agent.state_name}]")
-        manual_state = self._ask_next_state() if self.args.mode == "manual" else None
+        manual_state = self._ask_next_state() if self.mode == "manual" else None
         result = agent.advance(action, manual_state)
         msg = Step(step=result.step, action=result.action, state=result.state,
                    reward=result.reward, state_index=result.state_index, belief=result.belief,
@@ -261,6 +294,31 @@ class MdpProcess:
 
     def stop(self) -> None:
         self._stop.set()
+
+
+def no_terminal_line(display: bool) -> str:
+    """What a manual-mode MDP without a terminal to read says once at start-up."""
+    why = "started without one" if display else "no display for its xterm"
+    return (f"{NAME}: manual mode without a terminal of its own ({why}): type each state in "
+            "the roslaunch terminal (a number, or a letter for autogen, then Enter; Enter "
+            "alone resets everything) or `rosservice call /hrc/set_human_state N`; or set "
+            "DISPLAY, or use start_mdp:=false and `rosrun ros_hrc despot_mdp --mode manual` "
+            "in another terminal")
+
+
+def input_ended_line(tty: bool) -> str:
+    """What the MDP says when its terminal's input ends."""
+    how = "Ctrl-D" if tty else "standard input closed"
+    return (f"{NAME}: input ended ({how}): the MDP goes on in auto mode, the model chooses "
+            "every next state from now on (to type states again, start despot_mdp anew: "
+            "under roslaunch, close its window and it respawns)")
+
+
+def _isatty(stream: TextIO) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError, OSError):
+        return False
 
 
 def build_parser() -> argparse.ArgumentParser:

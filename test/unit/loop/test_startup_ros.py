@@ -1,0 +1,165 @@
+"""Start-up with real processes: a roscore on a private port, the real hrc_human, an MDP
+client of its port, and a stand-in for the world and hrc_obs (a small rospy node offering
+their services) that starts late, as a GUI world under load does.
+
+hrc_human must say, while it waits, which services it waits for; the MDP must get no reset
+(so it takes no step) before they are up; then step 0 is carried out, once."""
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from ros_hrc.link.protocol import Ack, Reset, Step
+from ros_hrc.link.transport import LinkTimeout, MessageClient, free_port, link_url
+
+ROOT = Path(__file__).resolve().parents[3]
+
+FAKE_WORLD = textwrap.dedent('''
+    """The world's and hrc_obs's services, answering at once; prints each call."""
+    import sys
+    import rospy
+    from std_srvs.srv import Trigger, TriggerResponse
+    from ros_hrc.msg import WorldState
+    from ros_hrc.srv import (Decide, DecideResponse, GetWorldState, GetWorldStateResponse,
+                             ResetPlanner, ResetPlannerResponse)
+    from ros_hrc.nodes.human_node import WORLD_SERVICES
+
+    def trigger(name):
+        def handler(_req):
+            print("called", name, flush=True)
+            return TriggerResponse(success=True, message=name + " done")
+        return handler
+
+    def state(_req):
+        return GetWorldStateResponse(state=WorldState(sim_time=1.0, holder="none",
+                                                      object_visible=True))
+
+    def decide(req):
+        print("called /hrc/obs/decide", req.epoch, req.step, flush=True)
+        return DecideResponse(success=True, action="rIdle", belief_states=["S0"], belief=[1.0])
+
+    def reset_planner(req):
+        print("called /hrc/obs/reset_planner", req.epoch, flush=True)
+        return ResetPlannerResponse(success=True, message="belief reset")
+
+    rospy.init_node("fake_world", disable_signals=True)
+    keep = [rospy.Service(name, Trigger, trigger(name)) for name in WORLD_SERVICES
+            if name != "/hrc/world/state"]
+    keep.append(rospy.Service("/hrc/world/state", GetWorldState, state))
+    keep.append(rospy.Service("/hrc/obs/decide", Decide, decide))
+    keep.append(rospy.Service("/hrc/obs/reset_planner", ResetPlanner, reset_planner))
+    print("fake world up", flush=True)
+    sys.stdin.read()   # until the test closes our stdin
+''')
+
+
+def wait_for_port(port, timeout=30.0):
+    import socket
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return True
+        time.sleep(0.1)
+    return False
+
+
+def stop(proc):
+    if proc is not None and proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+
+
+@pytest.fixture
+def ros(tmp_path):
+    """A private roscore; yields (env, start) where start(cmd, name) runs a process whose
+    output goes to tmp_path/name.log; everything started is stopped by its pid."""
+    master = free_port()
+    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{master}",
+               ROS_LOG_DIR=str(tmp_path / "log"), PYTHONUNBUFFERED="1")
+    env.pop("DISPLAY", None)
+    procs = []
+
+    def start(cmd, name, stdin=subprocess.DEVNULL):
+        log = open(tmp_path / f"{name}.log", "w")
+        proc = subprocess.Popen(cmd, env=env, stdin=stdin, stdout=log,
+                                stderr=subprocess.STDOUT, text=True)
+        procs.append(proc)
+        return proc
+
+    core = start(["roscore", "-p", str(master)], "roscore")
+    assert wait_for_port(master), "roscore did not start"
+    try:
+        yield env, start
+    finally:
+        for proc in reversed(procs):
+            if proc is not core:
+                if proc.stdin:
+                    proc.stdin.close()
+                stop(proc)
+        stop(core)
+
+
+def read(tmp_path, name):
+    path = tmp_path / f"{name}.log"
+    return path.read_text() if path.exists() else ""
+
+
+def wait_for_text(tmp_path, name, text, timeout=30.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if text in read(tmp_path, name):
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def test_a_late_world_is_waited_for_and_step_0_is_carried_out_once(ros, tmp_path):
+    env, start = ros
+    human_port, robot_port = free_port(), free_port()
+    start([sys.executable, str(ROOT / "scripts" / "hrc_human"), f"_human_port:={human_port}",
+           f"_robot_port:={robot_port}", "_read_stdin:=false", "_wait_report_every:=1.0"],
+          "hrc_human")
+    mdp = MessageClient(link_url(human_port), "despot_mdp", connect_timeout=60.0)
+    try:
+        mdp.connect()
+        # No world, no hrc_obs: hrc_human says what it waits for, and starts no episode.
+        assert wait_for_text(tmp_path, "hrc_human", "waiting for the world (hrc_world): "
+                             "/hrc/world/reset, /hrc/world/state, /human/attempt_grasp"), \
+            read(tmp_path, "hrc_human")
+        assert wait_for_text(tmp_path, "hrc_human", "; for the robot planner (hrc_obs): "
+                             "/hrc/obs/reset_planner, /hrc/obs/decide (3 s;"), \
+            read(tmp_path, "hrc_human")
+        with pytest.raises(LinkTimeout):
+            mdp.receive(timeout=1.0, match=lambda m: isinstance(m, Reset))
+        out = read(tmp_path, "hrc_human")
+        assert "reset failed" not in out and "STEP FAILED" not in out, out
+
+        # The world and hrc_obs come up: the first reset, then step 0, carried out once.
+        script = tmp_path / "fake_world.py"
+        script.write_text(FAKE_WORLD)
+        start([sys.executable, str(script)], "world", stdin=subprocess.PIPE)
+        reset = mdp.receive(timeout=60.0, match=lambda m: isinstance(m, Reset))
+        assert reset.episode == 1
+        assert wait_for_text(tmp_path, "hrc_human", "The world (hrc_world) and the robot planner "
+                             "(hrc_obs) are up after"), read(tmp_path, "hrc_human")
+        reply = mdp.request(Step(step=0, action="graspAttempt", state="failed_to_grasp",
+                                 epoch=reset.epoch), timeout=60.0)
+        assert isinstance(reply, Ack) and reply.action == "rIdle", reply
+        world = read(tmp_path, "world")
+        assert world.count("called /human/attempt_grasp") == 1, world
+        assert world.count("called /hrc/world/reset") == 1, world
+        assert f"called /hrc/obs/decide {reset.epoch} 0" in world, world
+        out = read(tmp_path, "hrc_human")
+        assert "reset failed" not in out and "STEP FAILED" not in out, out
+        assert "----- step 0 -----" in out, out
+    finally:
+        mdp.close()
