@@ -14,10 +14,14 @@ cd "$repo"
 stamps=.ws/stamps
 mkdir -p "$stamps"
 
-# ROS from Debian; python3-venv for the environment; xterm for the MDP's own terminal window.
+# ROS from Debian; python3-venv for the environment; xterm for the MDP's own terminal window;
+# RViz and what it shows (descriptions, joint states, /tf, markers, images); Xvfb, xdotool and
+# ImageMagick for the GUI's tests and screenshots under a virtual display.
 APT_PACKAGES=(
   ros-core-dev catkin catkin-lint rosbash ros-message-generation ros-message-runtime
   ros-std-msgs ros-std-srvs ros-rosgraph-msgs
+  rviz ros-robot-state-publisher python3-tf2-ros python3-geometry-msgs python3-sensor-msgs
+  python3-visualization-msgs xvfb xdotool imagemagick
   python3-rospy python3-rostest python3-roslaunch python3-rosservice python3-rostopic
   python3-rosnode python3-rosmsg python3-rosbag python3-std-msgs python3-std-srvs python3-rosgraph-msgs
   python3-catkin-pkg python3-venv python3-dev python3-nose

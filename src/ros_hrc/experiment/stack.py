@@ -89,7 +89,8 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     clock stands still between actions, so the pace changes no result); the coordinator ends
     episodes by the world (someone holds the object, it left the belt) or the step limit, and
     starts the next one at once. Nodes keep the wall clock: the steps carry the simulated
-    time, and /clock would cost every node a thousand messages a second.
+    time, and /clock would cost every node a thousand messages a second. Nothing for RViz
+    (viz:=false): no one watches a cell.
     ``spec.extra_args`` (``name:=value``) come last and win."""
     if spec.robot_policy not in ROBOT_POLICIES:
         raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
@@ -97,7 +98,7 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     values = {
         "human_model": spec.human_model, "robot_model": spec.robot_model,
         "planner": ROBOT_POLICIES[spec.robot_policy].planner, "seed": spec.seed,
-        "mode": "auto", "gui": False, "use_sim_time": False, "real_time_factor": 0,
+        "mode": "auto", "gui": False, "viz": False, "use_sim_time": False, "real_time_factor": 0,
         "step_delay": 0, "max_steps": spec.step_limit, "on_episode_end": "reset",
         "end_on_goal": False, "read_stdin": False,
         "human_choice": spec.human_choice, "time_per_step": spec.time_per_step,

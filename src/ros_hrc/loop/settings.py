@@ -251,6 +251,14 @@ _TABLE: Iterable[Setting] = (
        "automatic: true exactly when real_time_factor is 0 (the run then depends only on the "
        "seed)"),
     _s("belt_speed", "float", 0.02, "conveyor belt speed", minimum=0, maximum=0.5, unit="m/s"),
+    # watching it
+    _s("viz", "bool", True, "publish what RViz shows: each agent's description and joint "
+       "states, /tf (robot_state_publisher per agent) and the step's markers"),
+    _s("rviz", "bool", False, "start RViz with launch/hrc.rviz (needs a display; implies viz)"),
+    _s("snapshot_dir", "str", "", "where /hrc/world/snapshot writes its PNGs (empty: "
+       "$ROS_HOME/hrc_snapshots); names are unique per run"),
+    _s("camera_rate", "float", 0.0, "rate of /hrc/camera/image, the snapshot renderer's view "
+       "(0: off)", minimum=0, maximum=30, unit="Hz"),
     # links
     _s("host", "host", "127.0.0.1",
        "address the websocket servers bind and the clients connect to"),

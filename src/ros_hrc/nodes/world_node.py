@@ -20,6 +20,20 @@ Topics published:
                                          at ~publish_rate Hz of wall-clock time, while anyone
                                          subscribes
   /clock (rosgraph_msgs/Clock)           the world's simulated time, when /use_sim_time is true
+  /human/joint_states, /robot/joint_states (sensor_msgs/JointState)  each agent's movable
+                                         joints, and /tf: world -> each agent's root link
+                                         (``human/...``, ``robot/...``), world -> object,
+                                         world -> belt; at ~tf_rate Hz (wall clock) when
+                                         ~publish_tf. robot_state_publisher (one per agent, in
+                                         its namespace) turns the joint states into the links'
+                                         frames from /human/robot_description and
+                                         /robot/robot_description, which the launch sets from
+                                         hrc_description: each agent's URDF with its links
+                                         prefixed by its name (ros_hrc.description).
+  /hrc/camera/image (sensor_msgs/Image)  the snapshot renderer's view, at ~camera_rate Hz
+                                         (0: off, the default) while anyone subscribes
+
+Subscribed: /hrc/status (the loop's steps): the GUI window's overlay shows each step.
 
 Parameters (read once at start-up):
   ~gui (bool, false)              open PyBullet's window
@@ -30,28 +44,38 @@ Parameters (read once at start-up):
                                   real_time_factor is 0)
   ~publish_rate (float, 10.0)     /hrc/world_state rate, Hz
   ~action_timeout (float, 120.0)  wall seconds a service call waits for its action
-  ~snapshot_dir (str, $ROS_HOME/hrc_snapshots)  where /hrc/world/snapshot writes
+  ~snapshot_dir (str, $ROS_HOME/hrc_snapshots)  where /hrc/world/snapshot writes (file names
+                                  carry the run's start time and a counter: never overwritten)
+  ~publish_tf (bool, true)        publish joint states and /tf (above)
+  ~tf_rate (float, 30.0)          their rate, Hz (wall clock)
+  ~camera_rate (float, 0.0)       /hrc/camera/image's rate, Hz (wall clock); 0: not published
   ~model_dir (str, <package>/models/urdf)       where the URDF models are
   /use_sim_time (bool, false)     publish /clock from the simulated time
 """
 from __future__ import annotations
 
+import itertools
 import os
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Dict, Optional
 
 import rospkg
 import rospy
+import tf2_ros
+from geometry_msgs.msg import TransformStamped
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image, JointState
 from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
 
 from ros_hrc.errors import HrcError, SimulationError
 from ros_hrc.loop import settings
-from ros_hrc.msg import WorldState
+from ros_hrc.loop.display import status_lines
+from ros_hrc.msg import Status, WorldState
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
-from ros_hrc.world import HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, World, WorldConfig
+from ros_hrc.world import (HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World,
+                           WorldConfig)
 
 #: /clock is published at most this often (wall clock): enough for any rospy.Rate, and cheap
 #: when the world runs much faster than real time.
@@ -72,6 +96,9 @@ class WorldNodeConfig:
     snapshot_dir: str = ""
     model_dir: str = ""
     use_sim_time: bool = False
+    publish_tf: bool = True
+    tf_rate: float = 30.0
+    camera_rate: float = 0.0
 
     @classmethod
     def from_params(cls, get_param: Callable[[str, Any], Any] = rospy.get_param) -> "WorldNodeConfig":
@@ -93,11 +120,29 @@ class WorldNodeConfig:
             publish_rate=float(get_param("~publish_rate", defaults.publish_rate)),
             action_timeout=float(get_param("~action_timeout", defaults.action_timeout)),
             snapshot_dir=snapshot_dir, model_dir=model_dir,
-            use_sim_time=bool(get_param("/use_sim_time", defaults.use_sim_time)))
+            use_sim_time=bool(get_param("/use_sim_time", defaults.use_sim_time)),
+            publish_tf=_flag(get_param("~publish_tf", defaults.publish_tf)),
+            tf_rate=float(get_param("~tf_rate", defaults.tf_rate)),
+            camera_rate=float(get_param("~camera_rate", defaults.camera_rate)))
         if config.real_time_factor < 0 or config.publish_rate <= 0 or config.action_timeout <= 0:
             raise ValueError("~real_time_factor must be >= 0, ~publish_rate and ~action_timeout > 0; "
                              f"got {config}")
+        if config.tf_rate <= 0 or config.camera_rate < 0:
+            raise ValueError(f"~tf_rate must be > 0 and ~camera_rate >= 0; got {config}")
         return config
+
+
+def _flag(value: Any) -> bool:
+    """A boolean parameter given as a bool or as launch text ("true", "false", "1", "0")."""
+    if isinstance(value, str):
+        return value.strip().lower() in ("true", "1", "yes", "on")
+    return bool(value)
+
+
+def snapshot_name(run: str, number: int, sim_time: float) -> str:
+    """``world_<run>_<number>_<sim time>s.png``: the run's start (wall clock) and a counter make
+    names unique across runs and within one; the simulated time says when in the run."""
+    return f"world_{run}_{number:04d}_{sim_time:09.3f}s.png"
 
 
 # A world fault (the world closed, an action that never finished) is raised, so that rospy
@@ -123,8 +168,11 @@ def predicate_handler(world: World, predicate: str) -> Callable[[TriggerRequest]
 
 def snapshot_handler(world: World, directory: str) -> Callable[[TriggerRequest], TriggerResponse]:
     """Trigger handler writing a PNG of the scene; the message is the file's path."""
+    run = time.strftime("%Y%m%d-%H%M%S") + f"-{os.getpid()}"
+    numbers = itertools.count(1)
+
     def handle(_request: TriggerRequest) -> TriggerResponse:
-        path = os.path.join(directory, f"world_{world.sim_time:09.3f}s.png")
+        path = os.path.join(directory, snapshot_name(run, next(numbers), world.sim_time))
         try:
             return TriggerResponse(True, str(world.snapshot(path)))
         except SimulationError as error:
@@ -165,6 +213,7 @@ class WorldNode:
         self._services: list = []
         self._stop = threading.Event()
         self._last_clock = 0.0
+        self.window_closed = False
 
     def start(self) -> None:
         """Build the world, advertise everything, start stepping."""
@@ -185,11 +234,94 @@ class WorldNode:
         self._services.append(rospy.Service("/hrc/world/state", GetWorldState, self._state_now))
         # The physics runs in its own thread paced by the wall clock: under /use_sim_time this
         # node is the clock, so nothing here may wait on rospy time.
+        if c.publish_tf:
+            self._start_frames()
+        if c.gui:
+            self.world.add_window_closed_listener(self._on_window_closed)
+            rospy.Subscriber("/hrc/status", Status, self._show_step, queue_size=1)
+        if c.camera_rate > 0:
+            self._image_pub = rospy.Publisher("/hrc/camera/image", Image, queue_size=1)
+            threading.Thread(target=self._publish_images, name="world-camera", daemon=True).start()
         self.world.start(c.real_time_factor, c.pause_when_idle)
         threading.Thread(target=self._publish_states, name="world-state", daemon=True).start()
         rospy.loginfo("hrc_world: %s; real-time factor %s%s; %d services up",
                       "; ".join(self.world.describe()), c.real_time_factor or "max",
                       ", publishing /clock" if c.use_sim_time else "", len(self._services))
+
+    # -- RViz: descriptions, joint states, /tf ------------------------------------------------
+    def _start_frames(self) -> None:
+        self._joint_pubs: Dict[str, rospy.Publisher] = {
+            agent: rospy.Publisher(f"/{agent}/joint_states", JointState, queue_size=1)
+            for agent in ("human", "robot")}
+        self._tf = tf2_ros.TransformBroadcaster()
+        threading.Thread(target=self._publish_frames, name="world-frames", daemon=True).start()
+
+    def _transform(self, stamp: rospy.Time, child: str, pose) -> TransformStamped:
+        (x, y, z), (qx, qy, qz, qw) = pose
+        msg = TransformStamped()
+        msg.header.stamp = stamp
+        msg.header.frame_id = "world"
+        msg.child_frame_id = child
+        msg.transform.translation.x, msg.transform.translation.y = x, y
+        msg.transform.translation.z = z
+        msg.transform.rotation.x, msg.transform.rotation.y = qx, qy
+        msg.transform.rotation.z, msg.transform.rotation.w = qz, qw
+        return msg
+
+    def _publish_frames(self) -> None:
+        period = 1.0 / self.config.tf_rate
+        while not self._stop.wait(period):
+            try:
+                frames = self.world.frames()
+            except SimulationError as error:   # the world closed under us: shutting down
+                rospy.logdebug("hrc_world: no frames: %s", error)
+                return
+            stamp = self._stamp(frames)
+            transforms = []
+            for agent in ("human", "robot"):
+                body = frames[agent]
+                joints = JointState()
+                joints.header.stamp = stamp
+                joints.name = list(body["joints"])
+                joints.position = [float(v) for v in body["joints"].values()]
+                self._joint_pubs[agent].publish(joints)
+                transforms.append(self._transform(stamp, f"{agent}/{body['root']}", body["base"]))
+            transforms.append(self._transform(stamp, "object", frames["object"]))
+            transforms.append(self._transform(stamp, "belt", frames["belt"]))
+            self._tf.sendTransform(transforms)
+
+    # -- the GUI's overlay and the camera image --------------------------------------------------
+    def _on_window_closed(self) -> None:
+        # The world has stopped for good: end the node, so that roslaunch's required="true"
+        # ends the whole launch, instead of refusing every later step.
+        self.window_closed = True
+        rospy.signal_shutdown("the PyBullet window was closed")
+
+    def _show_step(self, status: Status) -> None:
+        if status.fault:
+            return
+        try:
+            self.world.show_overlay(status_lines(status))
+        except SimulationError as error:
+            rospy.logdebug("hrc_world: no overlay: %s", error)
+
+    def _publish_images(self) -> None:
+        period = 1.0 / self.config.camera_rate
+        while not self._stop.wait(period):
+            if self._image_pub.get_num_connections() == 0:
+                continue   # rendering costs tens of ms: only for listeners
+            try:
+                pixels = self.world.render()
+            except SimulationError as error:
+                rospy.logdebug("hrc_world: no image: %s", error)
+                return
+            msg = Image()
+            msg.header.stamp = rospy.Time.now()
+            msg.header.frame_id = "camera"
+            msg.height, msg.width = int(pixels.shape[0]), int(pixels.shape[1])
+            msg.encoding, msg.is_bigendian, msg.step = "rgb8", 0, 3 * int(pixels.shape[1])
+            msg.data = pixels.tobytes()
+            self._image_pub.publish(msg)
 
     def _advertise(self, name: str, handler: Callable[[TriggerRequest], TriggerResponse]) -> None:
         self._services.append(rospy.Service(name, Trigger, handler))
@@ -240,3 +372,6 @@ def main() -> None:
         rospy.logfatal("hrc_world cannot start: %s", error)
         raise SystemExit(1) from error
     rospy.spin()
+    if node.window_closed:
+        rospy.logfatal("hrc_world: the PyBullet window was closed: the launch stops")
+        raise SystemExit(1)

@@ -6,6 +6,7 @@ binds every PyBullet call to one physics server.
 """
 from .outcome import Outcome, Reading
 from .scene import HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, Ticket, World, WorldConfig
+from .window import WindowClosed
 
 __all__ = ["HUMAN_ACTIONS", "PREDICATES", "ROBOT_ACTIONS", "Outcome", "Reading", "Ticket", "World",
-           "WorldConfig"]
+           "WorldConfig", "WindowClosed"]

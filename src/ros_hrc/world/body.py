@@ -11,14 +11,18 @@ stepping thread and lets a reset stop a motion between two steps (``generator.cl
 """
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple
+from xml.etree import ElementTree
 
 import numpy as np
 
 from ..errors import SimulationError
 from .client import PhysicsClient
 from .geometry import min_jerk, quat_to_matrix, yaw_quaternion
+from .visuals import visual_layers
 
 #: A motion: advanced once per control step; its return value (StopIteration.value) is the result.
 Motion = Iterator[None]
@@ -51,14 +55,21 @@ class ArticulatedBody:
     """
 
     def __init__(self, client: PhysicsClient, urdf_path: str, position: Sequence[float],
-                 yaw: float, control_period: float) -> None:
+                 yaw: float, control_period: float, split_visuals: Optional[bool] = None) -> None:
         self.client = client
         self.control_period = control_period   # simulated seconds per motion step
-        try:
-            self.body_id = client.loadURDF(urdf_path, basePosition=list(position),
-                                           baseOrientation=yaw_quaternion(yaw), useFixedBase=True)
-        except client.error as error:  # a missing or malformed file
-            raise SimulationError(f"cannot load {urdf_path}: {error}") from error
+        self.urdf_path = urdf_path
+        # With split_visuals (default: in PyBullet's window) the body is loaded in colour
+        # layers (see .visuals): body_id is layer 0, with the URDF's links, joints and
+        # collision shapes; `twins` are the other layers, visual only, moved along.
+        self.twins: List[int] = []
+        if split_visuals is None:
+            split_visuals = client.gui
+        ids = self._load(urdf_path, position, yaw, split_visuals)
+        self.body_id, self.twins = ids[0], ids[1:]
+        for twin in self.twins:
+            for index in [-1] + list(range(client.getNumJoints(twin))):
+                client.setCollisionFilterGroupMask(twin, index, 0, 0)
         self.joints: Dict[str, Joint] = {}
         self.links: Dict[str, int] = {client.getBodyInfo(self.body_id)[0].decode(): -1}
         for index in range(client.getNumJoints(self.body_id)):
@@ -68,6 +79,25 @@ class ArticulatedBody:
                 name = info[1].decode()
                 self.joints[name] = Joint(name, index, info[8], info[9])
         self.commanded: Dict[str, float] = {name: 0.0 for name in self.joints}
+
+    def _load(self, urdf_path: str, position: Sequence[float], yaw: float,
+              split_visuals: bool) -> List[int]:
+        """Load the URDF (in colour layers with ``split_visuals``); the body ids, layer 0 first."""
+        pose = dict(basePosition=list(position), baseOrientation=yaw_quaternion(yaw), useFixedBase=True)
+        try:
+            if not split_visuals:
+                return [self.client.loadURDF(urdf_path, **pose)]
+            text = Path(urdf_path).read_text(encoding="utf-8")
+            layers = visual_layers(text, str(Path(urdf_path).resolve().parent))
+            ids = []
+            with tempfile.TemporaryDirectory(prefix="ros_hrc_urdf_") as tmp:
+                for k, layer in enumerate(layers):
+                    path = Path(tmp) / f"{Path(urdf_path).stem}_{k}.urdf"
+                    path.write_text(layer, encoding="utf-8")
+                    ids.append(self.client.loadURDF(str(path), **pose))
+            return ids
+        except (self.client.error, OSError, ElementTree.ParseError) as error:  # a missing or malformed file
+            raise SimulationError(f"cannot load {urdf_path}: {error}") from error
 
     # --- lookup -------------------------------------------------------------------------
     def joint(self, name: str) -> Joint:
@@ -117,6 +147,8 @@ class ArticulatedBody:
             values.append([value])
             self.commanded[name] = value
         self.client.resetJointStatesMultiDof(self.body_id, indices, values)
+        for twin in self.twins:   # the other colour layers: same tree, same joint indices
+            self.client.resetJointStatesMultiDof(twin, indices, values)
 
     def teleport(self, pose: Mapping[str, float]) -> None:
         """Set joints instantly (resets: one command, not a motion)."""

@@ -25,13 +25,17 @@ class PhysicsClient:
     exception PyBullet raises) are passed through unchanged.
     """
 
-    def __init__(self, gui: bool = False) -> None:
+    def __init__(self, gui: bool = False, options: str = "") -> None:
+        """``options``: command-line options of PyBullet's window (``--width=1024
+        --height=768``, ``--background_color_red=0.8`` ...); ignored without ``gui``."""
         if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
             # PyBullet's GUI exits the whole process when it cannot reach an X server.
             raise SimulationError("a PyBullet window needs a display, and DISPLAY is not set "
                                   "(run headless with gui:=false)")
-        mode = pybullet.GUI if gui else pybullet.DIRECT
-        client_id = pybullet.connect(mode)
+        if gui:
+            client_id = pybullet.connect(pybullet.GUI, options=options)
+        else:
+            client_id = pybullet.connect(pybullet.DIRECT)
         if client_id < 0:
             what = "a GUI window (is a display available? only one GUI per process)" if gui \
                 else "a DIRECT server"

@@ -45,6 +45,9 @@ _BELT_THICKNESS = 0.04
 _BELT_COLOUR = (0.15, 0.15, 0.17, 1.0)
 _FRAME_COLOUR = (0.62, 0.64, 0.66, 1.0)
 _STOP_COLOUR = (0.95, 0.75, 0.10, 1.0)
+#: Nearly matt: PyBullet's window puts a glaring highlight on shiny frames and rollers (and
+#: a body without a collision shape cannot be changed after it is made).
+_SPECULAR = (0.08, 0.08, 0.08)
 
 
 class Conveyor:
@@ -69,7 +72,7 @@ class Conveyor:
         shape = self.client.createCollisionShape(self.client.GEOM_BOX, halfExtents=list(half)) \
             if collide else -1
         visual = self.client.createVisualShape(self.client.GEOM_BOX, halfExtents=list(half),
-                                               rgbaColor=list(colour))
+                                               rgbaColor=list(colour), specularColor=list(_SPECULAR))
         body = self.client.createMultiBody(baseMass=0, baseCollisionShapeIndex=shape,
                                            baseVisualShapeIndex=visual, basePosition=list(position))
         self.client.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK)
@@ -91,7 +94,8 @@ class Conveyor:
         # Rollers at both ends (look only).
         for x in (c.start_x, c.end_x):
             shape = self.client.createVisualShape(self.client.GEOM_CYLINDER, radius=_BELT_THICKNESS / 2 + 0.01,
-                                                  length=c.width, rgbaColor=list(_FRAME_COLOUR))
+                                                  length=c.width, rgbaColor=list(_FRAME_COLOUR),
+                                                  specularColor=list(_SPECULAR))
             ids.append(self.client.createMultiBody(
                 baseMass=0, baseVisualShapeIndex=shape,
                 basePosition=[x, c.centre_y, c.surface_height - _BELT_THICKNESS / 2],
@@ -101,6 +105,11 @@ class Conveyor:
                              [c.end_x - 0.015, c.centre_y, c.surface_height + (c.end_stop_height - 0.01) / 2],
                              _STOP_COLOUR))
         return ids
+
+    @property
+    def surface_pose(self) -> tuple:
+        """Position and quaternion of the belt's surface box (its centre), as built."""
+        return self._surface_pose
 
     @property
     def stop_x(self) -> float:

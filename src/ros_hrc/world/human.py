@@ -89,8 +89,10 @@ class Human(ArticulatedBody):
     """The human body, its actions (motions) and its predicates."""
 
     def __init__(self, client: PhysicsClient, urdf_path: str, config: HumanConfig,
-                 control_period: float, work_object: WorkObject, rng: np.random.Generator) -> None:
-        super().__init__(client, urdf_path, (*config.station, 0.0), config.facing, control_period)
+                 control_period: float, work_object: WorkObject, rng: np.random.Generator,
+                 split_visuals: Optional[bool] = None) -> None:
+        super().__init__(client, urdf_path, (*config.station, 0.0), config.facing, control_period,
+                         split_visuals)
         self.config = config
         self.object = work_object
         self.rng = rng

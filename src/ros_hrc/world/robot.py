@@ -58,8 +58,10 @@ class Robot(ArticulatedBody):
     """The robot body, its actions (motions) and what it can reach."""
 
     def __init__(self, client: PhysicsClient, urdf_path: str, config: RobotConfig,
-                 control_period: float, work_object: WorkObject) -> None:
-        super().__init__(client, urdf_path, (*config.position, 0.0), config.facing, control_period)
+                 control_period: float, work_object: WorkObject,
+                 split_visuals: Optional[bool] = None) -> None:
+        super().__init__(client, urdf_path, (*config.position, 0.0), config.facing, control_period,
+                         split_visuals)
         self.config = config
         self.object = work_object
         self.set_collision_group(ROBOT_GROUP, 1)

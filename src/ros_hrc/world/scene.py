@@ -56,6 +56,7 @@ from .object import ObjectConfig, WorkObject
 from .outcome import Outcome, Reading
 from .png import write_png
 from .robot import Robot, RobotConfig
+from .window import WINDOW_TITLE, WindowClosed, bullet_windows, name_window, screen_points, window_options
 
 LOG = logging.getLogger(__name__)
 
@@ -68,6 +69,20 @@ PREDICATES = ("is_ov", "is_oir", "is_ho", "is_a0", "is_a2", "is_h4")
 _INTERRUPTING = {("human", "reset"), ("robot", "reset"), ("robot", "cancel_action"), ("world", "reset")}
 #: A synchronous run() gives up after this much simulated time (no action lasts that long).
 _MAX_ACTION_TIME = 60.0
+#: PyBullet's window draws with a fixed vertical field of view (its projection matrix has
+#: 1/tan(fov/2) = 1), whatever the window's size.
+GUI_FOV_DEG = 90.0
+#: Named in the window's overlay.
+_PACKAGE = "ros_hrc"
+#: Specular colour of every body in the window (PyBullet's default glares on large faces).
+_SPECULAR = (0.08, 0.08, 0.08)
+#: The overlay: lines from the window's top-left corner, in pixels; their size and colour.
+_OVERLAY_MARGIN = (14.0, 26.0)
+_OVERLAY_LINE_PX = 22.0
+_OVERLAY_TEXT_SIZE = 1.3
+_OVERLAY_COLOUR = (0.05, 0.06, 0.12)
+#: How often the stepping loop looks whether the user moved the window's view, s.
+_LOOK_PERIOD = 0.3
 #: An unheld object whose downstream face is this close to the belt's end stop has reached
 #: the end: it is missed.
 _AT_END_STOP_M = 0.02
@@ -80,13 +95,38 @@ def default_model_dir() -> Path:
 
 @dataclass(frozen=True)
 class CameraConfig:
-    """The fixed camera of snapshots (and the GUI's initial view)."""
+    """The fixed camera of snapshots (:meth:`World.render`, ``/hrc/camera/image``).
 
-    eye: Tuple[float, float, float] = (2.6, -1.7, 2.0)
-    target: Tuple[float, float, float] = (-0.2, 0.05, 0.9)
+    It looks down the belt from its upstream end, a little to the human's side: the belt, both
+    agents and both working arms (the human's left, the robot's right: the hands that reach
+    for the object upstream) are in view.
+    """
+
+    eye: Tuple[float, float, float] = (-2.65, -0.35, 2.2)
+    target: Tuple[float, float, float] = (-0.1, 0.1, 0.95)
     fov_deg: float = 50.0
     width: int = 800
     height: int = 600
+
+
+@dataclass(frozen=True)
+class WindowConfig:
+    """PyBullet's window (``gui``): its size, the colour of its sky, its initial view.
+
+    The view is PyBullet's camera (distance, yaw, pitch in degrees, target): PyBullet's window
+    sees 90 deg vertically, much wider than the snapshots' 50, so it has a view of its own. It
+    looks, like the snapshots, down the belt from its upstream end, a little to the human's
+    side and from higher up: the belt, both agents and their working arms (the human's left
+    hand, the robot's right gripper, on the upstream side) fill the window, with little sky.
+    """
+
+    width: int = 1024
+    height: int = 768
+    background: Tuple[float, float, float] = (0.86, 0.88, 0.91)
+    distance: float = 1.8
+    yaw_deg: float = -76.0
+    pitch_deg: float = -36.0
+    target: Tuple[float, float, float] = (-0.1, 0.12, 0.9)
 
 
 @dataclass(frozen=True)
@@ -106,6 +146,10 @@ class WorldConfig:
     human: HumanConfig = field(default_factory=HumanConfig)
     robot: RobotConfig = field(default_factory=RobotConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
+    #: Load the agents in colour layers (see .visuals): None = only in the window, which
+    #: otherwise draws each link in one colour.
+    split_visuals: Optional[bool] = None
+    window: WindowConfig = field(default_factory=WindowConfig)
 
 
 class Ticket:
@@ -116,6 +160,7 @@ class Ticket:
         self.action = action
         self.started_at: Optional[float] = None   # simulated time the motion began
         self.outcome: Optional[Outcome] = None
+        self.error: Optional[SimulationError] = None   # raised by wait(): the world failed
         self._done = threading.Event()
 
     @property
@@ -132,6 +177,8 @@ class Ticket:
         if not self._done.wait(timeout):
             raise SimulationError(f"{self.name} did not finish within {timeout:.0f} s of wall-clock time "
                                   "(is the world's stepping loop running?)")
+        if self.error is not None:
+            raise self.error
         return self.outcome
 
     def finish(self, outcome: Outcome, now: float) -> None:
@@ -139,6 +186,11 @@ class Ticket:
         started = self.started_at if self.started_at is not None else now
         self.outcome = replace(outcome, duration=now - started)
         self._done.set()
+
+    def fail(self, error: SimulationError, now: float) -> None:
+        """End the action because the world cannot go on: the waiters get ``error``."""
+        self.error = error
+        self.finish(Outcome(False, f"{self.name} abandoned: {error}"), now)
 
 
 class _Channel:
@@ -176,10 +228,24 @@ class World:
         self._stop = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._listeners: List[Callable[[float], None]] = []
-        self.client = PhysicsClient(self.config.gui)   # the scene: never stepped
+        self._closed_listeners: List[Callable[[], None]] = []
+        self._window_closed = False
+        self._overlay: List[Tuple[int, str, Tuple[float, ...]]] = []   # (item id, text, where)
+        self._overlay_view: Tuple[float, ...] = ()   # the window's view the overlay was placed for
+        self._view_seen: Tuple[float, ...] = ()      # the view at the last look
+        self._next_look = 0.0                        # when to look at the view again (monotonic s)
+        cfg = self.config
+        # The windows PyBullet had open before this one: the new one is ours, to be named.
+        others = bullet_windows() if cfg.gui else set()
+        options = window_options(cfg.window.width, cfg.window.height, cfg.window.background)
+        self.client = PhysicsClient(cfg.gui, options)   # the scene: never stepped
         try:
+            if cfg.gui:
+                self._open_window(others)
             self.physics = PhysicsClient(False)
             self._build()
+            if cfg.gui:
+                self._show_window()
         except BaseException:
             self.close_clients()
             raise
@@ -193,36 +259,74 @@ class World:
         physics.setPhysicsEngineParameter(numSolverIterations=cfg.solver_iterations,
                                           numSubSteps=cfg.substeps, enableConeFriction=0)
         physics.setGravity(0, 0, -9.81)
-        if cfg.gui:
-            c.configureDebugVisualizer(c.COV_ENABLE_GUI, 0)
-            self._aim_gui_camera()
         self.floor_id = self._floor(c)
+        if cfg.gui:
+            self._hold_window()
         self._floor(physics)
-        Conveyor(c, cfg.conveyor, 0.0)   # the scenery as seen (and as it blocks a line of sight)
+        self.scenery = Conveyor(c, cfg.conveyor, 0.0)   # as seen (and as it blocks a line of sight)
         self.conveyor = Conveyor(physics, cfg.conveyor, cfg.belt_speed)
         self.object = WorkObject(c, physics, cfg.work_object, cfg.conveyor.surface_height)
         self.human = Human(c, str(self.model_dir / "human.urdf"), cfg.human, self.control_period,
-                           self.object, self.rng)
+                           self.object, self.rng, cfg.split_visuals)
         self.robot = Robot(c, str(self.model_dir / "pr2_like.urdf"), cfg.robot, self.control_period,
-                           self.object)
+                           self.object, cfg.split_visuals)
         self._channels: Dict[str, _Channel] = {"human": _Channel(self.human), "robot": _Channel(self.robot)}
 
     @staticmethod
     def _floor(client: PhysicsClient) -> int:
         plane = client.createCollisionShape(client.GEOM_PLANE)
-        look = client.createVisualShape(client.GEOM_BOX, halfExtents=[4, 4, 0.005],
+        # Wide: from the window's camera the floor, not the sky, fills the background.
+        look = client.createVisualShape(client.GEOM_BOX, halfExtents=[15, 15, 0.005],
                                         rgbaColor=[0.80, 0.80, 0.78, 1], visualFramePosition=[0, 0, -0.005])
         floor = client.createMultiBody(0, plane, look)
         client.setCollisionFilterGroupMask(floor, -1, STATIC_GROUP, STATIC_MASK)
         return floor
 
+    # --- the window (gui) ------------------------------------------------------------------------
+    # PyBullet's window draws from the moment it opens, before connect() returns: its first
+    # frames show PyBullet's default scene and panels. Then, with rendering off, it shows the
+    # last frame drawn. So: panels off and the camera set at once (an empty scene draws in no
+    # time); the floor and a "loading" line drawn; rendering off while the rest loads (ten
+    # times faster: no frame per shape, no body appearing one by one); rendering on.
+    def _open_window(self, others: set) -> None:
+        """Right after the window opened: its title, PyBullet's panels off, light and camera."""
+        c = self.client
+        if not name_window(WINDOW_TITLE, others):
+            LOG.info("PyBullet's window keeps PyBullet's title (no X11 window found to rename)")
+        for flag in (c.COV_ENABLE_GUI, c.COV_ENABLE_RGB_BUFFER_PREVIEW, c.COV_ENABLE_DEPTH_BUFFER_PREVIEW,
+                     c.COV_ENABLE_SEGMENTATION_MARK_PREVIEW, c.COV_ENABLE_MOUSE_PICKING):
+            c.configureDebugVisualizer(flag, 0)
+        # Light from above, behind the camera's left, as in the snapshots; shadows sized to
+        # the scene.
+        c.configureDebugVisualizer(lightPosition=[-3.0, -2.0, 6.0], shadowMapWorldSize=6,
+                                   shadowMapResolution=1024, shadowMapIntensity=0.35)
+        self._aim_gui_camera()
+
+    def _hold_window(self) -> None:
+        """With the floor in place: a frame with it and a "loading" line, then rendering off."""
+        c = self.client
+        c.changeVisualShape(self.floor_id, -1, specularColor=[0.0, 0.0, 0.0])   # no glare on it
+        self._show_overlay_locked([f"{_PACKAGE}: loading the scene ..."])
+        c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 0)
+
+    def _show_window(self) -> None:
+        """The scene is complete: matt bodies, the first overlay, rendering on."""
+        c = self.client
+        for body in (c.getBodyUniqueId(i) for i in range(c.getNumBodies())):
+            if body != self.floor_id:
+                for link in range(-1, c.getNumJoints(body)):
+                    c.changeVisualShape(body, link, specularColor=list(_SPECULAR))
+        self._show_overlay_locked([f"{_PACKAGE}: the scene is ready; waiting for the first step"])
+        c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 1)
+
+    def gui_camera(self) -> Tuple[float, float, float, Tuple[float, float, float]]:
+        """The window's initial view as PyBullet takes it: distance, yaw, pitch (degrees), target."""
+        w = self.config.window
+        return w.distance, w.yaw_deg, w.pitch_deg, tuple(float(x) for x in w.target)
+
     def _aim_gui_camera(self) -> None:
-        cam = self.config.camera
-        offset = np.array(cam.eye) - np.array(cam.target)
-        distance = float(np.linalg.norm(offset))
-        yaw = float(np.degrees(np.arctan2(offset[1], offset[0]))) + 90.0
-        pitch = -float(np.degrees(np.arcsin(offset[2] / distance)))
-        self.client.resetDebugVisualizerCamera(distance, yaw, pitch, list(cam.target))
+        distance, yaw, pitch, target = self.gui_camera()
+        self.client.resetDebugVisualizerCamera(distance, yaw, pitch, list(target))
 
     # --- context manager ---------------------------------------------------------------------
     def __enter__(self) -> "World":
@@ -242,12 +346,81 @@ class World:
             with self._lock:
                 if self.client.client_id < 0:
                     raise SimulationError("the world is closed")
+                self._check_window()
                 yield
         finally:
             with self._waiters_lock:
                 self._waiters -= 1
 
+    def _check_window(self, settle: float = 0.0) -> None:
+        """Raise :class:`WindowClosed` if the window (the scene server) is gone (under the lock).
+
+        ``settle``: after a PyBullet call failed, give the closing window this long (s) to show
+        it is gone (its threads end first, the connection a moment later): a failure when the
+        window closes is not the action's.
+        """
+        gone = self._window_closed or (self.config.gui and not self.client.connected)
+        deadline = time.monotonic() + settle
+        while not gone and self.config.gui and time.monotonic() < deadline:
+            time.sleep(0.01)
+            gone = not self.client.connected
+        if gone:
+            self._on_window_closed()
+            raise WindowClosed("the PyBullet window was closed: the scene is gone, the world stops")
+
+    def _on_window_closed(self) -> None:
+        """Once: end every pending action with :class:`WindowClosed`, tell the listeners."""
+        if self._window_closed:
+            return
+        self._window_closed = True
+        LOG.error("the PyBullet window was closed: the world stops")
+        error = WindowClosed("the PyBullet window was closed: the scene is gone, the world stops")
+        for ticket in self._pending():
+            ticket.fail(error, self.sim_time)
+        for listener in self._closed_listeners:
+            try:
+                listener()
+            except Exception:  # a listener's bug must not hide the closing
+                LOG.exception("window-closed listener %r failed", listener)
+
+    def _pending(self) -> List[Ticket]:
+        """Take every request, running action and queued action out of the world."""
+        pending = list(self._requests)
+        self._requests.clear()
+        for channel in self._channels.values():
+            if channel.ticket is not None:
+                pending.append(channel.ticket)
+            pending.extend(channel.queue)
+            channel.queue.clear()
+            channel.motion, channel.ticket = None, None
+        return pending
+
     def _step_locked(self) -> None:
+        if self.config.gui:
+            self._check_window()
+            try:
+                self._step_scene()
+                self._follow_view()
+            except Exception:
+                self._check_window(settle=0.2)   # the window went during the step: say so
+                raise
+        else:
+            self._step_scene()
+
+    def _follow_view(self) -> None:
+        """A few times a second: once the user has moved the window's view and let it rest,
+        the overlay goes back to the window's corner (not while the view moves: each line
+        placed costs a frame)."""
+        now = time.monotonic()
+        if now < self._next_look:
+            return
+        self._next_look = now + _LOOK_PERIOD
+        view = tuple(self.client.getDebugVisualizerCamera()[2])
+        if self._overlay and view != self._overlay_view and view == self._view_seen:
+            self._show_overlay_locked([text for _, text, _ in self._overlay])
+        self._view_seen = view
+
+    def _step_scene(self) -> None:
         self._take_requests()
         for channel in self._channels.values():
             if channel.motion is None:
@@ -323,9 +496,15 @@ class World:
                 return
             except StopIteration as stop:
                 outcome = stop.value or Outcome(True, f"{channel.ticket.name} done")
+            except WindowClosed:
+                raise
             except (SimulationError, self.client.error) as error:
+                if self.config.gui:   # a PyBullet error may be the window going, not the action
+                    self._check_window(settle=0.0 if isinstance(error, SimulationError) else 0.2)
                 outcome = Outcome(False, f"{channel.ticket.name} failed: {error}")
             except Exception as error:  # a bug must not kill the loop: report it and carry on
+                if self.config.gui:
+                    self._check_window(settle=0.2)   # PyBullet answers some calls with None once it is gone
                 LOG.exception("%s raised", channel.ticket.name)
                 outcome = Outcome(False, f"{channel.ticket.name} failed with an internal error: {error!r}")
             channel.ticket.finish(outcome, self.sim_time)
@@ -343,12 +522,22 @@ class World:
                 LOG.exception("step listener %r failed", listener)
 
     def _loop(self, real_time_factor: float, pause_when_idle: bool) -> None:
+        try:
+            self._run_loop(real_time_factor, pause_when_idle)
+        except WindowClosed:
+            pass   # logged once, pending actions ended: the thread stops (window_closed says why)
+
+    def _run_loop(self, real_time_factor: float, pause_when_idle: bool) -> None:
         anchor_wall, anchor_sim = time.monotonic(), self.sim_time
         while not self._stop.is_set():
             if pause_when_idle and not self._busy():
                 self._work.clear()
                 if not self._busy():
                     self._work.wait(0.05)
+                if self.config.gui:   # idle, the window may still be closed, or looked round
+                    with self._lock:
+                        self._check_window()
+                        self._follow_view()
                 anchor_wall, anchor_sim = time.monotonic(), self.sim_time
                 continue
             with self._lock:
@@ -390,23 +579,15 @@ class World:
         """Stop the stepping thread (motions in progress stay where they are)."""
         self._stop.set()
         self._work.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5.0)   # (called from the loop itself: it ends on its own)
         self._thread = None
 
     def close(self) -> None:
         """Stop the loop, end every pending action, disconnect from PyBullet."""
         self.stop()
         with self._lock:
-            pending = list(self._requests)
-            self._requests.clear()
-            for channel in self._channels.values():
-                if channel.ticket is not None:
-                    pending.append(channel.ticket)
-                pending.extend(channel.queue)
-                channel.queue.clear()
-                channel.motion, channel.ticket = None, None
-            for ticket in pending:
+            for ticket in self._pending():
                 ticket.finish(Outcome(False, f"{ticket.name} abandoned: the world was closed"), self.sim_time)
             self.close_clients()
 
@@ -420,6 +601,71 @@ class World:
     def add_step_listener(self, listener: Callable[[float], None]) -> None:
         """Call ``listener(sim_time)`` after every physics step (on the stepping thread)."""
         self._listeners.append(listener)
+
+    # --- the window ------------------------------------------------------------------------------
+    @property
+    def window_closed(self) -> bool:
+        """True once PyBullet's window has been closed with Esc (False without ``gui``).
+
+        The scene went with it: the stepping thread has stopped, pending actions ended with
+        :class:`~.window.WindowClosed`, and every later call raises it. Checked at every step
+        and, when idle, every 50 ms; reading this property checks too. (The window manager's
+        close button is another matter: PyBullet's window does not take part in its close
+        protocol, so the window manager cuts its X connection and Xlib ends the whole process,
+        exit status 1.)
+        """
+        if self.config.gui and not self._window_closed and self.client.client_id >= 0 \
+                and not self.client.connected:
+            with self._lock:
+                self._on_window_closed()
+        return self._window_closed
+
+    def add_window_closed_listener(self, listener: Callable[[], None]) -> None:
+        """Call ``listener()`` once when the window is found closed, on the thread that found
+        it (the stepping thread, or a caller's) with the world's lock held: keep it short (set a
+        flag, ask the process to shut down); it may call :meth:`close`."""
+        self._closed_listeners.append(listener)
+
+    def show_overlay(self, lines: Sequence[str]) -> None:
+        """Show ``lines`` at the window's top-left corner, replacing what was shown (no-op
+        without ``gui``).
+
+        Each line is one debug text of PyBullet's, replaced in place (``replaceItemUniqueId``),
+        and only if it changed: each change waits for one frame of the window (tens of ms with
+        software rendering), holding the world's lock. The lines are placed for the view as it
+        is; when the user moves the view and lets it rest, the stepping loop puts them back in
+        the corner. Thread-safe; raises :class:`~.window.WindowClosed` once the window is gone.
+        """
+        if not self.config.gui:
+            return
+        with self._locked():
+            self._show_overlay_locked([str(line) for line in lines])
+
+    def overlay(self) -> List[str]:
+        """The lines the overlay shows now (empty without ``gui``)."""
+        with self._locked():
+            return [text for _, text, _ in self._overlay]
+
+    def _show_overlay_locked(self, lines: List[str]) -> None:
+        c = self.client
+        camera = c.getDebugVisualizerCamera()
+        self._overlay_view = self._view_seen = tuple(camera[2])
+        x, y = _OVERLAY_MARGIN
+        places = screen_points(camera, [(x, y + i * _OVERLAY_LINE_PX) for i in range(len(lines))])
+        shown: List[Tuple[int, str, Tuple[float, ...]]] = []
+        for i, (text, place) in enumerate(zip(lines, places)):
+            where = tuple(round(v, 4) for v in place)
+            old = self._overlay[i] if i < len(self._overlay) else None
+            if old is not None and old[1] == text and old[2] == where:
+                shown.append(old)
+                continue
+            replace_id = old[0] if old is not None else -1
+            item = c.addUserDebugText(text, list(where), list(_OVERLAY_COLOUR), textSize=_OVERLAY_TEXT_SIZE,
+                                      replaceItemUniqueId=replace_id)
+            shown.append((item, text, where))
+        for item, _, _ in self._overlay[len(lines):]:
+            c.removeUserDebugItem(item)
+        self._overlay = shown
 
     def step(self, count: int = 1) -> None:
         """Advance the world by ``count`` control steps on the calling thread (no stepping thread)."""
@@ -502,14 +748,32 @@ class World:
                 "predicates": {name: getattr(self.human, name)().value for name in PREDICATES},
             }
 
-    def render(self, width: Optional[int] = None, height: Optional[int] = None) -> np.ndarray:
-        """An RGB image ``(height, width, 3)`` from the fixed camera (software renderer: works headless)."""
+    def camera_matrices(self, width: Optional[int] = None, height: Optional[int] = None,
+                        window_view: bool = False) -> Tuple[Sequence[float], Sequence[float]]:
+        """View and projection matrices (PyBullet's, column-major) of the snapshot camera, or
+        with ``window_view`` of the window's initial view (its camera and 90 deg lens)."""
+        if window_view:
+            w = self.config.window
+            width, height = width or w.width, height or w.height
+            distance, yaw, pitch, target = self.gui_camera()
+            view = self.client.computeViewMatrixFromYawPitchRoll(list(target), distance, yaw, pitch, 0.0, 2)
+            return view, self.client.computeProjectionMatrixFOV(GUI_FOV_DEG, width / height, 0.01, 100.0)
         cam = self.config.camera
         width, height = width or cam.width, height or cam.height
+        view = self.client.computeViewMatrix(list(cam.eye), list(cam.target), [0, 0, 1])
+        return view, self.client.computeProjectionMatrixFOV(cam.fov_deg, width / height, 0.05, 20.0)
+
+    def render(self, width: Optional[int] = None, height: Optional[int] = None,
+               window_view: bool = False) -> np.ndarray:
+        """An RGB image ``(height, width, 3)`` from the fixed camera (software renderer: works
+        headless); with ``window_view``, of what the window shows at first."""
+        if window_view:
+            width, height = width or self.config.window.width, height or self.config.window.height
+        else:
+            width, height = width or self.config.camera.width, height or self.config.camera.height
         with self._locked():
             c = self.client
-            view = c.computeViewMatrix(list(cam.eye), list(cam.target), [0, 0, 1])
-            projection = c.computeProjectionMatrixFOV(cam.fov_deg, width / height, 0.05, 20.0)
+            view, projection = self.camera_matrices(width, height, window_view)
             image = c.getCameraImage(width, height, view, projection, shadow=1,
                                      lightDirection=[-1.0, -2.0, 4.0], renderer=c.ER_TINY_RENDERER)
         pixels = np.reshape(np.asarray(image[2], dtype=np.uint8), (height, width, 4))
@@ -525,6 +789,22 @@ class World:
         except OSError as error:
             raise SimulationError(f"cannot write the snapshot {path}: {error}") from error
         return path
+
+    def frames(self) -> dict:
+        """Where everything is, for /tf and joint states (plain data): per agent its URDF file,
+        root link, base pose and movable joints' positions; the object's and the belt's poses
+        (position, quaternion x y z w); the simulated time."""
+        with self._locked():
+            out: dict = {"sim_time": self.sim_time}
+            for name, body in (("human", self.human), ("robot", self.robot)):
+                c = body.client
+                out[name] = {"urdf": body.urdf_path,
+                             "root": c.getBodyInfo(body.body_id)[0].decode(),
+                             "base": c.getBasePositionAndOrientation(body.body_id),
+                             "joints": body.positions(body.joints)}
+            out["object"] = self.object.pose()
+            out["belt"] = self.conveyor.surface_pose
+            return out
 
     def describe(self) -> Sequence[str]:
         """One line per body: what the world holds (for logs)."""

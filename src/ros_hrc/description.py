@@ -1,0 +1,53 @@
+"""The agents' URDFs as RViz and robot_state_publisher see them (no ROS, no PyBullet).
+
+Both agents' links go into one /tf tree, so each agent's link names get its name as a prefix
+(``human/torso``, ``robot/base_footprint``); joint names stay as they are, since each agent's
+joint states are published in its own namespace. ``hrc_description AGENT [URDF]`` prints the
+result; the launch files set it as ``/<agent>/robot_description``.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional, Sequence
+
+from defusedxml import ElementTree as SafeElementTree
+
+from ros_hrc.model_files import MODELS_DIR
+
+#: Each agent's URDF in models/urdf.
+AGENT_URDF = {"human": "human.urdf", "robot": "pr2_like.urdf"}
+
+
+def prefixed_description(urdf_text: str, prefix: str) -> str:
+    """The URDF with every link named ``<prefix>/<link>``; joints keep their names."""
+    import xml.etree.ElementTree as ElementTree
+
+    root = SafeElementTree.fromstring(urdf_text)
+    for link in root.iter("link"):
+        link.set("name", f"{prefix}/{link.get('name')}")
+    for joint in root.iter("joint"):
+        for end in ("parent", "child"):
+            element = joint.find(end)
+            if element is not None:
+                element.set("link", f"{prefix}/{element.get('link')}")
+    return ElementTree.tostring(root, encoding="unicode")
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``hrc_description AGENT [URDF]``: the agent's prefixed URDF on standard output."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    args = [a for a in args if not a.startswith("__")]   # roslaunch's __name:= and __log:=
+    if not args or args[0] not in AGENT_URDF or len(args) > 2:
+        print(f"usage: hrc_description {{{'|'.join(AGENT_URDF)}}} [URDF]", file=sys.stderr)
+        return 2
+    agent = args[0]
+    path = Path(args[1]) if len(args) == 2 else \
+        MODELS_DIR / "urdf" / AGENT_URDF[agent]
+    try:
+        text = path.read_text(encoding="utf-8")
+        sys.stdout.write(prefixed_description(text, agent))
+    except (OSError, SafeElementTree.ParseError) as error:
+        print(f"hrc_description: {path}: {error}", file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,129 @@
+"""hrc_viz: the step as RViz markers, from /hrc/status.
+
+Publishes ``/hrc/markers`` (``visualization_msgs/MarkerArray``, latched) on every step:
+
+* ``belief``: one bar per state of the robot's model, its height the robot's belief in that
+  state; the true state (which the robot never sees) in orange, the needs-help states S2..S5
+  in blue, the others in grey; each with its name and probability underneath;
+* ``step``: the step's lines (:func:`ros_hrc.loop.display.status_lines`) above the scene;
+* ``holder``: who holds the object, floating over it (frame ``object``);
+* ``scenery``: the belt (frame ``belt``) and the object (frame ``object``) as boxes, which no
+  URDF describes (published once, latched, and with every step).
+
+Parameters: ``~frame`` (``world``), ``~bars_origin`` ([x, y, z] of the first bar's foot; the bars run along +y,
+m, default [-1.3, -1.55, 1.15]), ``~bar_spacing`` (0.13 m), ``~bar_height`` (0.5 m: a
+belief of 1), ``~text_position`` ([x, y, z], default [-1.1, -0.5, 2.15]), ``~belt_size``
+([length, width, thickness], m, default [2.0, 0.4, 0.04], the world's ConveyorConfig),
+``~object_size`` (edge, m, default 0.06, the world's ObjectConfig).
+"""
+from __future__ import annotations
+
+from typing import List, Sequence
+
+import rospy
+from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
+
+from ros_hrc.loop.display import belief_bars, holder_text, status_lines
+from ros_hrc.msg import Status
+
+_TRUE = ColorRGBA(0.95, 0.55, 0.10, 1.0)
+_HELP = ColorRGBA(0.20, 0.45, 0.85, 0.9)
+_OTHER = ColorRGBA(0.60, 0.60, 0.62, 0.9)
+_TEXT = ColorRGBA(0.05, 0.05, 0.05, 1.0)
+
+
+def _pose(x: float, y: float, z: float) -> Pose:
+    return Pose(position=Point(x, y, z), orientation=Quaternion(0, 0, 0, 1))
+
+
+def _marker(frame: str, ns: str, mid: int, kind: int, stamp) -> Marker:
+    m = Marker()
+    m.header.frame_id = frame
+    m.header.stamp = stamp
+    m.ns, m.id, m.type, m.action = ns, mid, kind, Marker.ADD
+    m.frame_locked = True
+    return m
+
+
+def _text(frame: str, ns: str, mid: int, stamp, text: str, where: Sequence[float],
+          height: float) -> Marker:
+    m = _marker(frame, ns, mid, Marker.TEXT_VIEW_FACING, stamp)
+    m.pose = _pose(*where)
+    m.scale = Vector3(0, 0, height)
+    m.color = _TEXT
+    m.text = text
+    return m
+
+
+def scenery_markers(belt_size: Sequence[float], object_size: float, stamp=None) -> List[Marker]:
+    """The belt and the object as boxes in their own frames (from hrc_world's /tf)."""
+    stamp = stamp if stamp is not None else rospy.Time(0)
+    belt = _marker("belt", "scenery", 0, Marker.CUBE, stamp)
+    belt.pose = _pose(0, 0, 0)
+    belt.scale = Vector3(*belt_size)
+    belt.color = ColorRGBA(0.15, 0.15, 0.17, 1.0)
+    thing = _marker("object", "scenery", 1, Marker.CUBE, stamp)
+    thing.pose = _pose(0, 0, 0)
+    thing.scale = Vector3(object_size, object_size, object_size)
+    thing.color = ColorRGBA(0.85, 0.15, 0.10, 1.0)
+    return [belt, thing]
+
+
+def status_markers(status, frame: str, origin: Sequence[float], spacing: float,
+                   height: float, text_at: Sequence[float], stamp=None) -> MarkerArray:
+    """The markers of one step (module docstring)."""
+    stamp = stamp if stamp is not None else rospy.Time(0)
+    markers: List[Marker] = []
+    x0, y0, z0 = origin
+    for i, bar in enumerate(belief_bars(status)):
+        y = y0 + i * spacing    # along the belt's width: across the default view
+        h = max(bar.probability, 0.0) * height
+        cube = _marker(frame, "belief", i, Marker.CUBE, stamp)
+        cube.pose = _pose(x0, y, z0 + max(h, 0.002) / 2)
+        cube.scale = Vector3(0.04, spacing * 0.7, max(h, 0.002))
+        cube.color = _TRUE if bar.true_state else (_HELP if bar.needs_help else _OTHER)
+        markers.append(cube)
+        label = f"{bar.state}{'*' if bar.true_state else ''}\n{bar.probability:.2f}"
+        markers.append(_text(frame, "belief_labels", i, stamp, label, (x0, y, z0 - 0.09), 0.05))
+    markers.append(_text(frame, "belief_title", 0, stamp,
+                         "robot's belief (* true state, orange)",
+                         (x0, y0 + spacing * 3, z0 + height + 0.12), 0.06))
+    markers.append(_text(frame, "step", 0, stamp, "\n".join(status_lines(status)), text_at,
+                         0.075))
+    markers.append(_text("object", "holder", 0, stamp,
+                         holder_text(getattr(status, "object_holder", "none")), (0, 0, 0.18),
+                         0.045))
+    return MarkerArray(markers=markers)
+
+
+class VizNode:
+    def __init__(self) -> None:
+        self.frame = rospy.get_param("~frame", "world")
+        self.origin = [float(v) for v in rospy.get_param("~bars_origin", [-1.3, -1.55, 1.15])]
+        self.spacing = float(rospy.get_param("~bar_spacing", 0.13))
+        self.height = float(rospy.get_param("~bar_height", 0.5))
+        self.text_at = [float(v) for v in rospy.get_param("~text_position", [-1.1, -0.5, 2.15])]
+        self.scenery = scenery_markers(
+            [float(v) for v in rospy.get_param("~belt_size", [2.0, 0.4, 0.04])],
+            float(rospy.get_param("~object_size", 0.06)))
+        self.pub = rospy.Publisher("/hrc/markers", MarkerArray, queue_size=2, latch=True)
+        self.pub.publish(MarkerArray(markers=self.scenery))
+        rospy.Subscriber("/hrc/status", Status, self._on_status, queue_size=10)
+
+    def _on_status(self, status: Status) -> None:
+        if status.fault:
+            return   # a failed step carries no decision to show; the next reset's steps will
+        markers = status_markers(status, self.frame, self.origin, self.spacing, self.height,
+                                 self.text_at, rospy.Time.now())
+        markers.markers.extend(self.scenery)   # latched: a late RViz gets everything at once
+        self.pub.publish(markers)
+
+
+def main() -> None:
+    """Entry point of ``scripts/hrc_viz``."""
+    rospy.init_node("hrc_viz")
+    VizNode()
+    rospy.loginfo("hrc_viz: the steps of /hrc/status as markers on /hrc/markers")
+    rospy.spin()

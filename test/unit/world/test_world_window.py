@@ -1,0 +1,303 @@
+"""PyBullet's window explains itself: every visual in its colour, a camera on the scene, an
+overlay, and a closed window that stops the world instead of breaking every later call.
+
+Headless (DIRECT) for everything that does not need a display; one test opens the window
+under a private Xvfb (skipped without Xvfb and xdotool) and closes it with Esc, as a user does.
+"""
+import logging
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pybullet
+import pytest
+
+from ros_hrc.errors import SimulationError
+from ros_hrc.world import World, WindowClosed, WorldConfig
+from ros_hrc.world.scene import default_model_dir
+from ros_hrc.world.visuals import link_colours, visual_layers
+from ros_hrc.world.window import WINDOW_TITLE, screen_points, window_options
+
+AGENTS = {"human": "human.urdf", "robot": "pr2_like.urdf"}
+
+
+@pytest.fixture
+def split_world():
+    """The default scene, headless, with the agents in colour layers as in the window."""
+    with World(WorldConfig(seed=3, split_visuals=True)) as w:
+        yield w
+
+
+def _rgba(colour):
+    return tuple(round(float(x), 3) for x in colour)
+
+
+def _colours_by_link(client, body_ids, links):
+    """Per link name, the colours the scene server holds for it across ``body_ids``."""
+    names = {index: name for name, index in links.items()}
+    out = {name: set() for name in links}
+    for body in body_ids:
+        for row in client.getVisualShapeData(body):
+            out[names[row[1]]].add(_rgba(row[7]))
+    return out
+
+
+# --- colours: one colour per link and body, every visual's colour kept ------------------------
+def test_a_link_of_several_colours_is_split_into_layers():
+    urdf = textwrap.dedent("""\
+        <robot name="r">
+          <material name="red"><color rgba="1 0 0 1"/></material>
+          <link name="a">
+            <visual><geometry><box size="1 1 1"/></geometry><material name="red"/></visual>
+            <visual><geometry><sphere radius="1"/></geometry><material name="x"><color rgba="0 1 0 1"/></material></visual>
+            <visual><geometry><sphere radius="2"/></geometry><material name="red"/></visual>
+            <visual><geometry><sphere radius="3"/></geometry><material name="y"><color rgba="0 0 1 1"/></material></visual>
+            <collision><geometry><box size="1 1 1"/></geometry></collision>
+          </link>
+          <joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+            <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+          <link name="b"><visual><geometry><box size="1 1 1"/></geometry><material name="red"/></visual>
+            <collision><geometry><box size="1 1 1"/></geometry></collision></link>
+        </robot>""")
+    assert link_colours(urdf) == {"a": [(1, 0, 0, 1), (0, 1, 0, 1), (0, 0, 1, 1)], "b": [(1, 0, 0, 1)]}
+    layers = visual_layers(urdf)
+    assert len(layers) == 3
+    base, green, blue = (link_colours(layer) for layer in layers)
+    assert base == {"a": [(1, 0, 0, 1)], "b": [(1, 0, 0, 1)]}
+    assert green == {"a": [(0, 1, 0, 1)], "b": []} and blue == {"a": [(0, 0, 1, 1)], "b": []}
+    assert layers[0].count("<visual>") == 3   # both red visuals of a, and b's
+    assert layers[0].count("<collision>") == 2 and "<collision>" not in layers[1] + layers[2]
+    assert all("<joint" in layer for layer in layers)   # the same tree in every layer
+    one_colour = urdf.replace('<color rgba="0 1 0 1"/>', '<color rgba="1 0 0 1"/>') \
+                     .replace('<color rgba="0 0 1 1"/>', '<color rgba="1 0 0 1"/>')
+    assert visual_layers(one_colour) == [one_colour]
+
+
+def test_every_visual_keeps_its_colour_in_the_scene_server(split_world):
+    c = split_world.client
+    for agent, urdf in AGENTS.items():
+        body = getattr(split_world, agent)
+        wanted = {link: {_rgba(colour) for colour in colours}
+                  for link, colours in link_colours((default_model_dir() / urdf).read_text()).items()}
+        assert body.twins, f"the {agent} has links of two colours: it needs a second layer"
+        assert _colours_by_link(c, [body.body_id] + body.twins, body.links) == wanted
+        # Each body of the layers draws each link in one colour: what PyBullet's window can do.
+        for body_id in [body.body_id] + body.twins:
+            colours = _colours_by_link(c, [body_id], body.links)
+            assert all(len(found) <= 1 for found in colours.values()), (agent, body_id, colours)
+    shirt, skin, hair = (0.2, 0.45, 0.75, 1.0), (0.93, 0.75, 0.62, 1.0), (0.3, 0.18, 0.08, 1.0)
+    human = _colours_by_link(c, [split_world.human.body_id], split_world.human.links)
+    assert human["torso"] == {shirt} and human["head"] == {skin}
+    assert hair in _colours_by_link(c, split_world.human.twins, split_world.human.links)["head"]
+
+
+def test_layers_change_no_link_joint_or_collision_shape(world, split_world):
+    for agent in AGENTS:
+        plain, split = getattr(world, agent), getattr(split_world, agent)
+        assert split.links == plain.links and split.joints == plain.joints
+        for index in range(world.client.getNumJoints(plain.body_id)):
+            assert split_world.client.getJointInfo(split.body_id, index) == \
+                world.client.getJointInfo(plain.body_id, index)
+        for index in [-1] + list(range(world.client.getNumJoints(plain.body_id))):
+            # Each row without its first field, the body's id (the human's layers come first).
+            assert [row[1:] for row in split_world.client.getCollisionShapeData(split.body_id, index)] == \
+                [row[1:] for row in world.client.getCollisionShapeData(plain.body_id, index)]
+        for twin in split.twins:   # visual only: rays and contacts go through
+            for index in [-1] + list(range(split_world.client.getNumJoints(twin))):
+                assert split_world.client.getCollisionShapeData(twin, index) == ()
+
+
+def test_layers_move_together_and_the_run_is_the_same(world, split_world):
+    for w in (world, split_world):
+        w.run("robot", "point_to_obj")
+        w.run("human", "grasp")
+        w.run("human", "walk_away")
+    assert split_world.state() == world.state()
+    for agent in AGENTS:
+        plain, split = getattr(world, agent), getattr(split_world, agent)
+        for name in plain.links:
+            assert np.allclose(split.link_pose(name)[0], plain.link_pose(name)[0], atol=1e-9)
+        indices = [j.index for j in split.joints.values()]
+        reference = [s[0] for s in split_world.client.getJointStates(split.body_id, indices)]
+        for twin in split.twins:
+            assert [s[0] for s in split_world.client.getJointStates(twin, indices)] == reference
+
+
+def test_rays_do_not_hit_the_colour_layers(split_world):
+    head, _ = split_world.human.link_frame("head")
+    top = head + np.array([0.0, 0.0, 0.13])   # the hair is a layer of its own
+    hit = split_world.client.rayTest((top + [0, 0, 0.5]).tolist(), (top - [0, 0, 0.2]).tolist())[0]
+    assert hit[0] == split_world.human.body_id
+    assert split_world.query("is_ov").value
+
+
+# --- the camera ---------------------------------------------------------------------------------------
+def _visible_links(world, window_view):
+    """(body, link) pairs with pixels in the image of the window's view or the snapshot camera."""
+    c = world.client
+    width, height = 256, 192
+    view, projection = world.camera_matrices(width, height, window_view)
+    mask = np.asarray(c.getCameraImage(width, height, view, projection, renderer=c.ER_TINY_RENDERER,
+                                       flags=c.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)[4]).reshape(height, width)
+    seen = {(int(v) & ((1 << 24) - 1), (int(v) >> 24) - 1) for v in np.unique(mask) if v >= 0}
+    return seen, float(np.mean(mask < 0))
+
+
+@pytest.mark.parametrize("window_view", [True, False])
+def test_the_cameras_see_both_agents_at_work(still_world, window_view):
+    w = still_world
+    w.submit("robot", "point_to_obj")
+    grasp = w.submit("human", "grasp")
+    w.step(int(1.0 / w.control_period))   # the reach is nearly over: the hand is at the object
+    assert not grasp.done() and w.human.activity == "grasp"
+    seen, sky = _visible_links(w, window_view)
+    human, robot = w.human, w.robot
+    for body, link in [(human, "left_forearm"), (human, "head"), (human, "torso"),
+                       (robot, "r_gripper_palm_link"), (robot, "head_tilt_link"), (robot, "torso_lift_link")]:
+        assert (body.body_id, body.link(link)) in seen, f"{link} is not in view"
+    assert (w.object.body_id, -1) in seen and (w.scenery.belt_id, -1) in seen
+    assert sky < 0.25, f"{sky:.0%} of the view is sky"
+
+
+def test_the_window_camera_is_the_configured_one():
+    config = WorldConfig(seed=1)
+    with World(config) as w:
+        distance, yaw, pitch, target = w.gui_camera()
+        assert (distance, yaw, pitch, target) == (config.window.distance, config.window.yaw_deg,
+                                                  config.window.pitch_deg, config.window.target)
+    options = window_options(1280, 800, (0.5, 0.25, 1.0))
+    assert options.split() == ["--width=1280", "--height=800", "--background_color_red=0.500",
+                               "--background_color_green=0.250", "--background_color_blue=1.000"]
+
+
+def test_overlay_points_land_on_their_pixels():
+    width, height = 1024, 768
+    view = pybullet.computeViewMatrixFromYawPitchRoll([0.1, 0.2, 0.9], 1.8, -76, -36, 0, 2)
+    projection = pybullet.computeProjectionMatrixFOV(90, width / height, 0.01, 1000)
+    camera = (width, height, view, projection)
+    pixels = [(14, 26), (500, 400), (1000, 700)]
+    eye = np.linalg.inv(np.array(view).reshape(4, 4).T)[:3, 3]
+    full = np.array(projection).reshape(4, 4).T @ np.array(view).reshape(4, 4).T
+    for (x, y), point in zip(pixels, screen_points(camera, pixels, depth=0.5)):
+        clip = full @ np.array([*point, 1.0])
+        ndc = clip[:3] / clip[3]
+        assert (width * (ndc[0] + 1) / 2, height * (1 - ndc[1]) / 2) == pytest.approx((x, y), abs=1e-3)
+        assert np.linalg.norm(np.array(point) - eye) >= 0.5   # in front of everything in the scene
+
+
+# --- the API without a window ------------------------------------------------------------------------
+def test_without_a_window_the_overlay_is_a_no_op(world):
+    world.show_overlay(["episode 1, step 2", "human: grasp -> S1"])
+    assert world.overlay() == []
+    assert world.window_closed is False
+    assert issubclass(WindowClosed, SimulationError)
+    assert "ros_hrc" in WINDOW_TITLE
+
+
+def test_a_lost_window_stops_the_loop_once_and_every_later_call(caplog):
+    """The scene server's disconnection, as Esc causes it, here without a display: a headless
+    world made to take its scene server for a window, whose server is then disconnected."""
+    world = World(WorldConfig(seed=3))
+    world.config = replace(world.config, gui=True)   # checks the scene server like a window
+    calls = []
+    world.add_window_closed_listener(lambda: calls.append(world.sim_time))
+    try:
+        world.start(real_time_factor=1.0)
+        running = world.submit("human", "look_around")   # 3.4 s
+        queued = world.submit("human", "grasp")           # behind it
+        time.sleep(0.1)
+        assert not running.done() and not queued.done()
+        with caplog.at_level(logging.INFO, logger="ros_hrc.world"):
+            with world._lock:   # as the window's thread ends: between two steps
+                pybullet.disconnect(physicsClientId=world.client.client_id)
+            deadline = time.monotonic() + 5.0
+            while world.running and time.monotonic() < deadline:
+                time.sleep(0.01)
+            time.sleep(0.2)   # a loop that went on would log again, or step
+        assert not world.running and world.window_closed and len(calls) == 1
+        for ticket in (running, queued):
+            with pytest.raises(WindowClosed):
+                ticket.wait(1.0)
+        for call in (lambda: world.run("robot", "grasp", timeout=1.0), lambda: world.query("is_ov"),
+                     world.state, lambda: world.show_overlay(["x"])):
+            with pytest.raises(WindowClosed):
+                call()
+        errors = [r for r in caplog.records if r.levelno >= logging.ERROR]
+        assert len(errors) == 1 and "window was closed" in errors[0].getMessage()
+        assert len(calls) == 1
+    finally:
+        world.close()
+
+
+# --- the window itself, under a private X server --------------------------------------------------
+_WINDOW_SCRIPT = textwrap.dedent("""\
+    import subprocess, sys, time
+    from ros_hrc.world import World, WorldConfig, WindowClosed
+    world = World(WorldConfig(gui=True, seed=1))
+    closed = []
+    world.add_window_closed_listener(lambda: closed.append(1))
+    world.start(real_time_factor=1.0)
+    lines = ["episode 1, step 1", "human: grasp -> S1", "P(human needs help) = 0.50"]
+    world.show_overlay(lines)
+    world.show_overlay(lines[:2])
+    print("RESULT overlay", world.overlay() == lines[:2], flush=True)
+    found = subprocess.run(["xdotool", "search", "--name", "^ros_hrc"], capture_output=True, text=True)
+    windows = found.stdout.split()
+    print("RESULT titled", len(windows), flush=True)
+    ticket = world.submit("human", "look_around")   # 3.4 s: under way when the window closes
+    time.sleep(0.3)
+    subprocess.run(["xdotool", "key", "--window", windows[0], "Escape"], check=True)
+    deadline = time.monotonic() + 5.0
+    while (world.running or not world.window_closed) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    print("RESULT closed", world.window_closed, "running", world.running, flush=True)
+    try:
+        ticket.wait(2.0)
+        print("RESULT ticket returned", flush=True)
+    except WindowClosed:
+        print("RESULT ticket WindowClosed", flush=True)
+    try:
+        world.run("human", "idle", timeout=2.0)
+        print("RESULT run returned", flush=True)
+    except WindowClosed:
+        print("RESULT run WindowClosed", flush=True)
+    print("RESULT listener", len(closed), flush=True)
+    world.close()
+    print("RESULT done", flush=True)
+    """)
+
+
+def _free_display() -> int:
+    for number in range(91, 160):
+        if not Path(f"/tmp/.X{number}-lock").exists() and not Path(f"/tmp/.X11-unix/X{number}").exists():
+            return number
+    pytest.skip("no free X display number")
+
+
+@pytest.mark.skipif(not (shutil.which("Xvfb") and shutil.which("xdotool")), reason="needs Xvfb and xdotool")
+def test_the_window_under_xvfb_closes_with_esc_and_the_world_says_so():
+    number = _free_display()
+    server = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 5.0
+        while not Path(f"/tmp/.X11-unix/X{number}").exists():
+            if server.poll() is not None or time.monotonic() > deadline:
+                pytest.skip(f"Xvfb could not start on :{number}")
+            time.sleep(0.05)
+        env = dict(os.environ, DISPLAY=f":{number}")
+        run = subprocess.run([sys.executable, "-c", _WINDOW_SCRIPT], env=env, capture_output=True,
+                             text=True, timeout=60)
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+    results = [line.split(" ", 1)[1] for line in run.stdout.splitlines() if line.startswith("RESULT ")]
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert results == ["overlay True", "titled 1", "closed True running False", "ticket WindowClosed",
+                       "run WindowClosed", "listener 1", "done"], run.stdout[-3000:]
