@@ -53,3 +53,13 @@ def test_each_agents_links_are_prefixed_and_its_joints_kept(capsys):
     shipped = ElementTree.fromstring(capsys.readouterr().out)
     assert all(l.get("name").startswith("human/") for l in shipped.iter("link"))
     assert description_main(["dog"]) == 2
+
+
+def test_snapshot_names_differ_across_runs_and_within_one():
+    from ros_hrc.nodes.world_node import snapshot_name
+
+    names = {snapshot_name("20261123-160436-4242", n, 12.5) for n in (1, 2)}
+    names.add(snapshot_name("20261123-160437-4243", 1, 12.5))
+    assert len(names) == 3
+    assert snapshot_name("20261123-160436-4242", 3, 12.5) == \
+        "world_20261123-160436-4242_0003_00012.500s.png"
