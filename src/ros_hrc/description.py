@@ -8,6 +8,7 @@ result; the launch files set it as ``/<agent>/robot_description``.
 from __future__ import annotations
 
 import sys
+import xml.etree.ElementTree as ElementTree   # writing only; parsing is defusedxml's
 from pathlib import Path
 from typing import Optional, Sequence
 
@@ -21,8 +22,6 @@ AGENT_URDF = {"human": "human.urdf", "robot": "pr2_like.urdf"}
 
 def prefixed_description(urdf_text: str, prefix: str) -> str:
     """The URDF with every link named ``<prefix>/<link>``; joints keep their names."""
-    import xml.etree.ElementTree as ElementTree
-
     root = SafeElementTree.fromstring(urdf_text)
     for link in root.iter("link"):
         link.set("name", f"{prefix}/{link.get('name')}")

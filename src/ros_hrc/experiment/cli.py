@@ -28,7 +28,7 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Set
+from typing import Callable, Dict, List, Optional, Sequence, Set, Tuple
 
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
@@ -60,7 +60,7 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {' '.join(message.split())}\n")
 
 
-def _names(text: str) -> List[str]:
+def names_argument(text: str) -> List[str]:
     names = [part.strip() for part in text.split(",") if part.strip()]
     if not names:
         raise argparse.ArgumentTypeError("give at least one name (comma-separated)")
@@ -69,7 +69,7 @@ def _names(text: str) -> List[str]:
 
 def _seeds(text: str) -> List[int]:
     seeds = []
-    for part in _names(text):
+    for part in names_argument(text):
         try:
             seeds.append(settings.parse("seed", part))
         except SettingError as exc:
@@ -78,7 +78,7 @@ def _seeds(text: str) -> List[int]:
     return seeds
 
 
-def _at_least(minimum: int) -> Callable[[str], int]:
+def at_least(minimum: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
         try:
             value = int(text.strip())
@@ -96,15 +96,15 @@ def _at_least(minimum: int) -> Callable[[str], int]:
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=NAME, description=__doc__.split("\n\n")[0],
                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--human-models", type=_names, default=_names(DEFAULT_HUMANS),
+    p.add_argument("--human-models", type=names_argument, default=names_argument(DEFAULT_HUMANS),
                    help=f"human scenarios or .pomdpx files, comma-separated ({DEFAULT_HUMANS})")
-    p.add_argument("--policies", type=_names, default=_names(DEFAULT_POLICIES),
+    p.add_argument("--policies", type=names_argument, default=names_argument(DEFAULT_POLICIES),
                    help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)}")
     p.add_argument("--seeds", type=_seeds, default=[0, 1], help="seeds, comma-separated (0,1)")
-    p.add_argument("--episodes", type=_at_least(1), default=10, help="episodes per cell (10)")
-    p.add_argument("--step-limit", type=_at_least(1), default=15,
+    p.add_argument("--episodes", type=at_least(1), default=10, help="episodes per cell (10)")
+    p.add_argument("--step-limit", type=at_least(1), default=15,
                    help="steps before an episode ends (15)")
-    p.add_argument("--jobs", type=_at_least(0), default=0,
+    p.add_argument("--jobs", type=at_least(0), default=0,
                    help="stacks run side by side (0: one per core)")
     p.add_argument("--out", default="results/experiment", help="results directory")
     settings.add_argument(p, "robot_model")
@@ -351,6 +351,38 @@ def report(store: ResultsStore, out: Path, plots: bool) -> None:
     print(f"{NAME}: written " + ", ".join(str(p) for p in written))
 
 
+def open_results(directory: Path, argument: str):
+    """The lock of a results directory (:func:`lock_directory`), or an HrcError in one line
+    naming ``argument`` (another run holds it, or it cannot be made)."""
+    try:
+        return lock_directory(directory)
+    except DirectoryLocked as exc:
+        raise GridError(str(exc)) from None
+    except OSError as exc:
+        raise GridError(f"{argument} {directory}: {exc.strerror or exc}") from None
+
+
+def run_stoppable(cells: List[CellSpec], store: ResultsStore, jobs: int, words: Sequence[str],
+                  out: Path, program: str = NAME) -> Tuple[Optional[dict], Optional[int]]:
+    """:func:`run_grid` under SIGINT and SIGTERM: ``(figures, None)``, or, when a signal
+    stopped it, ``(None, 128 + signal)`` after saying what is kept and how to resume."""
+    stopper = Stopper()
+    stopper.install()
+    figures = None
+    try:
+        figures = run_grid(cells, store, jobs, stopper, program=program)
+    except KeyboardInterrupt:   # a signal before the handlers were in place
+        stopper.stop(signal.SIGINT)
+    finally:
+        stopper.uninstall()
+    if not stopper.stopping:
+        return figures, None
+    name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
+    print(f"\n{program}: stopped by {name}; {len(store.done())} episodes are kept in {out}. "
+          f"Resume with: {shlex.join([program] + list(words))}", file=sys.stderr, flush=True)
+    return None, 128 + int(stopper.signum)  # type: ignore[arg-type]
+
+
 def _error(text: object) -> int:
     print(f"{NAME}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
     return 2
@@ -368,11 +400,9 @@ def main(argv: Optional[list] = None) -> int:
     out = Path(args.out).expanduser()
     args.jobs = args.jobs or os.cpu_count() or 1
     try:
-        lock = lock_directory(out)
-    except DirectoryLocked as exc:
+        lock = open_results(out, "--out")
+    except HrcError as exc:
         return _error(exc)
-    except OSError as exc:
-        return _error(f"--out {out}: {exc.strerror or exc}")
     with lock:
         return _run_locked(args, out, words)
 
@@ -391,20 +421,9 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
           "stacks side by side", flush=True)
     figures = None
     if cells:
-        stopper = Stopper()
-        stopper.install()
-        try:
-            figures = run_grid(cells, store, args.jobs, stopper)
-        except KeyboardInterrupt:   # a signal before the handlers were in place
-            stopper.stop(signal.SIGINT)
-        finally:
-            stopper.uninstall()
-        if stopper.stopping:
-            name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
-            print(f"\n{NAME}: stopped by {name}; {len(store.done())} episodes are kept in {out}. "
-                  f"Resume with: {shlex.join([NAME] + list(words))}", file=sys.stderr, flush=True)
-            return 128 + int(stopper.signum)  # type: ignore[arg-type]
-        assert figures is not None
+        figures, stopped = run_stoppable(cells, store, args.jobs, words, out)
+        if stopped is not None:
+            return stopped
         print(f"{NAME}: {figures['episodes']} episodes in {figures['wall_seconds']:.1f} s: "
               f"{figures['episodes_per_minute']:.1f} episodes/min, "
               f"{figures['simulated_seconds']:.1f} simulated s, "

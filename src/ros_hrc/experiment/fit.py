@@ -34,10 +34,11 @@ episodes and the same model. ``make fit`` regenerates the shipped
 from __future__ import annotations
 
 import argparse
+import hashlib
+import inspect
 import json
 import os
 import shlex
-import signal
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -45,13 +46,13 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
-from ros_hrc.experiment.cli import (GridError, OneLineParser, Stopper, _at_least, _names,
-                                    run_grid)
+from ros_hrc.experiment.cli import (OneLineParser, at_least, names_argument, open_results,
+                                    run_stoppable)
 from ros_hrc.experiment.stack import CellSpec
-from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
-                                      lock_directory)
-from ros_hrc.loop import settings
-from ros_hrc.loop.models import ModelNotFound, load_human_model, load_robot_model, model_path
+from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
+from ros_hrc.loop import task
+from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
+                                 shown_path)
 from ros_hrc.pomdp.fit import ExperienceCounts, fit_model, support_lines, write_fitted
 from ros_hrc.pomdp.model import Model
 
@@ -72,13 +73,13 @@ class FitError(HrcError):
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=NAME, description=__doc__.split("\n\n")[0],
                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--human-models", type=_names, default=_names(DEFAULT_HUMANS),
+    p.add_argument("--human-models", type=names_argument, default=names_argument(DEFAULT_HUMANS),
                    help=f"human scenarios or .pomdpx files, comma-separated ({DEFAULT_HUMANS})")
-    p.add_argument("--episodes", type=_at_least(1), default=100,
+    p.add_argument("--episodes", type=at_least(1), default=100,
                    help="episodes per human model (100)")
-    p.add_argument("--seed", type=_at_least(0), default=0,
+    p.add_argument("--seed", type=at_least(0), default=0,
                    help="seed of the stacks: the human MDP and the exploring robot (0)")
-    p.add_argument("--step-limit", type=_at_least(1), default=15,
+    p.add_argument("--step-limit", type=at_least(1), default=15,
                    help="steps before an episode ends (15, as hrc_experiment)")
     p.add_argument("--prior", default="robot",
                    help="the robot model whose rows are the prior and whose rewards are kept "
@@ -86,7 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--strength", type=_non_negative, default=5.0,
                    help="the prior's pseudo-counts per row; 0: the episodes' frequencies "
                         "wherever a row has any (5)")
-    p.add_argument("--jobs", type=_at_least(0), default=0,
+    p.add_argument("--jobs", type=at_least(0), default=0,
                    help="stacks run side by side (0: one per core)")
     p.add_argument("--runs", default="results/fit",
                    help="where the episodes are kept, and found again (results/fit)")
@@ -108,11 +109,6 @@ def _non_negative(text: str) -> float:
 def labels_fingerprint() -> str:
     """A digest of the labelling code: steps recorded under other labels must not be counted
     (the steps keep the label they were given)."""
-    import hashlib
-    import inspect
-
-    from ros_hrc.loop import task
-
     text = inspect.getsource(task.RobotStateTracker) + repr(
         (task.EVALUATING_MAY_NEED_HELP, task.EVALUATING_NEEDS_HELP))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -207,16 +203,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     runs = Path(args.runs).expanduser()
     args.jobs = args.jobs or os.cpu_count() or 1
     try:
-        lock = lock_directory(runs)
-    except DirectoryLocked as exc:
-        return _error(exc)
-    except OSError as exc:
-        return _error(f"--runs {runs}: {exc.strerror or exc}")
-    with lock:
-        try:
+        with open_results(runs, "--runs"):
             return _run_locked(args, runs, prior, words)
-        except HrcError as exc:
-            return _error(exc)
+    except HrcError as exc:
+        return _error(exc)
 
 
 def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[str]) -> int:
@@ -242,20 +232,9 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
           f"exploring robot = {wanted} episodes; {wanted - todo} already in {runs}, {todo} to "
           f"run", flush=True)
     if cells:
-        stopper = Stopper()
-        stopper.install()
-        try:
-            figures = run_grid(cells, store, args.jobs, stopper, program=NAME)
-        except KeyboardInterrupt:
-            stopper.stop(signal.SIGINT)
-            figures = None
-        finally:
-            stopper.uninstall()
-        if stopper.stopping:
-            name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
-            print(f"\n{NAME}: stopped by {name}; the episodes so far are kept in {runs}. "
-                  f"Resume with: {shlex.join([NAME] + list(words))}", file=sys.stderr, flush=True)
-            return 128 + int(stopper.signum)  # type: ignore[arg-type]
+        figures, stopped = run_stoppable(cells, store, args.jobs, words, runs, program=NAME)
+        if stopped is not None:
+            return stopped
         if figures and figures["failed_cells"]:
             raise FitError(f"{len(figures['failed_cells'])} stacks failed (logs in "
                            f"{runs / 'logs'}): {figures['failed_cells'][0]}; run again to retry")
@@ -267,7 +246,7 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
         raise FitError(f"only {len(episodes)} of {len(keys)} episodes are in {runs}; run again")
     counts = count_experience(prior, episodes, steps)
     fitted = fit_model(prior, counts, args.strength, name=Path(args.out).stem)
-    prior_path = _shown(model_path(args.prior, "robot"))
+    prior_path = shown_path(model_path(args.prior, "robot"))
     out = Path(args.out).expanduser()
     write_fitted(fitted, out, header_lines(args, prior_path, len(episodes), len(steps), counts))
     for line in support_lines(prior, counts):
@@ -275,15 +254,6 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
     print(f"{NAME}: wrote {out} ({len(episodes)} episodes, {len(steps)} steps, prior "
           f"{prior_path}, strength {args.strength:g})", flush=True)
     return 0
-
-
-def _shown(path: Path) -> str:
-    from ros_hrc.model_files import MODELS_DIR
-
-    try:
-        return str(Path(path).resolve().relative_to(MODELS_DIR.parent))
-    except ValueError:
-        return str(path)
 
 
 if __name__ == "__main__":

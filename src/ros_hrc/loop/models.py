@@ -47,7 +47,7 @@ from ros_hrc.pomdp.model import Model
 __all__ = ["ModelNotFound", "load_human_model", "load_robot_model", "check_human_model",
            "check_robot_model", "model_path", "ROBOT_OBSERVATIONS", "POSITIONAL_PREFIXES",
            "task_names", "name_by_position", "positional_mapping_lines",
-           "positional_mapping_line"]
+           "positional_mapping_line", "shown_path"]
 
 #: The robot model's observation names the observer sends (O0 ... O35).
 ROBOT_OBSERVATIONS = tuple(task.observation_name(b) for b in task.LEGAL_BITS)
@@ -81,7 +81,7 @@ def model_path(name_or_path: str, kind: str) -> Path:
         raise ModelNotFound(str(exc)) from None
 
 
-def _shown(path) -> str:
+def shown_path(path) -> str:
     """The file as the messages show it: relative to the package for its own models."""
     path = Path(str(path))
     try:
@@ -95,7 +95,7 @@ def _load(name_or_path: str, kind: str) -> Model:
     try:
         return load_model(str(path))
     except OSError as exc:
-        raise ModelError(f"{_shown(path)}: cannot read the file ({exc.strerror or exc})") from None
+        raise ModelError(f"{shown_path(path)}: cannot read the file ({exc.strerror or exc})") from None
 
 
 def load_human_model(name_or_path: str) -> Model:
@@ -132,7 +132,7 @@ def name_by_position(model: Model, kind: str, path: Optional[str] = None) -> Mod
     ModelError (one line naming ``path``) when a list is generic in another size than the
     task's. Other names are left alone: :func:`check_human_model` / :func:`check_robot_model`
     judge them. ``kind`` is "human" or "robot"."""
-    where = _shown(path or model.source or model.name or f"{kind} model")
+    where = shown_path(path or model.source or model.name or f"{kind} model")
     renamed: Dict[str, List[Tuple[str, str]]] = {}
     changes: Dict[str, List[str]] = {}
     for label, expected in task_names(kind).items():
@@ -171,7 +171,7 @@ def positional_mapping_line(model: Model, path: Optional[str] = None) -> Optiona
     lines = positional_mapping_lines(model)
     if not lines:
         return None
-    where = _shown(path or model.source or model.name or "model")
+    where = shown_path(path or model.source or model.name or "model")
     return f"{where}: names by position: " + "; ".join(lines)
 
 
@@ -196,7 +196,7 @@ def _same_names(path: str, label: str, got: Sequence[str], expected: Sequence[st
 def check_human_model(model: Model, path: Optional[str] = None) -> None:
     """ModelError (one line naming ``path`` and the names) unless the human MDP fits the task:
     its states are the task's in the task's order, its actions the task's, fully observable."""
-    where = _shown(path or model.source or model.name or "human model")
+    where = shown_path(path or model.source or model.name or "human model")
     states = list(model.states)
     _same_names(where, "states", states, task.HUMAN_STATES)
     if tuple(states) != task.HUMAN_STATES:
@@ -211,7 +211,7 @@ def check_human_model(model: Model, path: Optional[str] = None) -> None:
 def check_robot_model(model: Model, path: Optional[str] = None) -> None:
     """ModelError (one line naming ``path`` and the names) unless the robot POMDP fits the
     task: states S0..S6, the task's robot actions, observations O<bits> of the legal bits."""
-    where = _shown(path or model.source or model.name or "robot model")
+    where = shown_path(path or model.source or model.name or "robot model")
     _same_names(where, "states", list(model.states), task.ROBOT_STATES)
     _same_names(where, "actions", list(model.actions), tuple(task.ROBOT_ACTION_SERVICES))
     _same_names(where, "observations", list(model.observations), ROBOT_OBSERVATIONS)

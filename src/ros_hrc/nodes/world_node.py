@@ -24,7 +24,7 @@ Topics published:
                                          joints, and /tf: world -> each agent's root link
                                          (``human/...``, ``robot/...``), world -> object,
                                          world -> belt; at ~tf_rate Hz (wall clock) when
-                                         ~publish_tf. robot_state_publisher (one per agent, in
+                                         ~viz. robot_state_publisher (one per agent, in
                                          its namespace) turns the joint states into the links'
                                          frames from /human/robot_description and
                                          /robot/robot_description, which the launch sets from
@@ -46,7 +46,7 @@ Parameters (read once at start-up):
   ~action_timeout (float, 120.0)  wall seconds a service call waits for its action
   ~snapshot_dir (str, $ROS_HOME/hrc_snapshots)  where /hrc/world/snapshot writes (file names
                                   carry the run's start time and a counter: never overwritten)
-  ~publish_tf (bool, true)        publish joint states and /tf (above)
+  ~viz (bool, true)               publish joint states and /tf (above)
   ~tf_rate (float, 30.0)          their rate, Hz (wall clock)
   ~camera_rate (float, 0.0)       /hrc/camera/image's rate, Hz (wall clock); 0: not published
   ~model_dir (str, <package>/models/urdf)       where the URDF models are
@@ -96,7 +96,7 @@ class WorldNodeConfig:
     snapshot_dir: str = ""
     model_dir: str = ""
     use_sim_time: bool = False
-    publish_tf: bool = True
+    viz: bool = True
     tf_rate: float = 30.0
     camera_rate: float = 0.0
 
@@ -104,11 +104,13 @@ class WorldNodeConfig:
     def from_params(cls, get_param: Callable[[str, Any], Any] = rospy.get_param) -> "WorldNodeConfig":
         """Read the private parameters (and /use_sim_time) once."""
         defaults = cls()
-        snapshot_dir = get_param("~snapshot_dir", "") or os.path.join(rospkg.get_ros_home(), "hrc_snapshots")
         model_dir = get_param("~model_dir", "") or os.path.join(
             rospkg.RosPack().get_path("ros_hrc"), "models", "urdf")
         def setting(name: str) -> Any:   # launch settings: one source of defaults and checks
             return settings.parse(name, get_param(f"~{name}", ""))
+
+        snapshot_dir = setting("snapshot_dir") or os.path.join(rospkg.get_ros_home(),
+                                                               "hrc_snapshots")
 
         # resolve() decides an empty pause_when_idle (automatic: when real_time_factor is 0).
         pace = settings.resolve({"real_time_factor": get_param("~real_time_factor", ""),
@@ -121,22 +123,14 @@ class WorldNodeConfig:
             action_timeout=float(get_param("~action_timeout", defaults.action_timeout)),
             snapshot_dir=snapshot_dir, model_dir=model_dir,
             use_sim_time=bool(get_param("/use_sim_time", defaults.use_sim_time)),
-            publish_tf=_flag(get_param("~publish_tf", defaults.publish_tf)),
-            tf_rate=float(get_param("~tf_rate", defaults.tf_rate)),
-            camera_rate=float(get_param("~camera_rate", defaults.camera_rate)))
+            viz=setting("viz"), camera_rate=setting("camera_rate"),
+            tf_rate=float(get_param("~tf_rate", defaults.tf_rate)))
         if config.real_time_factor < 0 or config.publish_rate <= 0 or config.action_timeout <= 0:
             raise ValueError("~real_time_factor must be >= 0, ~publish_rate and ~action_timeout > 0; "
                              f"got {config}")
-        if config.tf_rate <= 0 or config.camera_rate < 0:
-            raise ValueError(f"~tf_rate must be > 0 and ~camera_rate >= 0; got {config}")
+        if config.tf_rate <= 0:
+            raise ValueError(f"~tf_rate must be > 0; got {config}")
         return config
-
-
-def _flag(value: Any) -> bool:
-    """A boolean parameter given as a bool or as launch text ("true", "false", "1", "0")."""
-    if isinstance(value, str):
-        return value.strip().lower() in ("true", "1", "yes", "on")
-    return bool(value)
 
 
 def snapshot_name(run: str, number: int, sim_time: float) -> str:
@@ -234,7 +228,7 @@ class WorldNode:
         self._services.append(rospy.Service("/hrc/world/state", GetWorldState, self._state_now))
         # The physics runs in its own thread paced by the wall clock: under /use_sim_time this
         # node is the clock, so nothing here may wait on rospy time.
-        if c.publish_tf:
+        if c.viz:
             self._start_frames()
         if c.gui:
             self.world.add_window_closed_listener(self._on_window_closed)
