@@ -14,6 +14,7 @@ from typing import Optional, Sequence
 
 from defusedxml import ElementTree as SafeElementTree
 
+from ros_hrc.command_line import own_arguments
 from ros_hrc.model_files import MODELS_DIR
 
 #: Each agent's URDF in models/urdf.
@@ -35,8 +36,7 @@ def prefixed_description(urdf_text: str, prefix: str) -> str:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``hrc_description AGENT [URDF]``: the agent's prefixed URDF on standard output."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    args = [a for a in args if not a.startswith("__")]   # roslaunch's __name:= and __log:=
+    args = own_arguments(argv)
     if not args or args[0] not in AGENT_URDF or len(args) > 2:
         print(f"usage: hrc_description {{{'|'.join(AGENT_URDF)}}} [URDF]", file=sys.stderr)
         return 2
