@@ -316,12 +316,10 @@ def fit_model(prior: Model, counts: ExperienceCounts, strength: float,
                    initial_belief=np.array(prior.initial_belief, dtype=float, copy=True),
                    T=T, O=O, R=[sp.csr_matrix(r, copy=True) for r in prior.R],
                    fully_observable=prior.fully_observable and same_support,
+                   observed_key=(np.array(prior.observed_key, copy=True)
+                                 if prior.observed_key is not None and same_support else None),
                    name=name if name is not None else f"{prior.name or 'model'}-fitted",
                    source=None, meta=meta)
-    if any(f.name == "observed_key" for f in dataclasses.fields(prior)):
-        key = getattr(prior, "observed_key")
-        changes["observed_key"] = (np.array(key, copy=True)
-                                   if key is not None and same_support else None)
     model = dataclasses.replace(prior, **changes)
     model.validate()
     return model
