@@ -193,9 +193,6 @@ class ExplorePlanner(BeliefPlanner):
         # Its own stream, so the belief's sampling (if any) does not shift the actions.
         self._choices = np.random.default_rng(seed)
 
-    def reset(self, belief: Optional[np.ndarray] = None) -> None:
-        super().reset(belief)
-
     def act(self) -> int:
         self.last_stats = PlannerStats()
         return int(self._choices.integers(self.model.n_actions))
