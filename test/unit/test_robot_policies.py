@@ -224,3 +224,17 @@ def test_a_model_without_a_needed_observation_is_refused_by_name(model):
     broken = dataclasses.replace(model, observations=names)
     with pytest.raises(ValueError, match="needs observation.*O7"):
         ReactivePlanner(broken)
+
+
+def test_the_exploring_robot_tries_every_action_the_same_way_for_a_seed(model):
+    from ros_hrc.robot_policies import ExplorePlanner
+
+    def actions(seed):
+        planner = ExplorePlanner(model, seed=seed)
+        planner.reset()
+        return [planner.act() for _ in range(400)]
+
+    run = actions(7)
+    assert run == actions(7) and run != actions(8)
+    counts = np.bincount(run, minlength=model.n_actions)
+    assert counts.min() > 400 / model.n_actions * 0.7      # uniform: about 100 each
