@@ -38,6 +38,8 @@ def main(argv=None) -> int:
     parser.add_argument("--time-per-step", type=float, default=0.05, help="DESPOT's budget, s")
     parser.add_argument("--human-model", default="humanModel")
     parser.add_argument("--timeout", type=float, default=300.0, help="give up after this, s")
+    parser.add_argument("--launch-arg", action="append", default=[], metavar="NAME:=VALUE",
+                        help="one more hrc.launch argument (repeatable), e.g. viz:=false")
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).resolve().parent / "results" / "loop.json")
     args = parser.parse_args(argv)
@@ -50,7 +52,7 @@ def main(argv=None) -> int:
          "real_time_factor:=0", "step_delay:=0", "mode:=auto", "on_episode_end:=reset",
          f"time_per_step:={args.time_per_step}", f"human_model:={args.human_model}",
          f"pomdp_port:={pomdp_port}", f"robot_port:={robot_port}", f"human_port:={human_port}",
-         "read_stdin:=false"],
+         "read_stdin:=false"] + args.launch_arg,
         env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True)
     os.environ["ROS_MASTER_URI"] = env["ROS_MASTER_URI"]
