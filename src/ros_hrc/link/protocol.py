@@ -67,6 +67,22 @@ MAX_BITS = 63
 #: Largest ``epoch`` / ``id`` / ``reply_to``: 2**53 - 1, the largest integer every JSON reader
 #: (a double) holds exactly.
 MAX_ENVELOPE_INT = 2 ** 53 - 1
+#: Largest ``epoch``, ``step``, ``episode``: each reaches a ``uint32`` of a ROS message
+#: (``/hrc/status``, the Decide and ResetPlanner services), so a larger one is refused here,
+#: before anything acts on it.
+MAX_UINT32 = 2 ** 32 - 1
+#: Largest ``state_index`` and ``next_state.state``: a ``uint8`` of ``/hrc/status``.
+MAX_STATE_INDEX = 255
+#: Largest protocol ``version`` a hello may name.
+MAX_VERSION = 2 ** 31 - 1
+#: Longest name (``who``, an action, a state, an observation, ``of``, ``code``, ``rule``, ...),
+#: in characters; the seed's longest is 15.
+MAX_NAME_CHARS = 128
+#: Longest free text (``reason``, ``result``, ``message``), in characters.
+MAX_TEXT_CHARS = 1024
+#: A hello's ``nonce``: 32 to 128 lowercase hex digits; its ``auth``: exactly 64.
+NONCE_HEX_RANGE = (32, 128)
+AUTH_HEX_CHARS = 64
 #: The envelope fields every message type has, in wire order.
 ENVELOPE_FIELDS = ("epoch", "id", "reply_to")
 
@@ -91,16 +107,25 @@ ERR_VERSION = "version"
 ERR_EPISODE_OVER = "episode_over"
 #: (answers a ``step``) The loop is resetting or recovering: wait for the reset message.
 ERR_NOT_READY = "not_ready"
+#: The client did not prove it belongs to this launch (no valid ``auth`` in its hello, or a
+#: frame before the hello): refused and closed.
+ERR_UNAUTHORIZED = "unauthorized"
 #: Every code this module defines (a receiver must accept others too: fields may grow).
 ERROR_CODES: FrozenSet[str] = frozenset((ERR_STALE, ERR_BUSY, ERR_SEAT_TAKEN, ERR_INVALID,
                                          ERR_UNKNOWN_TYPE, ERR_REFUSED, ERR_FAILED, ERR_VERSION,
-                                         ERR_EPISODE_OVER, ERR_NOT_READY))
+                                         ERR_EPISODE_OVER, ERR_NOT_READY, ERR_UNAUTHORIZED))
 
 # Error texts quote at most this much of an offending value, so a reply stays small.
 _PREVIEW_CHARS = 40
 _MAX_ERROR_CHARS = 1000
 # A JSON escape of a UTF-16 surrogate: the only way a parsed string can hold a lone one.
 _SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
+# Control characters (C0, DEL, C1): no text field may hold one, so nothing a peer sends can
+# break a log line in two or drive a terminal.
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f]")
+_LOWER_HEX = re.compile("[0-9a-f]*")
+# How a frame that cannot be parsed still shows it is an error (never answered).
+_ERROR_TYPE = re.compile(r'"type"\s*:\s*"error"')
 
 
 class MessageError(ProtocolError):
@@ -192,17 +217,44 @@ class _Checker:
             raise self.fail(name, f"must be >= {minimum}, got {value}")
         return value
 
-    def text(self, name: str, value: Any) -> str:
+    def _string(self, name: str, value: Any, limit: int) -> str:
         if not isinstance(value, str):
             raise self.fail(name, f"must be a string, {self._got(value)}")
+        if len(value) > limit:
+            raise self.fail(name, f"must be at most {limit} characters, has {len(value)}")
+        bad = _CONTROL.search(value)
+        if bad:
+            raise self.fail(name, f"must not hold control characters, has U+{ord(bad.group()):04X} "
+                                  f"at character {bad.start()}")
+        return value
+
+    def text(self, name: str, value: Any) -> str:
+        """A name: not empty, at most :data:`MAX_NAME_CHARS`, no control characters."""
+        value = self._string(name, value, MAX_NAME_CHARS)
+        if not value:
+            raise self.fail(name, "must not be empty")
+        return value
+
+    def prose(self, name: str, value: Any) -> str:
+        """Free text for people: not empty, at most :data:`MAX_TEXT_CHARS`, no control
+        characters."""
+        value = self._string(name, value, MAX_TEXT_CHARS)
         if not value:
             raise self.fail(name, "must not be empty")
         return value
 
     def any_text(self, name: str, value: Any) -> str:
-        """A string that may be empty."""
+        """Free text that may be empty."""
+        return self._string(name, value, MAX_TEXT_CHARS)
+
+    def hex_text(self, name: str, value: Any, lengths: Tuple[int, int]) -> str:
+        """Lowercase hex digits, between ``lengths[0]`` and ``lengths[1]`` of them."""
         if not isinstance(value, str):
             raise self.fail(name, f"must be a string, {self._got(value)}")
+        low, high = lengths
+        if not (low <= len(value) <= high) or not _LOWER_HEX.fullmatch(value):
+            size = f"{low}" if low == high else f"{low} to {high}"
+            raise self.fail(name, f"must be {size} lowercase hex digits")
         return value
 
     def flag(self, name: str, value: Any) -> bool:
@@ -232,6 +284,7 @@ class _Checker:
         for key, p in value.items():
             if not isinstance(key, str) or not key:
                 raise self.fail(name, f"must have non-empty state names as keys, got {_preview(key)}")
+            self.text(f"{name} key", key)
             probs[key] = self.probability(f"{name}.{key}", p)
         self._probability_sum(name, math.fsum(probs.values()))
         return probs
@@ -259,6 +312,24 @@ class _Checker:
             raise self.fail("belief_states", f"has {len(names)} names for "
                                              f"{len(belief)} probabilities")
         return names
+
+
+def _check_extra(check: _Checker, extra: Mapping[str, Any]) -> None:
+    """Fields this version does not know are sent on as they came, so each must be one that
+    can be sent: names are names, and every number in them is finite (``1e999`` reads as
+    infinity)."""
+    stack: List[Tuple[str, Any]] = []
+    for key, value in extra.items():
+        check.text("extra field name", key)
+        stack.append((key, value))
+    while stack:
+        name, value = stack.pop()
+        if isinstance(value, float) and not math.isfinite(value):
+            raise check.fail(name, f"must be finite, got {value}")
+        if isinstance(value, dict):
+            stack.extend((f"{name}.{k}", v) for k, v in value.items())
+        elif isinstance(value, (list, tuple)):
+            stack.extend((f"{name}[{i}]", v) for i, v in enumerate(value))
 
 
 _FIELD_CACHE: Dict[type, Tuple[Tuple[str, bool], ...]] = {}
@@ -309,7 +380,9 @@ class Message:
         for name in ENVELOPE_FIELDS:
             value = getattr(self, name)
             if value is not None:
-                check.integer(name, value, maximum=MAX_ENVELOPE_INT)
+                check.integer(name, value,
+                              maximum=MAX_UINT32 if name == "epoch" else MAX_ENVELOPE_INT)
+        _check_extra(check, self.extra)
         self._validate(check)
 
     @property
@@ -340,15 +413,25 @@ class Message:
 @dataclass(frozen=True)
 class Hello(Message):
     """First frame of a client: who it is (a role name, e.g. ``despot_mdp``) and the protocol
-    version it speaks. The server answers with a hello of its own."""
+    version it speaks. The server answers with a hello of its own. On a link with a token
+    (:mod:`ros_hrc.link.token`) the client's hello carries a fresh ``nonce`` and ``auth``, its
+    proof of the token; the server's answer carries ``auth``, the server's proof."""
 
     TYPE: ClassVar[str] = "hello"
     who: str
     version: int = PROTOCOL_VERSION
+    nonce: Optional[str] = None
+    auth: Optional[str] = None
 
     def _validate(self, check: _Checker) -> None:
         self._set("who", check.text("who", self.who))
-        self._set("version", check.integer("version", self.version, minimum=1))
+        self._set("version", check.integer("version", self.version, minimum=1,
+                                           maximum=MAX_VERSION))
+        if self.nonce is not None:
+            self._set("nonce", check.hex_text("nonce", self.nonce, NONCE_HEX_RANGE))
+        if self.auth is not None:
+            self._set("auth", check.hex_text("auth", self.auth,
+                                             (AUTH_HEX_CHARS, AUTH_HEX_CHARS)))
 
 
 @dataclass(frozen=True)
@@ -367,13 +450,14 @@ class Step(Message):
     manual: Optional[bool] = None
 
     def _validate(self, check: _Checker) -> None:
-        self._set("step", check.integer("step", self.step))
+        self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         self._set("action", check.text("action", self.action))
         self._set("state", check.text("state", self.state))
         if self.reward is not None:
             self._set("reward", check.number("reward", self.reward))
         if self.state_index is not None:
-            self._set("state_index", check.integer("state_index", self.state_index))
+            self._set("state_index", check.integer("state_index", self.state_index,
+                                                              maximum=MAX_STATE_INDEX))
         if self.belief is not None:
             self._set("belief", check.belief_map("belief", self.belief))
         if self.manual is not None:
@@ -394,7 +478,7 @@ class Observation(Message):
     state: str
 
     def _validate(self, check: _Checker) -> None:
-        self._set("step", check.integer("step", self.step))
+        self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         self._set("observation", check.text("observation", self.observation))
         self._set("bits", check.integer("bits", self.bits, maximum=MAX_BITS))
         self._set("state", check.text("state", self.state))
@@ -420,7 +504,7 @@ class Decision(Message):
     rule: Optional[str] = None
 
     def _validate(self, check: _Checker) -> None:
-        self._set("step", check.integer("step", self.step))
+        self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         self._set("action", check.text("action", self.action))
         self._set("belief", check.belief_list("belief", self.belief))
         if self.belief_states is not None:
@@ -448,7 +532,7 @@ class Action(Message):
     decision_ms: Optional[float] = None
 
     def _validate(self, check: _Checker) -> None:
-        self._set("step", check.integer("step", self.step))
+        self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         self._set("action", check.text("action", self.action))
         if self.belief is not None:
             self._set("belief", check.belief_list("belief", self.belief))
@@ -469,9 +553,9 @@ class Reset(Message):
 
     def _validate(self, check: _Checker) -> None:
         if self.reason is not None:
-            self._set("reason", check.text("reason", self.reason))
+            self._set("reason", check.prose("reason", self.reason))
         if self.episode is not None:
-            self._set("episode", check.integer("episode", self.episode))
+            self._set("episode", check.integer("episode", self.episode, maximum=MAX_UINT32))
 
 
 @dataclass(frozen=True)
@@ -484,7 +568,7 @@ class NextState(Message):
 
     def _validate(self, check: _Checker) -> None:
         if self.state is not None:
-            self._set("state", check.integer("state", self.state))
+            self._set("state", check.integer("state", self.state, maximum=MAX_STATE_INDEX))
 
 
 @dataclass(frozen=True)
@@ -506,7 +590,7 @@ class Ack(Message):
     end_reason: Optional[str] = None
 
     def _validate(self, check: _Checker) -> None:
-        self._set("step", check.integer("step", self.step))
+        self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         if self.of is not None:
             self._set("of", check.text("of", self.of))
         if self.action is not None:
@@ -516,7 +600,7 @@ class Ack(Message):
         if self.result is not None:
             self._set("result", check.any_text("result", self.result))
         if self.episode is not None:
-            self._set("episode", check.integer("episode", self.episode))
+            self._set("episode", check.integer("episode", self.episode, maximum=MAX_UINT32))
         if self.episode_over is not None:
             self._set("episode_over", check.flag("episode_over", self.episode_over))
         if self.end_reason is not None:
@@ -538,11 +622,11 @@ class Error(Message):
     code: Optional[str] = None
 
     def _validate(self, check: _Checker) -> None:
-        self._set("message", check.text("message", self.message))
+        self._set("message", check.prose("message", self.message))
         if self.in_reply_to is not None:
             self._set("in_reply_to", check.text("in_reply_to", self.in_reply_to))
         if self.step is not None:
-            self._set("step", check.integer("step", self.step))
+            self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         if self.code is not None:
             self._set("code", check.text("code", self.code))
 
@@ -609,14 +693,26 @@ def _no_duplicates(pairs: List[Tuple[str, Any]]) -> Dict[str, Any]:
 def decode(frame: Union[str, bytes, bytearray, memoryview]) -> Message:
     """Decode one websocket frame into a validated message; raises :class:`MessageError`
     (a :class:`~ros_hrc.errors.ProtocolError`) with a precise reason, and nothing else,
-    whatever it is given."""
+    whatever it is given. When the frame shows it is an ``error`` (even one that is not valid
+    JSON), the exception's ``msg_type`` says so, so that it is not answered."""
     try:
         return _decode(frame)
-    except MessageError:
+    except MessageError as exc:
+        if exc.msg_type is None and _looks_like_error(frame):
+            exc.msg_type = Error.TYPE
         raise
     except Exception as exc:  # a safety net: no input may raise anything but MessageError
         raise MessageError(f"cannot decode the frame: {type(exc).__name__}: "
-                           f"{str(exc)[:_MAX_ERROR_CHARS]}") from None
+                           f"{str(exc)[:_MAX_ERROR_CHARS]}",
+                           Error.TYPE if _looks_like_error(frame) else None) from None
+
+
+def _looks_like_error(frame: Any) -> bool:
+    """Whether a rejected frame says ``"type": "error"`` anywhere: then it is never answered,
+    even when it could not be parsed (answering might start two peers answering each other)."""
+    if isinstance(frame, (bytes, bytearray, memoryview)):
+        frame = bytes(frame).decode("utf-8", "replace")
+    return isinstance(frame, str) and _ERROR_TYPE.search(frame) is not None
 
 
 def _decode(frame: Any) -> Message:
@@ -722,9 +818,11 @@ def as_reply(reply: M, request: Message) -> M:
 
 
 def _clean_text(text: str, limit: int) -> str:
-    """Cut to ``limit`` characters and make sure it encodes as UTF-8 (no lone surrogate)."""
+    """Cut to ``limit`` characters, control characters (line breaks too) made spaces, and make
+    sure it encodes as UTF-8 (no lone surrogate): a text every receiver takes."""
     if len(text) > limit:
         text = text[:limit] + "..."
+    text = _CONTROL.sub(" ", text)
     return text.encode("utf-8", "replace").decode("utf-8")
 
 

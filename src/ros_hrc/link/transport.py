@@ -43,11 +43,13 @@ itself); they may call ``peer.send`` / ``server.send``, which only queue. The cl
 from __future__ import annotations
 
 import collections
+import errno
 import itertools
 import logging
 import socket
 import threading
 import time
+import urllib.parse
 from dataclasses import replace
 from typing import Any, Callable, Deque, Dict, List, Optional, Set, Tuple
 
@@ -56,10 +58,11 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.server import Server, ServerConnection, serve
 
 from ros_hrc.errors import LinkError
-from ros_hrc.link.protocol import (ERR_FAILED, ERR_VERSION, MAX_MESSAGE_BYTES, PROTOCOL_VERSION,
-                                   REPLY_TYPES, Error, Hello, Message, MessageError, as_reply,
-                                   decode, encode, error_reply)
+from ros_hrc.link.protocol import (ERR_FAILED, ERR_UNAUTHORIZED, ERR_VERSION, MAX_MESSAGE_BYTES,
+                                   PROTOCOL_VERSION, REPLY_TYPES, Error, Hello, Message,
+                                   MessageError, as_reply, decode, encode, error_reply)
 from ros_hrc.link.protocol import is_reply_to  # noqa: F401  (its home is the protocol module)
+from ros_hrc.link.token import new_nonce, proof, proof_matches
 
 DEFAULT_HOST = "127.0.0.1"
 #: Frames above this size are not read at all (close code 1009). Between the protocol's limit
@@ -74,6 +77,18 @@ OUTBOX_FRAMES = 1024
 SEND_TIMEOUT = 5.0
 #: Close code of :meth:`Peer.close` by default: policy violation (e.g. "this seat is taken").
 CLOSE_REFUSED = 1008
+#: Seconds a client of a server with a token has to say its hello (with its proof) before it
+#: is refused: a connection that never speaks holds no thread for long.
+HELLO_TIMEOUT = 10.0
+#: Pause between attempts when accepting a connection fails for want of a resource (file
+#: descriptors, memory): the connection waits in the listen queue meanwhile.
+ACCEPT_RETRY_PAUSE = 0.1
+# accept() failures that pass: the listening socket is fine, the process or the peer was not.
+_TRANSIENT_ACCEPT_ERRORS = frozenset({errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM,
+                                      errno.ECONNABORTED, errno.EPROTO, errno.EPERM,
+                                      errno.EINTR, errno.EAGAIN})
+# Accepted hello nonces a server remembers, to refuse a replayed hello.
+_REMEMBERED_NONCES = 65536
 # A websocket close reason is at most 123 bytes of UTF-8.
 _MAX_CLOSE_REASON = 123
 # How many request ids that timed out are remembered, so their late replies are dropped.
@@ -116,6 +131,49 @@ def _remaining(deadline: Optional[float]) -> Optional[float]:
     return None if deadline is None else max(0.0, deadline - time.monotonic())
 
 
+class _Listener(socket.socket):
+    """The listening socket of a :class:`MessageServer`. Its ``accept`` waits out a failure
+    that says nothing about the socket itself (EMFILE: the process has no file descriptor
+    left, ENFILE, ENOBUFS, ENOMEM, a connection aborted while queued) and tries again, so the
+    server goes on serving once the resource is back; websockets' accept loop would end at the
+    first such error and leave a socket that listens but is never served. Closing the socket
+    (the server's shutdown) still ends the loop."""
+
+    def setup(self, name: str, log: logging.Logger) -> "_Listener":
+        self.server_name = name
+        self.log = log
+        self.failures = 0
+        return self
+
+    def accept(self) -> Tuple[socket.socket, Any]:
+        while True:
+            try:
+                accepted = super().accept()
+            except OSError as exc:
+                if exc.errno not in _TRANSIENT_ACCEPT_ERRORS or self.fileno() < 0:
+                    raise
+                if self.failures == 0:
+                    self.log.error("%s: cannot accept a connection: %s; trying again every "
+                                   "%g s (the connection waits)", self.server_name, exc,
+                                   ACCEPT_RETRY_PAUSE)
+                self.failures += 1
+                time.sleep(ACCEPT_RETRY_PAUSE)
+                continue
+            if self.failures:
+                self.log.warning("%s: accepting connections again, after %d failed attempts",
+                                 self.server_name, self.failures)
+                self.failures = 0
+            return accepted
+
+
+def _listen(host: str, port: int, name: str, log: logging.Logger) -> _Listener:
+    # socket.create_server sets SO_REUSEADDR, so a respawned server can bind again while old
+    # connections linger in TIME_WAIT.
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    plain = socket.create_server((host, port), family=family)
+    return _Listener(fileno=plain.detach()).setup(name, log)
+
+
 def _close_reason(reason: str) -> str:
     data = reason.encode("utf-8", "replace")[:_MAX_CLOSE_REASON]
     return data.decode("utf-8", "ignore")
@@ -137,6 +195,9 @@ class Peer:
                  on_writer_exit: Optional[Callable[["Peer"], None]] = None) -> None:
         self.id = next(Peer._ids)
         self.who = "?"
+        #: The client proved it knows the server's link token (always true without one).
+        self.authenticated = False
+        self.opened_at = time.monotonic()
         self.address: Tuple[Any, ...] = tuple(connection.remote_address or ())
         self._connection = connection
         self._server_name = server_name
@@ -297,7 +358,8 @@ class MessageServer:
                  name: str = "server", on_connect: Optional[PeerCallback] = None,
                  on_disconnect: Optional[PeerCallback] = None,
                  send_timeout: float = SEND_TIMEOUT,
-                 outbox_frames: int = OUTBOX_FRAMES) -> None:
+                 outbox_frames: int = OUTBOX_FRAMES, token: Optional[str] = None,
+                 hello_timeout: float = HELLO_TIMEOUT) -> None:
         if not send_timeout > 0:
             raise ValueError(f"{name}: send_timeout must be > 0, got {send_timeout}")
         if outbox_frames < 1:
@@ -306,6 +368,12 @@ class MessageServer:
         self.name = name
         self.send_timeout = float(send_timeout)
         self.outbox_frames = int(outbox_frames)
+        self.hello_timeout = float(hello_timeout)
+        self._token = token
+        self._nonces: "collections.OrderedDict[str, None]" = collections.OrderedDict()
+        self._refused = 0                   # refusals not yet logged (one line per second)
+        self._refusal_logged_at = -1.0
+        self._refusal_lock = threading.Lock()
         self._port = port
         self._handler = handler
         self._on_connect = on_connect
@@ -342,9 +410,9 @@ class MessageServer:
             ws_log.setLevel(logging.WARNING)
         try:
             # No compression: frames are small and local, and max_size then bounds the bytes
-            # actually read. socket.create_server sets SO_REUSEADDR, so a respawned server
-            # can bind again while old connections linger in TIME_WAIT.
-            self._server = serve(self._serve_connection, self.host, self._port,
+            # actually read.
+            self._server = serve(self._serve_connection,
+                                 sock=_listen(self.host, self._port, self.name, self._log),
                                  compression=None, max_size=FRAME_LIMIT_BYTES, logger=ws_log,
                                  close_timeout=CLOSE_TIMEOUT,
                                  process_request=self._admit)
@@ -360,7 +428,8 @@ class MessageServer:
         self._watchdog = threading.Thread(target=self._watch, name=f"link-{self.name}-watchdog",
                                           daemon=True)
         self._watchdog.start()
-        self._log.info("%s listening on %s", self.name, self.url)
+        self._log.info("%s listening on %s%s", self.name, self.url,
+                       " (link token required)" if self._token is not None else "")
         return self
 
     def stop(self) -> None:
@@ -453,6 +522,9 @@ class MessageServer:
                 if stuck > self.send_timeout:
                     peer.abort(f"a send has been blocked for {stuck:.1f} s (send_timeout "
                                f"{self.send_timeout:g} s): it does not read")
+                elif (self._token is not None and not peer.authenticated
+                      and peer._close_args is None and now - peer.opened_at > self.hello_timeout):
+                    self._refuse(peer, f"no hello within {self.hello_timeout:g} s")
 
     def _admit(self, connection: ServerConnection, request: Any) -> Any:
         """websockets' ``process_request``: refuse the handshake while stopping."""
@@ -467,6 +539,7 @@ class MessageServer:
     def _serve_connection(self, connection: ServerConnection) -> None:
         peer = Peer(connection, server_name=self.name, outbox_frames=self.outbox_frames,
                     log=self._log, on_writer_exit=self._writer_done)
+        peer.authenticated = self._token is None
         with self._peers_changed:
             self._peers[peer.id] = peer
             self._live.add(peer)
@@ -495,6 +568,11 @@ class MessageServer:
                     self._call_back(self._on_disconnect, peer)
 
     def _dispatch(self, peer: Peer, frame: Any) -> None:
+        if peer._close_args is not None or peer._gone:
+            return  # refused or closing: nothing it sends acts any more
+        if self._token is not None and not peer.authenticated:
+            self._authenticate(peer, frame)
+            return
         try:
             msg = decode(frame)
         except MessageError as exc:
@@ -538,6 +616,61 @@ class MessageServer:
                     peer.send_text(error_reply(exc, msg.type, step, reply_to=msg.id,
                                                epoch=msg.epoch, code=ERR_FAILED))
 
+    def _authenticate(self, peer: Peer, frame: Any) -> None:
+        """The first frame of a client of a server with a token: a hello proving the token,
+        or the client is refused and closed."""
+        reply_to: Optional[int] = None
+        try:
+            msg = decode(frame)
+        except MessageError as exc:
+            if exc.msg_type == Error.TYPE:   # never answered: just closed
+                self._refuse(peer, "an error instead of its hello", answer=False)
+            else:
+                self._refuse(peer, f"a malformed first frame ({exc.reason})", exc.msg_id)
+            return
+        if isinstance(msg, Hello):
+            reply_to = msg.id
+            if msg.auth is None or msg.nonce is None:
+                why = "a hello without a proof of the link token (no auth and nonce)"
+            elif msg.nonce in self._nonces:
+                why = "a hello whose nonce was used before (a replay)"
+            elif not proof_matches(self._token, msg.auth, "client", self.port, msg.who,
+                                   msg.nonce):
+                why = "a hello with a wrong proof of the link token (another launch's token?)"
+            else:
+                self._nonces[msg.nonce] = None
+                while len(self._nonces) > _REMEMBERED_NONCES:
+                    self._nonces.popitem(last=False)
+                peer.authenticated = True
+                self._greet(peer, msg)
+                return
+        else:
+            why = f"a {msg.type} message before its hello"
+            reply_to = msg.id
+        self._refuse(peer, why, reply_to, answer=not isinstance(msg, Error))
+
+    def _refuse(self, peer: Peer, why: str, reply_to: Optional[int] = None,
+                answer: bool = True) -> None:
+        """Refuse a client that did not prove the link token: one ``error``
+        (:data:`~ros_hrc.link.protocol.ERR_UNAUTHORIZED`), then close (1008); one log line
+        per second at most, however many are refused."""
+        if answer:
+            peer.send(Error(message=f"{self.name}: refused: {why}; this link takes only the "
+                                    "processes of its own launch (docs/protocol.md, 'The "
+                                    "link token')",
+                            in_reply_to=Hello.TYPE, code=ERR_UNAUTHORIZED, reply_to=reply_to))
+        peer.close(CLOSE_REFUSED, "link token required")
+        with self._refusal_lock:
+            now = time.monotonic()
+            self._refused += 1
+            if now - self._refusal_logged_at < 1.0:
+                return
+            more = f" ({self._refused - 1} more refused since the last line)" \
+                if self._refused > 1 else ""
+            self._refused, self._refusal_logged_at = 0, now
+        self._log.warning("%s: refused a client from %s: %s%s", self.name, peer.address, why,
+                          more)
+
     def _greet(self, peer: Peer, hello: Hello) -> None:
         peer.who = hello.who
         if hello.version != PROTOCOL_VERSION:
@@ -546,7 +679,10 @@ class MessageServer:
             peer.send(Error(message=f"protocol version {hello.version} is not supported; "
                                     f"{self.name} speaks {PROTOCOL_VERSION}",
                             in_reply_to=Hello.TYPE, code=ERR_VERSION, reply_to=hello.id))
-        peer.send(Hello(who=self.name, reply_to=hello.id))
+        auth = None
+        if self._token is not None and hello.nonce is not None:
+            auth = proof(self._token, "server", self.port, self.name, hello.nonce)
+        peer.send(Hello(who=self.name, reply_to=hello.id, auth=auth))
         with self._dispatch_lock:
             if peer.id not in self._greeted:
                 self._mark_greeted(peer)
@@ -588,9 +724,13 @@ class MessageClient:
     def __init__(self, url: str, name: str, *, connect_timeout: float = 30.0,
                  send_timeout: float = 10.0, backoff: Tuple[float, float] = (0.05, 1.0),
                  on_connect: Optional[Callable[[], None]] = None,
-                 on_disconnect: Optional[Callable[[], None]] = None) -> None:
+                 on_disconnect: Optional[Callable[[], None]] = None,
+                 token: Optional[str] = None) -> None:
         self.url = url
         self.name = name
+        self._token = token
+        self._port = urllib.parse.urlsplit(url).port or 80
+        self._token_refused = False   # said once per outage that the server refused us
         self.connect_timeout = connect_timeout
         self.send_timeout = send_timeout
         self._backoff = backoff
@@ -850,9 +990,13 @@ class MessageClient:
         try:
             ws = websocket.create_connection(self.url, timeout=max(1.0, self._backoff[1]),
                                              enable_multithread=True)
+            if self._token is None:
+                ws.send(encode(Hello(who=self.name)))
+            elif not self._prove(ws):
+                ws.shutdown()
+                return None
             # Blocking from now on: the reader waits for frames; close() cuts the socket.
             ws.settimeout(None)
-            ws.send(encode(Hello(who=self.name)))
         except (websocket.WebSocketException, OSError) as exc:
             # Say it once per outage, not once per retry.
             self._log.log(logging.DEBUG if quiet else logging.INFO,
@@ -868,6 +1012,42 @@ class MessageClient:
         self._log.info("%s: connected to %s", self.name, self.url)
         self._call(self._on_connect, "on_connect")
         return ws
+
+    def _prove(self, ws: websocket.WebSocket) -> bool:
+        """The token handshake of a client: our hello with a fresh nonce and our proof, then
+        the server's hello, which must carry the server's proof for that nonce. False (said
+        once per outage) when the server refuses us or cannot prove it knows the token."""
+        assert self._token is not None
+        nonce = new_nonce()
+        ws.send(encode(Hello(who=self.name, nonce=nonce,
+                             auth=proof(self._token, "client", self._port, self.name, nonce))))
+        ws.settimeout(HELLO_TIMEOUT)
+        opcode, data = ws.recv_data()
+        answer: Optional[Message] = None
+        if opcode == websocket.ABNF.OPCODE_TEXT:
+            try:
+                answer = decode(data.decode("utf-8") if isinstance(data, bytes) else data)
+            except (MessageError, UnicodeDecodeError):
+                answer = None
+        if isinstance(answer, Hello) and proof_matches(self._token, answer.auth, "server",
+                                                       self._port, answer.who, nonce):
+            self.server_hello = answer
+            self._token_refused = False
+            if answer.version != PROTOCOL_VERSION:
+                self._log.error("%s: server %s speaks protocol %d, this is %d", self.name,
+                                answer.who, answer.version, PROTOCOL_VERSION)
+            return True
+        if isinstance(answer, Error):
+            why = f"it refused our link token: {answer.message}"
+        elif isinstance(answer, Hello):
+            why = ("it did not prove it knows the link token: it is not a server of this "
+                   "launch, so nothing is sent to it")
+        else:
+            why = "it did not answer our hello with its own"
+        if not self._token_refused:
+            self._log.error("%s: %s: %s; trying again", self.name, self.url, why)
+            self._token_refused = True
+        return False
 
     def _read(self, ws: websocket.WebSocket) -> Optional[int]:
         """Read frames until the connection ends; the close code the server gave, if any."""

@@ -22,6 +22,12 @@ seen when the launch starts; a YAML comment would be parsed away unseen.
 ``--no-port-check`` skips binding the ports (to check a configuration for later). The
 POMDP's port is only checked with ``start_pomdp:=true``: started by hand, the POMDP process
 may already serve it.
+
+``--link-session=NAME`` (hrc.launch gives ``$(anon hrc_link)``): once every check passed, make
+the launch's link token (:mod:`ros_hrc.link.token`), remove the tokens of launches that ended,
+and add the token file's path to the configuration as ``token_file``. When a solver is left to
+be run by hand (``start_mdp:=false`` / ``start_pomdp:=false``), one line on stderr says how to
+give it the token.
 """
 from __future__ import annotations
 
@@ -38,8 +44,9 @@ NAME = "hrc_check"
 #: What each error line starts with: the user ran the launch file, not this program.
 PREFIX = "hrc.launch"
 
-USAGE = (f"usage: {NAME} [--no-port-check] name:=value ...  (the arguments of hrc.launch: "
-         f"{', '.join(settings.SETTINGS)})")
+USAGE = (f"usage: {NAME} [--no-port-check] [--link-session=NAME] name:=value ...  (the "
+         f"arguments of hrc.launch: {', '.join(settings.SETTINGS)})")
+_SESSION_OPTION = "--link-session="
 
 
 class CheckError(HrcError):
@@ -133,6 +140,15 @@ def check(words: Sequence[str], port_check: bool = True,
     return config
 
 
+def make_link_token(session: str):
+    """Make the launch's token file (after the tokens of ended launches are removed); its
+    path. The launcher is this program's parent, roslaunch."""
+    from ros_hrc.link.token import mint_token, prune_tokens
+
+    prune_tokens()
+    return mint_token(session, launcher_pid=os.getppid())
+
+
 def one_line(text: object) -> str:
     return " ".join(str(text).split())
 
@@ -152,11 +168,21 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             sys.stdout.write("\n".join(lines) + "\n")
             sys.stdout.flush()
             return 0
+        sessions = [w[len(_SESSION_OPTION):] for w in words if w.startswith(_SESSION_OPTION)]
+        words = [w for w in words if not w.startswith(_SESSION_OPTION)]
         options = [w for w in words if w.startswith("-")]
         if options:
             raise CheckError(f"{options[0]}: unknown option; {USAGE}")
         notes: List[str] = []
         config = check(words, port_check, notes)
+        if sessions:
+            config["token_file"] = str(make_link_token(sessions[-1]))
+            by_hand = [name for name, flag in (("despot_mdp", "start_mdp"),
+                                               ("despot_pomdp", "start_pomdp"))
+                       if not config[flag]]
+            if by_hand:
+                notes.append(f"run {' and '.join(by_hand)} by hand with --token-file "
+                             f"{config['token_file']} (this launch's link token)")
         for line in notes:   # only once every check passed: a refusal stays one line
             print(f"{PREFIX}: {line}", file=sys.stderr, flush=True)
         import yaml

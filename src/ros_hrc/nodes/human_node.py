@@ -38,7 +38,8 @@ Parameters: ~host, ~port, ~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episo
 ~service_timeout (s to wait for a service that went away during the run, e.g. a respawning
 hrc_obs; at start-up the node waits however long it takes), ~wait_report_every (s between
 the lines saying what the start-up still waits for), ~action_timeout (s a world or robot
-action may take), ~decide_timeout (s to wait for a decision), ~reset_timeout.
+action may take), ~decide_timeout (s to wait for a decision), ~reset_timeout,
+~link_session (hrc.launch's session: the link token's file) or ~token_file (by hand).
 """
 from __future__ import annotations
 
@@ -63,8 +64,8 @@ from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, 
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.msg import Status
-from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, read_config,
-                                  route_python_logging)
+from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, link_token,
+                                  read_config, route_python_logging)
 from ros_hrc.srv import (Decide, GetWorldState, ResetPlanner, SetHumanState,
                          SetHumanStateResponse)
 
@@ -86,6 +87,8 @@ class HumanNodeConfig:
     decide_timeout: float = 120.0
     reset_timeout: float = 120.0
     reply_timeout: float = 10.0
+    link_session: str = ""      # hrc.launch's session: where the link token is
+    token_file: str = ""        # or the token's file, for a node started by hand
 
 
 #: What the loop calls, by who offers it: the node waits for all of them before the first reset.
@@ -322,8 +325,9 @@ class HumanNode:
         coordinator = Coordinator(CoordinatorConfig(
             max_steps=config.max_steps, end_on_goal=config.end_on_goal,
             on_episode_end=config.on_episode_end, first_epoch=first_epoch))
+        token = link_token(config)
         self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
-                                   send_timeout=config.action_timeout)
+                                   send_timeout=config.action_timeout, token=token)
         self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)
         self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait),
                                  RosPlanner(self.call, self.startup.wait),
@@ -336,7 +340,7 @@ class HumanNode:
         table.on(Error, self._on_answer)
         self.server = MessageServer(config.human_port, table, host=config.host,
                                     name="hrc_human", on_connect=self.runner.mdp_connected,
-                                    on_disconnect=self.runner.mdp_disconnected)
+                                    on_disconnect=self.runner.mdp_disconnected, token=token)
         self._next_state_ids = itertools.count(1)   # correlation ids of next_state requests
         self._answers: Dict[int, Message] = {}
         self._answered = threading.Condition()

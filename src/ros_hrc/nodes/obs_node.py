@@ -10,7 +10,8 @@ and the coordinator then resets the loop.
 
 Services offered: /hrc/obs/decide (ros_hrc/Decide), /hrc/obs/reset_planner
 (ros_hrc/ResetPlanner: the planner's belief back to its initial belief, in a new epoch).
-Parameters: ~host (127.0.0.1), ~pomdp_port (7070), ~decide_timeout (s, 120).
+Parameters: ~host (127.0.0.1), ~pomdp_port (7070), ~decide_timeout (s, 120), ~link_session
+(hrc.launch's session: the link token's file) or ~token_file (by hand).
 """
 from __future__ import annotations
 
@@ -18,10 +19,10 @@ from dataclasses import dataclass
 
 import rospy
 
-from ros_hrc.errors import LinkError
+from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import Ack, Decision, Error, Observation, Reset
 from ros_hrc.link.transport import MessageClient, link_url
-from ros_hrc.nodes.common import read_config, route_python_logging
+from ros_hrc.nodes.common import link_token, read_config, route_python_logging
 from ros_hrc.srv import Decide, DecideResponse, ResetPlanner, ResetPlannerResponse
 
 
@@ -30,6 +31,8 @@ class ObsNodeConfig:
     host: str = "127.0.0.1"
     pomdp_port: int = 7070
     decide_timeout: float = 120.0
+    link_session: str = ""
+    token_file: str = ""
 
 
 class ObsNode:
@@ -38,7 +41,7 @@ class ObsNode:
     def __init__(self, config: ObsNodeConfig) -> None:
         self.config = config
         self.pomdp = MessageClient(link_url(config.pomdp_port, config.host), "hrc_obs",
-                                   send_timeout=config.decide_timeout)
+                                   send_timeout=config.decide_timeout, token=link_token(config))
 
     def decide(self, req) -> DecideResponse:
         try:
@@ -73,7 +76,11 @@ class ObsNode:
 def main() -> None:
     rospy.init_node("hrc_obs")
     route_python_logging()
-    node = ObsNode(read_config(ObsNodeConfig))
+    try:
+        node = ObsNode(read_config(ObsNodeConfig))
+    except (HrcError, ValueError) as exc:
+        rospy.logfatal("hrc_obs cannot start: %s", exc)
+        raise SystemExit(2) from None
     node.pomdp.start()
     rospy.Service("/hrc/obs/decide", Decide, node.decide)
     rospy.Service("/hrc/obs/reset_planner", ResetPlanner, node.reset_planner)

@@ -8,7 +8,8 @@ this node carries it out through the world's /robot/* services (``rIdle`` moves 
 world refused, e.g. out of reach). When the world cannot be reached the answer is an
 ``error``: a fault, which fails the step. A ``reset`` calls /robot/reset. No loop state here.
 
-Parameters: ~host (127.0.0.1), ~robot_port (8080), ~service_timeout (30 s to wait for the world).
+Parameters: ~host (127.0.0.1), ~robot_port (8080), ~service_timeout (30 s to wait for the world),
+~link_session (hrc.launch's session: the link token's file) or ~token_file (by hand).
 Services used: /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset.
 """
 from __future__ import annotations
@@ -23,7 +24,7 @@ from ros_hrc.link.protocol import (ERR_FAILED, ERR_INVALID, Ack, Action, Dispatc
                                    Message, Reset, reply_error)
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import task
-from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
+from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, link_token, read_config,
                                   route_python_logging)
 
 
@@ -32,6 +33,8 @@ class RobotNodeConfig:
     host: str = "127.0.0.1"
     robot_port: int = 8080
     service_timeout: float = 30.0
+    link_session: str = ""
+    token_file: str = ""
 
 
 class RobotNode:
@@ -44,7 +47,7 @@ class RobotNode:
         table.on(Action, self.on_action)
         table.on(Reset, self.on_reset)
         self.server = MessageServer(config.robot_port, table, host=config.host,
-                                    name="hrc_robot")
+                                    name="hrc_robot", token=link_token(config))
 
     def on_action(self, msg: Action, peer: Peer) -> Message:
         if msg.action not in task.ROBOT_ACTION_SERVICES:

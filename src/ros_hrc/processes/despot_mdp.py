@@ -19,11 +19,16 @@ the model chooses every next state from then on; restart it to type states again
 
 A ``reset`` message (Enter in the ROS terminal, ``/hrc/reset``, the end of an episode, a
 recovery) puts the human back to its initial state, step 0, zero reward.
+
+The human node takes only processes of its own launch: this one proves the launch's link token
+in its hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
+``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`).
 """
 from __future__ import annotations
 
 import argparse
 import itertools
+import math
 import os
 import queue
 import sys
@@ -35,6 +40,7 @@ from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, Ack, Error, Message, NextState, Reset, Step,
                                    is_reply_to, reply_error)
+from ros_hrc.link.token import add_token_arguments, token_from_arguments
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import load_human_model, positional_mapping_line
@@ -335,9 +341,20 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "step_delay")
     p.add_argument("--stdin", choices=("auto", "on", "off"), default="auto",
                    help="read typed states from the terminal (auto: when it is a terminal)")
-    p.add_argument("--reply-timeout", type=float, default=300.0,
+    p.add_argument("--reply-timeout", type=_positive_seconds, default=300.0,
                    help="seconds to wait for the world and the robot to finish a step")
+    add_token_arguments(p)
     return p
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text}")
+    return value
 
 
 def main(argv: Optional[list] = None) -> int:
@@ -346,11 +363,12 @@ def main(argv: Optional[list] = None) -> int:
         model = load_human_model(args.human_model)
         agent = HumanAgent(model, HumanAgentConfig(choice=args.human_choice, temperature=args.temperature,
                                                    manual_share=args.manual_share, seed=args.seed))
+        token = token_from_arguments(args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr)
         return 2
     client = MessageClient(link_url(args.human_port, args.host), NAME, connect_timeout=3600.0,
-                           send_timeout=args.reply_timeout)
+                           send_timeout=args.reply_timeout, token=token)
     process = MdpProcess(agent, client, args)
     read_stdin = args.stdin == "on" or (args.stdin == "auto" and sys.stdin.isatty())
     mapping = positional_mapping_line(model)

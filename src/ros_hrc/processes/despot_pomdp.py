@@ -12,6 +12,10 @@ count back to 0), in the epoch the reset names; observations of any other epoch 
 
 An observation of zero probability under the belief cannot be explained by the model: the
 belief keeps the prediction through T without it, the step goes on, and the terminal says so.
+
+It serves only processes of its own launch: a client must prove the launch's link token in its
+hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
+``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`).
 """
 from __future__ import annotations
 
@@ -27,6 +31,7 @@ from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, DispatchTable,
                                    Message, Observation, Reset, reply_error)
+from ros_hrc.link.token import add_token_arguments, token_from_arguments
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import load_robot_model, positional_mapping_line
@@ -165,6 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "lambda", "--lambda", dest="lambda_")
     settings.add_argument(p, "max_trials")
     settings.add_argument(p, "seed")
+    add_token_arguments(p)
     return p
 
 
@@ -173,11 +179,13 @@ def main(argv: Optional[list] = None) -> int:
     try:
         model = load_robot_model(args.robot_model)
         planner = build_planner(model, args)
+        token = token_from_arguments(args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr)
         return 2
     process = PomdpProcess(RobotAgent(model, planner))
-    server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME)
+    server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,
+                           token=token)
     try:
         server.start()
     except LinkError as exc:

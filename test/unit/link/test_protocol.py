@@ -137,7 +137,7 @@ MALFORMED = [
     ("step is a string", _frame(**{**STEP, "step": "3"}), '"step" must be an integer'),
     ("step is a float", _frame(**{**STEP, "step": 3.0}), '"step" must be an integer'),
     ("step is a boolean", _frame(**{**STEP, "step": True}), '"step" must be an integer'),
-    ("negative step", _frame(**{**STEP, "step": -1}), '"step" must be >= 0, got -1'),
+    ("negative step", _frame(**{**STEP, "step": -1}), '"step" must be in 0..4294967295, got -1'),
     ("action not a string", _frame(**{**STEP, "action": 2}), '"action" must be a string'),
     ("empty state", _frame(**{**STEP, "state": ""}), '"state" must not be empty'),
     ("reward not a number", _frame(**{**STEP, "reward": "high"}), '"reward" must be a number'),
@@ -146,7 +146,7 @@ MALFORMED = [
     ("manual not a boolean", _frame(**{**STEP, "manual": 1}), '"manual" must be true or false'),
     ("step belief not an object", _frame(**{**STEP, "belief": [1.0]}), "must be an object"),
     ("step belief not summing to 1", _frame(**{**STEP, "belief": {"a": 0.5}}), "must sum to 1"),
-    ("negative state_index", _frame(**{**STEP, "state_index": -2}), '"state_index" must be >= 0'),
+    ("negative state_index", _frame(**{**STEP, "state_index": -2}), '"state_index" must be in 0..255'),
     ("bits above 63", _frame(**{**OBSERVATION, "bits": 64}), '"bits" must be in 0..63, got 64'),
     ("negative bits", _frame(**{**OBSERVATION, "bits": -1}), '"bits" must be in 0..63'),
     ("belief not an array", _frame(**{**ACTION, "belief": 1.0}), "array of probabilities"),
@@ -166,10 +166,10 @@ MALFORMED = [
     ("belief_states repeated", _frame(**{**ACTION, "belief_states": ["S0", "S0"]}),
      "must not repeat"),
     ("negative decision time", _frame(**{**ACTION, "decision_ms": -1}), '"decision_ms" must be'),
-    ("next_state negative", _frame(type="next_state", state=-1), '"state" must be >= 0'),
+    ("next_state negative", _frame(type="next_state", state=-1), '"state" must be in 0..255'),
     ("next_state a name", _frame(type="next_state", state="tired"), "must be an integer"),
     ("ack success not a boolean", _frame(type="ack", step=1, success="yes"), "true or false"),
-    ("hello version 0", _frame(type="hello", who="x", version=0), '"version" must be >= 1'),
+    ("hello version 0", _frame(type="hello", who="x", version=0), '"version" must be in 1..2147483647'),
     ("oversized", _frame(type="reset", padding="x" * MAX_MESSAGE_BYTES), "message too large"),
     ("oversized in UTF-8 bytes only",  # two bytes per character
      '{"type":"reset","padding":"' + "\u00e9" * (MAX_MESSAGE_BYTES // 2 + 8) + '"}',
@@ -202,7 +202,7 @@ def test_a_rejection_knows_the_type_and_step_of_the_message_when_they_could_be_r
 
 
 def test_an_invalid_message_cannot_be_built_either():
-    with pytest.raises(ProtocolError, match="must be >= 0"):
+    with pytest.raises(ProtocolError, match="must be in 0..4294967295"):
         Step(-1, "idle", "tired")
     with pytest.raises(ProtocolError, match="must be finite"):
         Action(0, "rIdle", [float("nan"), 1.0])

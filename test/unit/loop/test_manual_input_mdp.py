@@ -112,7 +112,7 @@ def test_in_auto_mode_the_terminal_is_not_read():
 class FakeHumanNode:
     """hrc_human's port as the MDP sees it: a reset on connect, an ack for every step."""
 
-    def __init__(self) -> None:
+    def __init__(self, token) -> None:
         self.steps = []
         self.cond = threading.Condition()
         self.peer = None
@@ -120,7 +120,7 @@ class FakeHumanNode:
         table.on(Step, self._step)
         table.on(Ack, lambda msg, peer: None)
         self.server = MessageServer(free_port(), table, name="hrc_human",
-                                    on_connect=self._connected)
+                                    on_connect=self._connected, token=token)
 
     def _connected(self, peer) -> None:
         self.peer = peer
@@ -140,8 +140,9 @@ class FakeHumanNode:
 
 
 @pytest.fixture
-def human_node():
-    node = FakeHumanNode()
+def human_node(link_token):
+    node = FakeHumanNode(link_token[0])
+    node.token_file = link_token[1]
     node.server.start()
     yield node
     node.server.stop()
@@ -186,14 +187,14 @@ class Pty:
         os.close(self.master)
 
 
-def despot_mdp_cmd(port, *extra):
-    return [sys.executable, str(ROOT / "scripts" / "despot_mdp"), f"--port={port}",
-            "--mode=manual", "--step-delay=0", *extra]
+def despot_mdp_cmd(node, *extra):
+    return [sys.executable, str(ROOT / "scripts" / "despot_mdp"), f"--port={node.server.port}",
+            "--mode=manual", "--step-delay=0", f"--token-file={node.token_file}", *extra]
 
 
 def test_ctrl_d_in_the_real_mdp_terminal_says_so_and_the_steps_go_on(human_node, tmp_path):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    term = Pty(despot_mdp_cmd(human_node.server.port), env)
+    term = Pty(despot_mdp_cmd(human_node), env)
     try:
         term.read_until("Please enter the next state [integer from 0 to 7")
         assert "reads no terminal" not in term.text
@@ -220,7 +221,7 @@ def test_ctrl_d_in_the_real_mdp_terminal_says_so_and_the_steps_go_on(human_node,
 def test_without_a_terminal_the_mdp_says_where_to_type_and_takes_sent_states(human_node):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     env.pop("DISPLAY", None)
-    term = Pty(despot_mdp_cmd(human_node.server.port, "--stdin=off"), env)
+    term = Pty(despot_mdp_cmd(human_node, "--stdin=off"), env)
     try:
         term.read_until(no_terminal_line(False))
         term.read_until("(this MDP reads no terminal: type the state in the roslaunch "

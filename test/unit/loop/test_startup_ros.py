@@ -122,13 +122,15 @@ def wait_for_text(tmp_path, name, text, timeout=30.0):
     return False
 
 
-def test_a_late_world_is_waited_for_and_step_0_is_carried_out_once(ros, tmp_path):
+def test_a_late_world_is_waited_for_and_step_0_is_carried_out_once(ros, tmp_path, link_token):
     env, start = ros
+    token, token_file = link_token
     human_port, robot_port = free_port(), free_port()
     start([sys.executable, str(ROOT / "scripts" / "hrc_human"), f"_human_port:={human_port}",
-           f"_robot_port:={robot_port}", "_read_stdin:=false", "_wait_report_every:=1.0"],
+           f"_robot_port:={robot_port}", "_read_stdin:=false", "_wait_report_every:=1.0",
+           f"_token_file:={token_file}"],
           "hrc_human")
-    mdp = MessageClient(link_url(human_port), "despot_mdp", connect_timeout=60.0)
+    mdp = MessageClient(link_url(human_port), "despot_mdp", connect_timeout=60.0, token=token)
     try:
         mdp.connect()
         # No world, no hrc_obs: hrc_human says what it waits for, and starts no episode.
