@@ -2,7 +2,10 @@
 """The loop under attack, as a hostile user would try it, on one real stack.
 
 * A second MDP client (the manual-mode recipe without start_mdp:=false) is refused with one
-  line and exits; the served MDP keeps stepping.
+  line and exits, with the launch's token (seat taken) and without it (no token); the served
+  MDP keeps stepping.
+* Frames without the launch's token, on the human and the robot port (an order to grasp),
+  are refused and closed; nothing acts.
 * 50 concurrent /hrc/reset calls all succeed, and afterwards the steps run 0, 1, 2 ... in one
   new epoch, every status consistent.
 * kill -9 of hrc_robot, hrc_obs, despot_pomdp, despot_mdp and hrc_human: each respawns and the
@@ -46,9 +49,12 @@ class TestLoopFaults(unittest.TestCase):
 
     def test_1_a_second_mdp_client_is_refused_and_the_loop_keeps_stepping(self):
         self.log.clear()
+        # The documented way for a process run by hand: the token file hrc.launch made.
+        token_file = rospy.get_param("/hrc/config/token_file")
         second = subprocess.run(
             [sys.executable, "-m", "ros_hrc.processes.despot_mdp", "--model", "tired"],
-            stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=WAIT)
+            stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=WAIT,
+            env=dict(os.environ, HRC_LINK_TOKEN_FILE=token_file))
         self.assertEqual(second.returncode, 3, second.stdout + second.stderr)
         refusal = [line for line in second.stderr.splitlines() if "already served" in line]
         self.assertEqual(len(refusal), 1, second.stderr)
@@ -60,24 +66,43 @@ class TestLoopFaults(unittest.TestCase):
         self.assertFalse(any(s.fault for s in statuses), [s.fault for s in statuses])
         check_epochs(self, statuses)
 
-    def test_1b_a_stray_reset_frame_on_the_human_port_is_refused_and_changes_nothing(self):
-        ok, statuses = self.log.wait_for(lambda s: len(s) >= 1)
-        ws = websocket.create_connection("ws://127.0.0.1:9090", timeout=30)
+    def test_1a_a_solver_run_by_hand_without_the_token_says_so_in_one_line(self):
+        env = {k: v for k, v in os.environ.items() if k != "HRC_LINK_TOKEN_FILE"}
+        second = subprocess.run(
+            [sys.executable, "-m", "ros_hrc.processes.despot_mdp", "--model", "tired"],
+            stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=WAIT, env=env)
+        self.assertEqual(second.returncode, 2, second.stdout + second.stderr)
+        self.assertEqual(second.stderr.strip().splitlines(), [
+            "despot_mdp: no link token: the links take only processes of the same launch. "
+            "Give --token-file PATH or set HRC_LINK_TOKEN_FILE=PATH (hrc.launch prints the "
+            "path when a solver is to be run by hand)"])
+
+    def refused_without_the_token(self, port, frames):
+        """What the server at ``port`` answers ``frames`` sent without the launch's token."""
+        ws = websocket.create_connection(f"ws://127.0.0.1:{port}", timeout=30)
+        answers = []
         try:
-            ws.send(json.dumps({"type": "reset"}))
-            answers = []
+            for frame in frames:
+                ws.send(frame)
             while True:
                 try:
-                    answer = json.loads(ws.recv())
+                    answers.append(json.loads(ws.recv()))
                 except (websocket.WebSocketException, OSError, ValueError):
                     break   # refused and disconnected
-                answers.append(answer)
-                if answer.get("type") == "error":
-                    break
         finally:
             ws.close()
-        self.assertTrue(answers and answers[-1]["type"] == "error", answers)
-        self.assertEqual(answers[-1].get("code"), "seat_taken", answers)
+        return answers
+
+    def test_1b_frames_without_the_token_are_refused_and_change_nothing(self):
+        ok, statuses = self.log.wait_for(lambda s: len(s) >= 1)
+        human = self.refused_without_the_token(9090, [json.dumps({"type": "reset"})])
+        # The hostile user's order: before the token, this grasped the object.
+        robot = self.refused_without_the_token(8080, [
+            json.dumps({"type": "hello", "who": "hrc_human", "version": 2}),
+            json.dumps({"type": "action", "step": 0, "action": "rGrasp_obj", "id": 1})])
+        for answers in (human, robot):
+            self.assertEqual([(a["type"], a.get("code")) for a in answers],
+                             [("error", "unauthorized")], answers)
         self.log.clear()
         ok, statuses = self.log.wait_for(lambda s: len(s) >= 5)
         self.assertTrue(ok, "the loop stopped stepping after a stray reset frame")
