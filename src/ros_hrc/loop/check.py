@@ -23,6 +23,9 @@ seen when the launch starts; a YAML comment would be parsed away unseen.
 POMDP's port is only checked with ``start_pomdp:=true``: started by hand, the POMDP process
 may already serve it.
 
+``--world`` checks only the settings given (world.launch's pre-flight: no models, no ports),
+prints those, and starts its error lines with ``world.launch``.
+
 ``--link-session=NAME`` (hrc.launch gives ``$(anon hrc_link)``): once every check passed, make
 the launch's link token (:mod:`ros_hrc.link.token`), remove the tokens of launches that ended,
 and add the token file's path to the configuration as ``token_file``. When a solver is left to
@@ -44,8 +47,8 @@ NAME = "hrc_check"
 #: What each error line starts with: the user ran the launch file, not this program.
 PREFIX = "hrc.launch"
 
-USAGE = (f"usage: {NAME} [--no-port-check] [--link-session=NAME] name:=value ...  (the "
-         f"arguments of hrc.launch: {', '.join(settings.SETTINGS)})")
+USAGE = (f"usage: {NAME} [--no-port-check] [--world] [--link-session=NAME] name:=value ...  "
+         f"(the arguments of hrc.launch: {', '.join(settings.SETTINGS)})")
 _SESSION_OPTION = "--link-session="
 
 
@@ -158,7 +161,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     words: List[str] = own_arguments(argv)
     port_check = "--no-port-check" not in words
-    words = [w for w in words if w != "--no-port-check"]
+    world_only = "--world" in words
+    words = [w for w in words if w not in ("--no-port-check", "--world")]
+    prefix = "world.launch" if world_only else PREFIX
     try:
         if any(w in ("-h", "--help") for w in words):
             lines = [__doc__.split("\n\n")[0], "", USAGE]
@@ -174,7 +179,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if options:
             raise CheckError(f"{options[0]}: unknown option; {USAGE}")
         notes: List[str] = []
-        config = check(words, port_check, notes)
+        if world_only:
+            given = parse_words(words)
+            resolved = settings.resolve(given)
+            config = {name: resolved[name] for name in given}
+        else:
+            config = check(words, port_check, notes)
         if sessions:
             config["token_file"] = str(make_link_token(sessions[-1]))
             by_hand = [name for name, flag in (("despot_mdp", "start_mdp"),
@@ -184,14 +194,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 notes.append(f"run {' and '.join(by_hand)} by hand with --token-file "
                              f"{config['token_file']} (this launch's link token)")
         for line in notes:   # only once every check passed: a refusal stays one line
-            print(f"{PREFIX}: {line}", file=sys.stderr, flush=True)
+            print(f"{prefix}: {line}", file=sys.stderr, flush=True)
         import yaml
 
         sys.stdout.write(yaml.safe_dump(dict(config), sort_keys=False, default_flow_style=False))
         sys.stdout.flush()
         return 0
     except HrcError as exc:
-        print(f"{PREFIX}: {one_line(exc)}", file=sys.stderr, flush=True)
+        print(f"{prefix}: {one_line(exc)}", file=sys.stderr, flush=True)
         return 2
     except KeyboardInterrupt:
         return 130
@@ -199,7 +209,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 2
     except Exception as exc:  # no traceback for any input: one line, whatever went wrong
-        print(f"{PREFIX}: {NAME} failed: {type(exc).__name__}: {one_line(exc)}",
+        print(f"{prefix}: {NAME} failed: {type(exc).__name__}: {one_line(exc)}",
               file=sys.stderr, flush=True)
         return 2
 

@@ -153,3 +153,28 @@ def test_the_script_is_an_executable_shim():
     assert SCRIPT.stat().st_mode & 0o111
     assert "ros_hrc.loop.check" in SCRIPT.read_text()
     assert len(SCRIPT.read_text().strip().splitlines()) <= 4
+
+
+def test_a_link_session_makes_the_launch_s_private_token_once_every_check_passed(
+        tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("ROS_HOME", str(tmp_path))
+    assert main(["--no-port-check", "start_pomdp:=false", "--link-session=hrc_link_t1"]) == 0
+    out, err = capsys.readouterr()
+    token_file = tmp_path / "ros_hrc" / "links" / "hrc_link_t1.token"
+    assert yaml.safe_load(out)["token_file"] == str(token_file)
+    assert oct(token_file.stat().st_mode & 0o777) == "0o600"
+    # The secret is in the file only: not in the configuration, not on the terminal.
+    token = token_file.read_text().split()[0]
+    assert token not in out and token not in err
+    assert err.splitlines() == [f"hrc.launch: run despot_pomdp by hand with --token-file "
+                                f"{token_file} (this launch's link token)"]
+    # A refused launch makes no token.
+    assert main(["--no-port-check", "seed:=-1", "--link-session=hrc_link_t2"]) == 2
+    assert not (tmp_path / "ros_hrc" / "links" / "hrc_link_t2.token").exists()
+
+
+def test_world_mode_checks_and_prints_only_the_world_s_arguments(capsys):
+    assert main(["--world", "seed:=4", "belt_speed:=0.1"]) == 0
+    assert yaml.safe_load(capsys.readouterr().out) == {"seed": 4, "belt_speed": 0.1}
+    assert main(["--world", "seed:=-1"]) == 2
+    assert capsys.readouterr().err == "world.launch: seed:=-1: must be an integer >= 0\n"

@@ -1,6 +1,7 @@
-"""hrc.launch refuses a bad argument or model before anything starts: one line naming it,
-roslaunch exits non-zero, no master and no node were started (hrc_check runs as the launch's
-first parameter). These run roslaunch itself, against a port no master listens on."""
+"""hrc.launch and world.launch refuse a bad argument or model before anything starts: one line
+naming it, roslaunch exits non-zero at once (a refused start once took ~35 s to shut down),
+no master and no node were started (hrc_check runs as the launch's first parameter). These run
+roslaunch itself, against a port no master listens on."""
 import os
 import socket
 import subprocess
@@ -18,14 +19,23 @@ CASES = [
     ("scenarios:=0", "hrc.launch: scenarios:=0"),
     ("step_delay:=-1", "hrc.launch: step_delay:=-1"),
     ("belt_speed:=-5", "hrc.launch: belt_speed:=-5"),
-    ("seed:=-1", "hrc.launch: seed:=-1"),
+    ("seed:=-1", "hrc.launch: seed:=-1: must be an integer >= 0"),
+    ("real_time_factor:=-1", "hrc.launch: real_time_factor:=-1: must be a number >= 0"),
+    ("temperature:=nan", "hrc.launch: temperature:=nan"),
+]
+
+WORLD_CASES = [
+    ("seed:=-1", "world.launch: seed:=-1: must be an integer >= 0"),
+    ("real_time_factor:=-1", "world.launch: real_time_factor:=-1: must be a number >= 0"),
+    ("camera_rate:=nan", "world.launch: camera_rate:=nan: must be a number from 0 to 30"),
+    ("belt_speed:=fast", "world.launch: belt_speed:=fast"),
 ]
 
 
-def roslaunch(*args):
+def roslaunch(*args, launch="hrc.launch"):
     port = free_port()
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
-    done = subprocess.run(["roslaunch", "-p", str(port), "ros_hrc", "hrc.launch", *args],
+    done = subprocess.run(["roslaunch", "-p", str(port), "ros_hrc", launch, *args],
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, env=env,
                           timeout=120)
     with socket.socket() as s:
@@ -40,6 +50,18 @@ def test_a_bad_launch_argument_stops_the_launch_before_anything_starts(word, lin
     ours = [x for x in done.stderr.splitlines() if x.startswith("hrc.launch: ")]
     assert len(ours) == 1, done.stderr
     assert ours[0].startswith(line), ours[0]
+    assert "process[" not in done.stdout, "a process was started"
+    assert not master_up
+
+
+@pytest.mark.parametrize("word, line", WORLD_CASES)
+def test_a_bad_world_launch_argument_stops_it_before_anything_starts(word, line):
+    """Before: world.launch started its nodes and ended with exit status 0 once hrc_world
+    refused the value."""
+    done, master_up = roslaunch(word, launch="world.launch")
+    assert done.returncode != 0
+    ours = [x for x in done.stderr.splitlines() if x.startswith("world.launch: ")]
+    assert len(ours) == 1 and ours[0].startswith(line), done.stderr
     assert "process[" not in done.stdout, "a process was started"
     assert not master_up
 
