@@ -61,9 +61,16 @@ class OneLineParser(argparse.ArgumentParser):
 
 
 def names_argument(text: str) -> List[str]:
-    names = [part.strip() for part in text.split(",") if part.strip()]
-    if not names:
+    """Comma-separated names: at least one, none empty (``a,,b`` is a typo, not two names),
+    none twice."""
+    names = [part.strip() for part in text.split(",")]
+    if not any(names):
         raise argparse.ArgumentTypeError("give at least one name (comma-separated)")
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"an empty item between commas in {text!r}")
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise argparse.ArgumentTypeError(f"{repeated[0]!r} is given twice in {text!r}")
     return names
 
 

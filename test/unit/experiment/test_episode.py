@@ -140,3 +140,16 @@ def test_bad_grid_arguments_are_refused_with_a_reason(capsys):
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--seeds", "one,two"])
     assert isinstance(build_parser().parse_args([]), argparse.Namespace)
+
+
+@pytest.mark.parametrize("words, why", [
+    (["--seeds", "1,,2"], "--seeds: an empty item between commas in '1,,2'"),
+    (["--seeds", "1,1"], "--seeds: '1' is given twice in '1,1'"),
+    (["--human-models", "tired,"], "--human-models: an empty item between commas in 'tired,'"),
+])
+def test_a_comma_list_with_an_empty_or_repeated_item_is_refused(words, why, capsys):
+    """Before: '--seeds 1,,2' ran as seeds 1 and 2."""
+    with pytest.raises(SystemExit) as ended:
+        build_parser().parse_args(words)
+    assert ended.value.code == 2
+    assert why in capsys.readouterr().err
