@@ -103,13 +103,16 @@ class TestWholeLoop(unittest.TestCase):
         def ask(state):
             answers[state] = rospy.ServiceProxy("/hrc/set_human_state", SetHumanState)(state)
 
-        threads = [threading.Thread(target=ask, args=(s,)) for s in (42, 4)]
+        threads = [threading.Thread(target=ask, args=(s,)) for s in (42, 1000, 4)]
         for t in threads:
             t.start()
         for t in threads:
             t.join(WAIT)
         self.assertFalse(answers[42].success)
         self.assertIn("0 to 7", answers[42].message)
+        # Before: 1000 failed inside the node (a uint8 field of the protocol) with a traceback.
+        self.assertFalse(answers[1000].success)
+        self.assertIn("no human state 1000", answers[1000].message)
         self.assertTrue(answers[4].success, answers[4].message)
         self.assertIn("evaluating", answers[4].message)
 

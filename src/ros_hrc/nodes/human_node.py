@@ -54,8 +54,9 @@ import rospy
 from std_srvs.srv import Trigger, TriggerResponse
 
 from ros_hrc.errors import HrcError, LinkError
-from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, Ack, Action, DispatchTable, Error,
-                                   Message, NextState, Reset, Step, reply_error)
+from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, Action, DispatchTable,
+                                   Error, Message, MessageError, NextState, Reset, Step,
+                                   reply_error)
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc.loop import task
 from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, MdpRefused,
@@ -398,7 +399,12 @@ class HumanNode:
         if seat is None:
             return False, "no MDP process is connected"
         request_id = next(self._next_state_ids)
-        if not seat.send(NextState(state=state, id=request_id)):
+        try:
+            message = NextState(state=state, id=request_id)
+        except MessageError:   # a number no model has (the field is at most MAX_STATE_INDEX)
+            return False, (f"no human state {state}: states are numbered from 0 to at most "
+                           f"{MAX_STATE_INDEX}; a negative number lets the model choose")
+        if not seat.send(message):
             return False, "the MDP process is gone"
         with self._answered:
             self._answered.wait_for(lambda: request_id in self._answers,
