@@ -110,7 +110,7 @@ class TestWholeLoop(unittest.TestCase):
             t.join(WAIT)
         self.assertFalse(answers[42].success)
         self.assertIn("0 to 7", answers[42].message)
-        # Before: 1000 failed inside the node (a uint8 field of the protocol) with a traceback.
+        # Beyond the protocol's range (a uint8 field): refused by the node itself.
         self.assertFalse(answers[1000].success)
         self.assertIn("no human state 1000", answers[1000].message)
         self.assertTrue(answers[4].success, answers[4].message)
