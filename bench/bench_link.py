@@ -7,7 +7,12 @@
   p50 / p99 / mean / max in ms, and the request/response rate;
 * one-way throughput: the client sends messages back to back, the server's handler counts
   them: messages per second through the link;
-* codec: encode + decode of the same ``step`` message without a socket (the Sans-I/O share).
+* codec: encode + decode of the same ``step`` message without a socket (the Sans-I/O share);
+* connect: a new client's connection until it is served, with the launch's link token (the
+  hello with its HMAC proof and the server's proof back) and without one: what the token
+  costs, once per connection.
+
+Every server and client here uses a link token, as the stack's do.
 
 Prints a table and writes bench/results/link.json. Usage:
     python bench/bench_link.py [--count 5000] [--out bench/results/link.json]
@@ -28,7 +33,11 @@ import websocket
 import websockets
 
 from ros_hrc.link.protocol import Ack, Message, Step, decode, encode
+from ros_hrc.link.token import TOKEN_BYTES
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer
+
+#: A launch's token, as hrc_check makes it (the bench needs no file).
+TOKEN = os.urandom(TOKEN_BYTES).hex()
 
 from common import percentile, write_result  # bench/common.py
 
@@ -49,8 +58,8 @@ def bench_round_trip(count: int, warmup: int) -> Dict[str, float]:
         return Ack(step=msg.step, of=msg.type, action="rPoint_obj", success=True, result="ok",
                    episode=1)
 
-    with MessageServer(0, ack, name="bench-server") as server, \
-            MessageClient(server.url, "bench-client") as client:
+    with MessageServer(0, ack, name="bench-server", token=TOKEN) as server, \
+            MessageClient(server.url, "bench-client", token=TOKEN) as client:
         for i in range(warmup):
             client.request(sample_step(i), timeout=10)
         latencies = []
@@ -76,8 +85,8 @@ def bench_one_way(count: int) -> Dict[str, float]:
         if received == count:
             done.set()
 
-    with MessageServer(0, count_it, name="bench-sink") as server, \
-            MessageClient(server.url, "bench-source") as client:
+    with MessageServer(0, count_it, name="bench-sink", token=TOKEN) as server, \
+            MessageClient(server.url, "bench-source", token=TOKEN) as client:
         assert server.wait_for_client(10, who="bench-source")
         started = time.perf_counter()
         for i in range(count):
@@ -86,6 +95,20 @@ def bench_one_way(count: int) -> Dict[str, float]:
             raise RuntimeError(f"only {received} of {count} messages arrived")
         elapsed = time.perf_counter() - started
     return {"messages_per_s": count / elapsed}
+
+
+def bench_connect(count: int, token) -> Dict[str, float]:
+    """ms from a new client's start until it is connected (and, with a token, both proofs
+    checked)."""
+    times = []
+    with MessageServer(0, lambda msg, peer: None, name="bench-door", token=token) as server:
+        for _ in range(count):
+            t0 = time.perf_counter()
+            client = MessageClient(server.url, "bench-visitor", token=token).connect(10)
+            times.append((time.perf_counter() - t0) * 1e3)
+            client.close()
+    times.sort()
+    return {"p50_ms": percentile(times, 50), "p99_ms": percentile(times, 99)}
 
 
 def bench_codec(count: int) -> Dict[str, float]:
@@ -109,6 +132,9 @@ def main(argv=None) -> int:
     round_trip = bench_round_trip(args.count, args.warmup)
     one_way = bench_one_way(args.count)
     codec = bench_codec(args.count)
+    connects = max(20, args.count // 25)
+    with_token = bench_connect(connects, TOKEN)
+    without_token = bench_connect(connects, None)
 
     print(f"link benchmark: {args.count} messages, 127.0.0.1, step frame of "
           f"{codec['frame_bytes']} bytes")
@@ -118,6 +144,9 @@ def main(argv=None) -> int:
     print(f"  request/response      {round_trip['round_trips_per_s']:.0f} round trips/s")
     print(f"  one-way throughput    {one_way['messages_per_s']:.0f} messages/s")
     print(f"  encode+decode         {codec['encode_decode_us']:.1f} us per message (no socket)")
+    print(f"  connect (x{connects})        with the link token p50 {with_token['p50_ms']:.2f} ms "
+          f"p99 {with_token['p99_ms']:.2f} ms; without p50 {without_token['p50_ms']:.2f} ms "
+          f"p99 {without_token['p99_ms']:.2f} ms")
 
     result = {
         "benchmark": "link",
@@ -126,6 +155,7 @@ def main(argv=None) -> int:
         "round_trip": round_trip,
         "one_way": one_way,
         "codec": codec,
+        "connect": {"with_token": with_token, "without_token": without_token},
         "environment": {
             "python": platform.python_version(),
             "websockets": websockets.__version__,
