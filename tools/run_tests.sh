@@ -19,6 +19,7 @@ echo "=== integration tests (rostest) ==="
 passed=0; failed=0
 shopt -s nullglob
 tests=(test/rostest/*.test)
+rm -f "$ROS_LOG_DIR/fuzz_counts.txt"
 if ((${#tests[@]} == 0)); then echo "no rostest files: failing"; status=1; fi
 for t in "${tests[@]}"; do
   echo "--- rostest $t"
@@ -26,5 +27,7 @@ for t in "${tests[@]}"; do
   # goes to $ROS_LOG_DIR and rostest prints each failure with its traceback.
   if rostest "$t"; then passed=$((passed+1)); else failed=$((failed+1)); status=1; fi
 done
+# The fuzz test's counts (sent, error replies, closed, survived), which rostest keeps in a file.
+if [[ -f "$ROS_LOG_DIR/fuzz_counts.txt" ]]; then cat "$ROS_LOG_DIR/fuzz_counts.txt"; fi
 echo "rostest: $passed passed, $failed failed"
 exit $status

@@ -293,6 +293,8 @@ class _Checker:
         value = self.number(name, value)
         if value < 0:
             raise self.fail(name, f"must not be negative, got {value}")
+        if value > 1.0 + BELIEF_TOLERANCE:   # and so a sum can never overflow
+            raise self.fail(name, f"must be at most 1, got {value:.9g}")
         return value
 
     def names(self, name: str, value: Any) -> Tuple[str, ...]:
@@ -646,11 +648,11 @@ def from_dict(obj: Any) -> Message:
         raise MessageError(f"a message must be a JSON object, got {_kind(obj)}")
     # What the rejection can name, read before anything else can fail.
     step = obj.get("step")
-    step = step if _is_count(step) else None
+    step = step if _is_count(step, MAX_UINT32) else None
     msg_id = obj.get("id")
     msg_id = msg_id if _is_count(msg_id, MAX_ENVELOPE_INT) else None
     epoch = obj.get("epoch")
-    epoch = epoch if _is_count(epoch, MAX_ENVELOPE_INT) else None
+    epoch = epoch if _is_count(epoch, MAX_UINT32) else None
     if "type" not in obj:
         raise MessageError('missing field "type"', None, step, msg_id, epoch)
     msg_type = obj["type"]
@@ -833,7 +835,7 @@ def reply_error(request: Message, message: str, code: str) -> Error:
     step = getattr(request, "step", None)
     return Error(message=_clean_text(str(message), _MAX_ERROR_CHARS) or code or "error",
                  code=code, in_reply_to=request.type or None,
-                 step=step if _is_count(step) else None,
+                 step=step if _is_count(step, MAX_UINT32) else None,
                  reply_to=request.id, epoch=request.epoch)
 
 
@@ -870,10 +872,10 @@ def error_message(exc: BaseException, in_reply_to: Optional[str] = None,
     else:
         code = _clean_text(code, _PREVIEW_CHARS)
     return Error(message=text, in_reply_to=in_reply_to,
-                 step=step if _is_count(step) else None,
+                 step=step if _is_count(step, MAX_UINT32) else None,
                  code=code,
                  reply_to=reply_to if _is_count(reply_to, MAX_ENVELOPE_INT) else None,
-                 epoch=epoch if _is_count(epoch, MAX_ENVELOPE_INT) else None)
+                 epoch=epoch if _is_count(epoch, MAX_UINT32) else None)
 
 
 def error_reply(exc: BaseException, in_reply_to: Optional[str] = None,

@@ -58,7 +58,8 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.server import Server, ServerConnection, serve
 
 from ros_hrc.errors import LinkError
-from ros_hrc.link.protocol import (ERR_FAILED, ERR_UNAUTHORIZED, ERR_VERSION, MAX_MESSAGE_BYTES,
+from ros_hrc.link.protocol import (ERR_FAILED, ERR_REFUSED, ERR_UNAUTHORIZED, ERR_VERSION,
+                                   MAX_MESSAGE_BYTES,
                                    PROTOCOL_VERSION, REPLY_TYPES, Error, Hello, Message,
                                    MessageError, as_reply, decode, encode, error_reply)
 from ros_hrc.link.protocol import is_reply_to  # noqa: F401  (its home is the protocol module)
@@ -197,8 +198,13 @@ class Peer:
         self.who = "?"
         #: The client proved it knows the server's link token (always true without one).
         self.authenticated = False
+        #: The client said hello (a second hello on the same connection is refused).
+        self.said_hello = False
         self.opened_at = time.monotonic()
-        self.address: Tuple[Any, ...] = tuple(connection.remote_address or ())
+        try:
+            self.address: Tuple[Any, ...] = tuple(connection.remote_address or ())
+        except OSError:  # the socket already failed (e.g. a first frame over the limit)
+            self.address = ()
         self._connection = connection
         self._server_name = server_name
         self._limit = max(1, int(outbox_frames))
@@ -584,6 +590,11 @@ class MessageServer:
             peer.send_text(error_reply(exc))
             return
         if isinstance(msg, Hello):
+            if peer.said_hello:
+                peer.send(Error(message=f"{self.name}: this connection said hello already, as "
+                                        f"{peer.who!r}; a hello is the first frame only",
+                                in_reply_to=Hello.TYPE, code=ERR_REFUSED, reply_to=msg.id))
+                return
             self._greet(peer, msg)
             return
         step = getattr(msg, "step", None)
@@ -673,6 +684,7 @@ class MessageServer:
 
     def _greet(self, peer: Peer, hello: Hello) -> None:
         peer.who = hello.who
+        peer.said_hello = True
         if hello.version != PROTOCOL_VERSION:
             self._log.error("%s: %r speaks protocol %d, this is %d", self.name, peer,
                             hello.version, PROTOCOL_VERSION)

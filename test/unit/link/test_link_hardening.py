@@ -322,3 +322,53 @@ def test_the_server_serves_again_once_file_descriptors_are_back():
     err = proc.stderr.read()
     assert "cannot accept a connection: [Errno 24] Too many open files" in err, err
     assert "accepting connections again" in err, err
+
+
+# -- found by the fuzz test (test/rostest/test_fuzz.py) ----------------------------------------
+
+@pytest.mark.parametrize("frame", [
+    '{"type":"reset","epoch":4294967296}',
+    '{"type":"action","step":4294967296,"action":"rPoint_obj"}',
+    '{"type":"next_state","state":null,"epoch":9007199254740991}',
+    '{"type":"step","step":' + "9" * 4300 + ',"action":"idle","state":"tired"}',
+])
+def test_a_frame_out_of_range_is_answered_not_dropped_with_the_connection(frame):
+    """Before: the error answering it copied the out-of-range step or epoch, could not be built
+    (MessageError in the connection handler) and the connection closed with 1011."""
+    from ros_hrc.link.protocol import error_reply
+    with pytest.raises(MessageError) as caught:
+        decode(frame)
+    reply = decode(error_reply(caught.value))
+    assert isinstance(reply, Error) and reply.code == ERR_INVALID
+    node = Robot(None)
+    with node.server:
+        ws = raw(node.server)
+        ws.send(frame)
+        answer = decode(ws.recv())
+        ws.send(encode(Reset(id=5)))
+        after = decode(ws.recv())
+        ws.close()
+    assert answer.code == ERR_INVALID and after.reply_to == 5
+
+
+def test_a_belief_of_huge_numbers_names_its_field():
+    """Before: 'cannot decode the frame: OverflowError: intermediate overflow in fsum'."""
+    with pytest.raises(MessageError, match=r'"belief\[0\]" must be at most 1, got 1e\+308'):
+        decode('{"type":"action","step":0,"action":"rIdle","belief":[1e308,1e308]}')
+
+
+def test_a_second_hello_does_not_rename_the_client(link_token):
+    """Before: a second hello on an authenticated connection renamed the peer."""
+    token = link_token[0]
+    node = Robot(token)
+    with node.server:
+        ws = raw(node.server)
+        ws.send(encode(client_hello(token, node.server.port, who="hrc_human")))
+        decode(ws.recv())
+        ws.send(encode(Hello(who="someone_else", id=2)))
+        answer = decode(ws.recv())
+        names = [peer.who for peer in node.server.clients()]
+        ws.close()
+    assert answer.code == "refused" and answer.reply_to == 2
+    assert "said hello already, as 'hrc_human'" in answer.message
+    assert names == ["hrc_human"]
