@@ -354,12 +354,9 @@ class PortFuzzer:
         """One connection: send ``frames`` (fuzz frames, or raw text of our own), then check
         the refusal."""
         s = self.stats
-        try:
-            ws = open_socket(self.port)
-        except (websocket.WebSocketException, OSError) as exc:
-            s.problem(f"{where}: cannot connect: {exc}")
+        ws = self._open(where)
+        if ws is None:
             return
-        s.conns += 1
         try:
             for frame in frames:
                 try:
@@ -424,12 +421,9 @@ class PortFuzzer:
     def _connect(self) -> bool:
         """An authenticated connection (the server's hello must prove the token)."""
         s = self.stats
-        try:
-            ws = open_socket(self.port)
-        except (websocket.WebSocketException, OSError) as exc:
-            s.problem(f"cannot connect: {exc}")
+        ws = self._open()
+        if ws is None:
             return False
-        s.conns += 1
         hello, nonce = hello_frame(self.token, self.port)
         try:
             ws.send(hello)
@@ -617,6 +611,16 @@ class PortFuzzer:
                              f"{[str(m)[:200] for m in got]}")
         return "frames answered otherwise, one by one: " + (" | ".join(found) or "none")
 
+    def _open(self, where: str = "") -> Optional[websocket.WebSocket]:
+        """A new connection to the port, counted; None (and a problem noted) if it fails."""
+        try:
+            ws = open_socket(self.port)
+        except (websocket.WebSocketException, OSError) as exc:
+            self.stats.problem(f"{where + ': ' if where else ''}cannot connect: {exc}")
+            return None
+        self.stats.conns += 1
+        return ws
+
     def _describe(self, frames: List[fuzz_frames.Frame]) -> str:
         return " | ".join(f"{f.kind} ({f.note})" for f in frames)[:2000]
 
@@ -624,12 +628,9 @@ class PortFuzzer:
         """The human port: our hello, the batch and a probe at once; the server takes frames
         until it refuses the seat (an error seat_taken, then a close 1008)."""
         s = self.stats
-        try:
-            ws = open_socket(self.port)
-        except (websocket.WebSocketException, OSError) as exc:
-            s.problem(f"cannot connect: {exc}")
+        ws = self._open()
+        if ws is None:
             return
-        s.conns += 1
         hello, nonce = hello_frame(self.token, self.port)
         sent: List[fuzz_frames.Frame] = []
         try:
