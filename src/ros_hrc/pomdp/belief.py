@@ -16,11 +16,11 @@ from typing import Dict, Optional, Tuple
 import numpy as np
 
 from ros_hrc.errors import SolverError, ZeroProbabilityObservation
-from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.model import DENSE_STATE_LIMIT, Model
 from ros_hrc.pomdp.sampling import ModelSampler, sample_from
 
-#: Models with at most this many states use dense tables for the exact update (A·S² floats).
-DENSE_STATE_LIMIT = 300
+__all__ = ["DENSE_STATE_LIMIT", "ZERO_PROBABILITY", "update", "predict", "Belief", "ExactBelief",
+           "ParticleBelief", "make_belief"]
 
 #: A probability of an observation at or below this counts as zero (rounding in printed tables).
 ZERO_PROBABILITY = 1e-300
@@ -33,7 +33,8 @@ class _Filter:
         # The tables, not the model, are kept so the cache below does not keep models alive.
         self.T = model.T
         self.O = model.O
-        self.dense = model.n_states <= DENSE_STATE_LIMIT
+        # Small models (Model.dense_tables_fit: A·S² floats at most) update with dense tables.
+        self.dense = model.dense_tables_fit
         if self.dense:
             self.T = model.dense_T
             self.O = model.dense_O
@@ -231,10 +232,12 @@ class ParticleBelief(Belief):
 
 
 def make_belief(model: Model, rng: np.random.Generator, particles: Optional[int] = None,
-                b: Optional[np.ndarray] = None) -> Belief:
-    """An exact belief, or a particle belief when ``particles`` is given."""
+                b: Optional[np.ndarray] = None,
+                sampler: Optional[ModelSampler] = None) -> Belief:
+    """An exact belief, or a particle belief when ``particles`` is given (stepped with
+    ``sampler``, or a ModelSampler of its own)."""
     if particles:
-        return ParticleBelief(model, particles, rng, b)
+        return ParticleBelief(model, particles, rng, b, sampler=sampler)
     return ExactBelief(model, b)
 
 

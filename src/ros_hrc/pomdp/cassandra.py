@@ -26,7 +26,10 @@ What is read
   ``Model.minimise`` is set, so solvers maximise ``R`` as always and a value is reported as a
   cost by negating it. :func:`dump` writes such a model back as costs.
 * Rewards that depend on the observation are folded into their expectation,
-  ``R(s,a,s') = sum_o O(o|s',a) R(s,a,s',o)`` (the model has no observation axis for rewards).
+  ``R(s,a,s') = sum_o O(o|s',a) R(s,a,s',o)`` (the model has no observation axis for rewards),
+  one observation at a time on R's sparse pattern (observations no statement singles out are
+  folded together), never through an S x S x O array.
+* A leading UTF-8 byte-order mark is ignored; UTF-16 and UTF-32 files are refused.
 * ``R[a]`` keeps every entry the file gives; above
   :data:`~ros_hrc.pomdp.fileformat.FULL_REWARD_STATES` states it is kept only where
   ``T(s'|s,a) > 0`` (elsewhere it can never be earned), so a wildcard reward on a large model
@@ -36,8 +39,14 @@ What is read
 
 Checks: no negative probability, every row of ``T``, ``O`` and the start vector sums to one
 within :data:`~ros_hrc.pomdp.model.PROBABILITY_TOLERANCE` (1e-4, for tables printed with 3-6
-digits), discount in [0, 1), known names, the right count of numbers. Each failure raises
+digits), discount in [0, 1), known names, the right count of numbers, every number finite
+(``inf``, ``nan``, ``1e999`` are refused) and every reward within
+|R| / (1 - discount) <= :data:`~ros_hrc.pomdp.model.MAX_VALUE`. Each failure raises
 :class:`~ros_hrc.errors.ModelFormatError` naming the file and the line.
+
+Memory: with ``memory_limit`` (bytes) the reader refuses, with
+:class:`~ros_hrc.pomdp.memory.MemoryLimitError`, a file whose tokens, names or tables would
+need more, estimated before they are made (a 50,000-state ``T: * uniform`` is 2.5e9 non-zeros).
 """
 from __future__ import annotations
 
@@ -50,40 +59,39 @@ import numpy as np
 import scipy.sparse as sp
 
 from ros_hrc.errors import ModelError, ModelFormatError
+from ros_hrc.pomdp import memory
 from ros_hrc.pomdp.fileformat import (FULL_REWARD_STATES, PROBABILITY_TOLERANCE,
-                                      check_writable_names, default_names,
-                                      format_number, is_identity, name_lookup, resolve_token)
-from ros_hrc.pomdp.model import Model
+                                      check_set_size, check_writable_names, decode_text,
+                                      default_names, format_number, is_identity, name_lookup,
+                                      read_file, resolve_token, strip_bom)
+from ros_hrc.pomdp.model import Model, reward_bound_problem
+from ros_hrc.pomdp.output import write_text_atomically
 
 __all__ = ["load", "loads", "dump", "save"]
 
 _KEYWORDS = frozenset({"discount", "values", "states", "actions", "observations", "start",
                        "T", "O", "R"})
 _KINDS = {"states": "state", "actions": "action", "observations": "observation"}
-#: Observation-dependent rewards are folded through a dense (S, S', O) array per action.
-_FOLD_LIMIT = 20_000_000
 #: Matrices up to this size are written as matrices (readable); larger ones entry by entry.
 _MATRIX_LIMIT = 32
 
 
-def load(path) -> Model:
-    """Read a Cassandra ``.pomdp`` file into a :class:`Model`."""
+def load(path, memory_limit: Optional[int] = None) -> Model:
+    """Read a Cassandra ``.pomdp`` file into a :class:`Model` (``memory_limit``: bytes, see
+    the module's docstring; None: no check)."""
     path = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise ModelFormatError(path, None, f"cannot read the file: {exc.strerror or exc}") from None
-    return loads(text, source=path)
+    text = decode_text(read_file(path, memory_limit), path)
+    return _Reader(text, path, memory_limit).read()
 
 
-def loads(text: str, source: str = "<string>") -> Model:
+def loads(text: str, source: str = "<string>", memory_limit: Optional[int] = None) -> Model:
     """Parse Cassandra ``.pomdp`` text; ``source`` names it in error messages."""
-    return _Reader(text, source).read()
+    return _Reader(strip_bom(text), source, memory_limit).read()
 
 
 def save(model: Model, path) -> None:
-    """Write ``model`` to ``path`` in Cassandra format."""
-    Path(path).write_text(dump(model), encoding="utf-8")
+    """Write ``model`` to ``path`` in Cassandra format (the whole file or nothing)."""
+    write_text_atomically(path, dump(model))
 
 
 # --------------------------------------------------------------------------------------------
@@ -230,7 +238,36 @@ class _Layers:
         if kind == "rows":
             used = sp.csr_matrix((payload != 0).astype(float)[None, :])
             return sp.csr_matrix(np.ones((R, 1))) @ used
-        return sp.csr_matrix(np.ones((R, C)))          # uniform, nonzero const
+        # uniform, nonzero const: every cell, built as CSR directly (no dense R x C array)
+        return sp.csr_matrix((np.ones(R * C), np.tile(np.arange(C), R),
+                              np.arange(R + 1, dtype=np.int64) * C), shape=(R, C))
+
+    def max_nonzeros(self) -> int:
+        """An upper bound of the table's non-zeros from the statements alone, so its size can
+        be checked before it is built."""
+        R, C = self.n_rows, self.n_cols
+        total = 0
+        if self.whole is not None:
+            _, kind, payload = self.whole
+            if kind == "dense":
+                total = int(np.count_nonzero(payload))
+            else:
+                if kind == "identity":
+                    per_row = 1
+                elif kind == "rows":
+                    per_row = int(np.count_nonzero(payload))
+                elif kind == "const" and payload == 0:
+                    per_row = 0
+                else:                                  # uniform, nonzero const
+                    per_row = C
+                total = per_row * (R - len(self.row_whole))
+        for _, kind, payload in self.row_whole.values():
+            if kind == "vec":
+                total += int(np.count_nonzero(payload))
+            elif not (kind == "const" and payload == 0):
+                total += C
+        total += len(self.col_cells) * R + sum(len(c) for c in self.cells.values())
+        return min(total, R * C)
 
     def _cell_arrays(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Row, column, statement and value of every single-cell entry, as arrays."""
@@ -347,6 +384,20 @@ class _Reward:
     obs: Optional[int]
     kind: str            # value | row (over o) | matrix (s' x o)
     payload: object
+    line: int = 0
+
+    def applies_to(self, action: int) -> bool:
+        return self.action is None or self.action == action
+
+    def write(self, layer: "_Layers", o: int = 0) -> None:
+        """Put this statement's R(., ., ., o) into ``layer`` (one observation's S x S' table)."""
+        if self.kind == "value":
+            if self.obs is None or self.obs == o:
+                layer.set_cell(self.seq, self.start, self.end, self.payload)
+        elif self.kind == "row":
+            layer.set_cell(self.seq, self.start, self.end, float(self.payload[o]))
+        else:
+            layer.set_row(self.seq, self.start, "vec", self.payload[:, o].copy())
 
     @property
     def depends_on_observation(self) -> bool:
@@ -361,8 +412,9 @@ class _Reward:
 # The reader
 # --------------------------------------------------------------------------------------------
 class _Reader:
-    def __init__(self, text: str, source: str) -> None:
+    def __init__(self, text: str, source: str, memory_limit: Optional[int] = None) -> None:
         self.source = source
+        self.memory_limit = memory_limit
         self.text = text
         self.names: Dict[str, List[str]] = {}
         self.lookups: Dict[str, Dict[str, int]] = {}
@@ -411,6 +463,7 @@ class _Reader:
             count = int(st.data[0])
             if count < 1:
                 self.fail(st.line, f"'{kind}:' count must be at least 1, found {count}")
+            check_set_size(kind, count, self.memory_limit, self.source, str(st.line))
             names = default_names(kind[0], count)
         else:
             names = list(st.data)
@@ -598,7 +651,7 @@ class _Reader:
                 self.fail(st.line, f"'{st.header}' needs {S * Z} numbers ({S} end states x "
                                    f"{Z} observations), found {arr.size}")
             kind, payload = "matrix", arr.reshape(S, Z)
-        self.rewards.append(_Reward(seq, action, start, end, obs, kind, payload))
+        self.rewards.append(_Reward(seq, action, start, end, obs, kind, payload, st.line))
 
     # -- assembling the model ---------------------------------------------------------------
     def _check_rows(self, label: str, a: int, layers: _Layers, table: sp.csr_matrix) -> None:
@@ -656,51 +709,104 @@ class _Reader:
         self.fail(st.line, f"'start:' expects {S} probabilities, 'uniform' or a state; "
                            f"found {len(data)} item(s)")
 
-    def _fold_rewards(self, T: List[sp.csr_matrix], O: List[sp.csr_matrix]) -> List[sp.csr_matrix]:
+    def _reward_layers(self) -> List[List[Tuple[List[int], _Layers]]]:
+        """Per action, R(s, a, s', o) as layers: (observations, their common S x S' table).
+
+        Without observation-dependent rewards one layer holds every observation. Otherwise each
+        observation a statement singles out gets its own layer and the rest share one, so the
+        fold costs a table per distinct observation, never an S x S' x O array.
+        """
         S, A, Z = (len(self.names[k]) for k in ("states", "actions", "observations"))
-        if not any(r.depends_on_observation for r in self.rewards):
-            layers = [_Layers(S, S) for _ in range(A)]
-            for r in self.rewards:
-                for a in self._each("actions", r.action):
-                    if r.kind == "value":
-                        layers[a].set_cell(r.seq, r.start, r.end, r.payload)
-                    elif r.kind == "row":
-                        layers[a].set_cell(r.seq, r.start, r.end, float(r.payload[0]))
-                    else:
-                        layers[a].set_row(r.seq, r.start, "vec", r.payload[:, 0].copy())
-            full = S <= FULL_REWARD_STATES
-            return [layers[a].materialise(None if full else T[a]) for a in range(A)]
-        if S * S * Z > _FOLD_LIMIT:
-            self.fail(None, f"observation-dependent rewards over {S} x {S} x {Z} cells are too "
-                            "large to fold into R(s, a, s')")
         out = []
         for a in range(A):
-            grid = np.zeros((S, S, Z))
-            for r in self.rewards:
-                if r.action is not None and r.action != a:
-                    continue
-                s = slice(None) if r.start is None else r.start
-                s2 = slice(None) if r.end is None else r.end
-                o = slice(None) if r.obs is None else r.obs
-                if r.kind == "matrix":
-                    grid[s, :, :] = r.payload
-                else:
-                    grid[s, s2, o] = r.payload
-            folded = np.einsum("ijo,jo->ij", grid, O[a].toarray())
-            if S <= FULL_REWARD_STATES:
-                out.append(sp.csr_matrix(folded))
+            mine = [r for r in self.rewards if r.applies_to(a)]
+            if not any(r.depends_on_observation for r in mine):
+                layer = _Layers(S, S)
+                for r in mine:
+                    r.write(layer)
+                out.append([(list(range(Z)), layer)])
                 continue
-            rows = np.repeat(np.arange(S), np.diff(T[a].indptr))
-            vals = folded[rows, T[a].indices]
-            m = sp.csr_matrix((vals, T[a].indices.copy(), T[a].indptr.copy()), shape=(S, S))
+            if any(r.kind != "value" and r.depends_on_observation for r in mine):
+                named = set(range(Z))                 # a row or matrix over o: all differ
+            else:
+                named = {r.obs for r in mine if r.obs is not None}
+            groups = [[o] for o in sorted(named)]
+            rest = [o for o in range(Z) if o not in named]
+            if rest:
+                groups.append(rest)
+            layers = []
+            for group in groups:
+                layer = _Layers(S, S)
+                for r in mine:
+                    r.write(layer, group[0])
+                layers.append((group, layer))
+            out.append(layers)
+        return out
+
+    def _fold_rewards(self, T: List[sp.csr_matrix], O: List[sp.csr_matrix],
+                      layers: List[List[Tuple[List[int], _Layers]]]) -> List[sp.csr_matrix]:
+        """R(s, a, s') = Σ_o O(o|s',a) R(s, a, s', o), on the cells the file wrote (small
+        models) or where T(s'|s,a) > 0 (above FULL_REWARD_STATES states)."""
+        S = len(self.names["states"])
+        full = S <= FULL_REWARD_STATES
+        out = []
+        for a, action_layers in enumerate(layers):
+            if len(action_layers) == 1:
+                # No observation-dependent reward: the table itself (as it always was read).
+                out.append(action_layers[0][1].materialise(None if full else T[a]))
+                continue
+            cells = [layer._cell_arrays() for _, layer in action_layers]
+            if full:
+                structure = sum((layer.pattern(c) for (_, layer), c in
+                                 zip(action_layers, cells)), sp.csr_matrix((S, S)))
+                structure = sp.csr_matrix(structure)
+                structure.sort_indices()
+            else:
+                structure = T[a]
+            vals = np.zeros(structure.nnz)
+            for (group, layer), c in zip(action_layers, cells):
+                weight = np.asarray(O[a][:, group].sum(axis=1)).ravel()    # Σ_o∈group O(o|s')
+                vals += weight[structure.indices] * layer.values_at(structure.indptr,
+                                                                    structure.indices, c)
+            m = sp.csr_matrix((vals, structure.indices.copy(), structure.indptr.copy()),
+                              shape=(S, S))
             m.eliminate_zeros()
             out.append(m)
         return out
+
+    def _check_rewards(self) -> None:
+        """Every reward finite (the parser refused non-finite numbers) and small enough that
+        no value overflows: |R| / (1 - discount) <= MAX_VALUE."""
+        for r in self.rewards:
+            largest = float(np.max(np.abs(r.payload))) if r.kind != "value" else abs(r.payload)
+            problem = reward_bound_problem(largest, self.discount)
+            if problem:
+                self.fail(r.line, problem)
+
+    def _check_memory(self, layers: List[List[Tuple[List[int], _Layers]]]) -> None:
+        """Refuse, before building them, tables that would not fit in the memory limit."""
+        if self.memory_limit is None:
+            return
+        S, A = len(self.names["states"]), len(self.names["actions"])
+        t_nnz = [t.max_nonzeros() for t in self.T]
+        o_nnz = [o.max_nonzeros() for o in self.O]
+        if S <= FULL_REWARD_STATES:
+            r_nnz = [min(S * S, sum(layer.max_nonzeros() for _, layer in action_layers))
+                     for action_layers in layers]
+        else:
+            r_nnz = t_nnz
+        needed = memory.tables_bytes(t_nnz + o_nnz + r_nnz, S) + memory.model_overhead(S, A)
+        memory.require(needed, self.memory_limit, self.source,
+                       f"building T, O and R ({sum(t_nnz)}, {sum(o_nnz)} and {sum(r_nnz)} "
+                       "non-zeros at most)")
 
     def _build(self) -> Model:
         states, actions, observations = (self.names[k]
                                          for k in ("states", "actions", "observations"))
         self._tables()
+        self._check_rewards()
+        reward_layers = self._reward_layers()
+        self._check_memory(reward_layers)
         T, O = [], []
         for a in range(len(actions)):
             t = self.T[a].materialise()
@@ -710,7 +816,7 @@ class _Reader:
             o = self.O[a].materialise()
             self._check_rows("O", a, self.O[a], o)
             O.append(o)
-        R = self._fold_rewards(T, O)
+        R = self._fold_rewards(T, O, reward_layers)
         if self.values == "cost":
             R = [-r for r in R]
         fully = observations == states and all(is_identity(o) for o in O)

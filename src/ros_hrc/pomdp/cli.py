@@ -8,10 +8,17 @@
     hrc_pomdp simulate MODEL (--policy POLICY | --planner despot|mdp [--time-per-step S])
                        --sim-len N --sim-num M [--seed K] [--json]
 
-Exit status: 0 done; 2 the command line is wrong, or a model file is malformed or
-inconsistent -- then one line on standard error, ``hrc_pomdp: <file>:<line>: <what>``, never
-a traceback; 1 any other failure the user can act on (a file that cannot be written).
-Progress goes to standard error, and only when it is a terminal.
+Every subcommand takes ``--memory-limit SIZE`` (default 4G): reading, solving or simulating a
+model that would need more, estimated before it is allocated, is refused in one line naming the
+file, the estimate and the option.
+
+Exit status: 0 done; 2 the command line is wrong (argparse's usage line and
+``hrc_pomdp <command>: error: argument ...``; numbers must be finite and in range), or a model
+file is malformed or inconsistent -- then one line on standard error,
+``hrc_pomdp: <file>:<line>: <what>``, never a traceback; 1 any other failure the user can act
+on (a file that cannot be written, the memory limit, a result that is not a finite number).
+``--json`` prints strict JSON (no NaN or Infinity). An output file (``convert``'s, ``solve -o``)
+is written whole or not at all. Progress goes to standard error, and only when it is a terminal.
 
 Adding a subcommand (``solve``, ``simulate``): write ``_register_<name>(subparsers)`` that
 adds the subparser and ``set_defaults(func=<handler>)``, a handler ``(args) -> int`` (the exit
@@ -22,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from typing import Callable, List, Optional, Sequence, TextIO, Tuple
@@ -29,15 +37,31 @@ from typing import Callable, List, Optional, Sequence, TextIO, Tuple
 import numpy as np
 
 from ros_hrc.errors import HrcError, ModelError, ModelFormatError, SolverError
-from ros_hrc.pomdp import io
-from ros_hrc.pomdp.model import PROBABILITY_TOLERANCE, Model
+from ros_hrc.pomdp import io, memory
+from ros_hrc.pomdp.memory import MemoryLimitError
+from ros_hrc.pomdp.model import MAX_VALUE, PROBABILITY_TOLERANCE, Model
+from ros_hrc.pomdp.output import check_writable
 
 PROG = "hrc_pomdp"
 
 #: What every model that loads has passed (the parsers and Model.validate check them).
 CHECKS = ["names known and unique", "table sizes agree", "discount in [0, 1)",
           f"no negative probability; rows of T and O sum to 1 (within {PROBABILITY_TOLERANCE:g})",
-          "initial belief sums to 1"]
+          "initial belief sums to 1",
+          f"every number finite; |R| / (1 - discount) <= {MAX_VALUE:g}"]
+
+#: Upper limits of the numeric options: beyond them a run could not finish or fit in memory.
+MAX_SECONDS = 1e6                  # --timeout, --time-per-step: 11.6 days
+MAX_RUNS = 10_000_000              # --sim-len, --sim-num, and their product
+MAX_SCENARIOS = 1_000_000          # --scenarios, --particles
+MAX_DEPTH = 100_000                # --depth
+MAX_TRIALS = 10**12                # --max-trials
+MAX_SEED = 2**64 - 1
+MAX_MEMORY = 1 << 50               # --memory-limit: 1 PiB
+
+
+class ResultError(HrcError):
+    """A result to print is not a finite number (it is reported, never printed)."""
 
 
 def progress(message: str, stream: Optional[TextIO] = None) -> None:
@@ -47,10 +71,52 @@ def progress(message: str, stream: Optional[TextIO] = None) -> None:
         print(f"{PROG}: {message}", file=stream, flush=True)
 
 
-def load_with_progress(path: str) -> Model:
+def load_with_progress(path: str, memory_limit: Optional[int] = None) -> Model:
     """Load a model file, saying so on a terminal (large models take a moment)."""
     progress(f"reading {path} ...")
-    return io.load_model(path)
+    return io.load_model(path, memory_limit=memory_limit)
+
+
+def _non_finite(value, where: str = "") -> Optional[str]:
+    """The path (``lower``, ``stats.residual``) of the first non-finite float in ``value``."""
+    if isinstance(value, float):
+        return None if math.isfinite(value) else where
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, (list, tuple)):
+        items = enumerate(value)
+    else:
+        return None
+    for key, item in items:
+        found = _non_finite(item, f"{where}.{key}" if where else str(key))
+        if found is not None:
+            return found
+    return None
+
+
+def require_finite(facts: dict) -> None:
+    """ResultError when a number of the result is not finite (it must not be printed)."""
+    bad = _non_finite(facts)
+    if bad is not None:
+        raise ResultError(f"the result {bad} is not a finite number ({_lookup(facts, bad)}); "
+                          "nothing printed or written")
+
+
+def emit(facts: dict, as_json: bool, print_text: Callable[[dict], None]) -> int:
+    """Print the result: strict JSON (one line) or text. A number that is not finite is an
+    error (ResultError), whichever way the result would have been printed."""
+    require_finite(facts)
+    if as_json:
+        print(json.dumps(facts, allow_nan=False))
+    else:
+        print_text(facts)
+    return 0
+
+
+def _lookup(facts, path: str):
+    for key in path.split("."):
+        facts = facts[int(key)] if isinstance(facts, (list, tuple)) else facts[key]
+    return facts
 
 
 def model_kind(model: Model) -> str:
@@ -84,7 +150,8 @@ def describe(model: Model, path: str, seconds: float) -> dict:
     }
 
 
-def _print_info(facts: dict, out: TextIO) -> None:
+def _print_info(facts: dict, out: TextIO = None) -> None:
+    out = out if out is not None else sys.stdout
     kind = {"MDP": "MDP (fully observable)", "MOMDP": "POMDP (mixed observability)",
             "POMDP": "POMDP"}[facts["kind"]]
     start = ", ".join(facts["initial_states"][:3])
@@ -117,19 +184,16 @@ def _register_info(subparsers) -> None:
                                           "describe it.")
     p.add_argument("model", help="a .pomdp (Cassandra) or .pomdpx (POMDPX) file")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    _add_memory_limit(p)
     p.set_defaults(func=cmd_info)
 
 
 def cmd_info(args: argparse.Namespace) -> int:
     """``hrc_pomdp info MODEL [--json]``."""
     start = time.perf_counter()
-    model = load_with_progress(args.model)
+    model = load_with_progress(args.model, args.memory_limit)
     facts = describe(model, args.model, time.perf_counter() - start)
-    if args.json:
-        print(json.dumps(facts))
-    else:
-        _print_info(facts, sys.stdout)
-    return 0
+    return emit(facts, args.json, _print_info)
 
 
 def _register_convert(subparsers) -> None:
@@ -138,13 +202,23 @@ def _register_convert(subparsers) -> None:
                                           "extension (.pomdp or .pomdpx). Tables are kept exactly.")
     p.add_argument("input", metavar="IN")
     p.add_argument("output", metavar="OUT")
+    _add_memory_limit(p)
     p.set_defaults(func=cmd_convert)
+
+
+#: Bytes the text of a written model costs per non-zero: the line (about 40 characters), its
+#: list slot, the joined text and its UTF-8 copy.
+WRITE_BYTES_PER_NONZERO = 200
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
     """``hrc_pomdp convert IN OUT``."""
     io.format_of(args.output)           # a bad target is refused before any work
-    model = load_with_progress(args.input)
+    check_writable(args.output)
+    model = load_with_progress(args.input, args.memory_limit)
+    nonzeros = sum(m.nnz for table in (model.T, model.O, model.R) for m in table)
+    memory.require(memory.model_bytes(model) + WRITE_BYTES_PER_NONZERO * nonzeros,
+                   args.memory_limit, args.input, f"writing {args.output}")
     progress(f"writing {args.output} ...")
     io.save_model(model, args.output)
     print(f"{args.input} -> {args.output} ({io.format_of(args.output)}: {model.n_states} states, "
@@ -155,23 +229,59 @@ def cmd_convert(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------------------------
 # solve and simulate (the solvers' subcommands)
 # --------------------------------------------------------------------------------------------
-def _number(kind: type, low: float, strict: bool) -> Callable[[str], float]:
-    """An argparse type: a ``kind`` above ``low`` (or at least ``low`` when not strict)."""
+def _number(kind: type, low: float, high: float,
+            low_open: bool = False) -> Callable[[str], float]:
+    """An argparse type: a finite ``kind`` (int or float) in [low, high], or (low, high] with
+    ``low_open``; anything else (nan, inf, out of range, not a number) is argparse's error."""
+    noun = "an integer" if kind is int else "a number"
+
     def parse(text: str):
         try:
             value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if value < low or (strict and value == low):
-            raise argparse.ArgumentTypeError(f"must be {'>' if strict else '>='} {low:g}: {text}")
+        except (ValueError, OverflowError):
+            raise argparse.ArgumentTypeError(f"not {noun}: {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+        if value < low or (low_open and value == low):
+            raise argparse.ArgumentTypeError(
+                f"must be {'>' if low_open else '>='} {low:g}, got {text!r}")
+        if value > high:
+            raise argparse.ArgumentTypeError(f"must be at most {high:g}, got {text!r}")
         return value
+    parse.__name__ = kind.__name__      # argparse names it in some messages
     return parse
 
 
-_positive = _number(float, 0.0, True)
-_non_negative = _number(float, 0.0, False)
-_count = _number(int, 1, False)
-_non_negative_count = _number(int, 0, False)
+_seconds = _number(float, 0.0, MAX_SECONDS)
+_precision = _number(float, 0.0, MAX_VALUE, low_open=True)
+_fraction = _number(float, 0.0, 1.0)
+_regularization = _number(float, 0.0, MAX_VALUE)
+_run_count = _number(int, 1, MAX_RUNS)
+_scenario_count = _number(int, 1, MAX_SCENARIOS)
+_depth = _number(int, 0, MAX_DEPTH)
+_trial_count = _number(int, 0, MAX_TRIALS)
+_seed = _number(int, 0, MAX_SEED)
+
+
+def _memory_size(text: str) -> int:
+    """An argparse type: a memory size (``512M``, ``4G``, ``4096`` = MiB), 1 MiB to 1 PiB."""
+    try:
+        size = memory.parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if not memory.MiB <= size <= MAX_MEMORY:
+        raise argparse.ArgumentTypeError(f"must be between 1M and 1P (1 MiB .. 1 PiB), "
+                                         f"got {text!r}")
+    return size
+
+
+def _add_memory_limit(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--memory-limit", type=_memory_size, default=memory.DEFAULT_MEMORY_LIMIT,
+                   metavar="SIZE",
+                   help="refuse a model whose reading, solving or simulation would need more "
+                        "memory than SIZE, estimated before it is allocated (a number with K, "
+                        "M, G or T; plain numbers are MiB; default "
+                        f"{memory.format_bytes(memory.DEFAULT_MEMORY_LIMIT)})")
 
 
 def _in_model_terms(model: Model, lower: float, upper: float) -> Tuple[float, float]:
@@ -186,20 +296,24 @@ def _register_solve(subparsers) -> None:
         description="Solve MODEL offline: HSVI2 (a point-based solver with lower and upper "
                     "bounds) for a POMDP, value iteration for an MDP. Prints the bounds on the "
                     "optimal value from the initial belief and the time taken; stops when the "
-                    "bounds are within PRECISION or after the timeout. With fully observable "
+                    "bounds are within PRECISION or after the timeout, which counts from the "
+                    "start of the command (reading the model and building the solver's tables "
+                    "included), or when the solver's vectors would outgrow the memory limit. "
+                    "With fully observable "
                     "state variables (POMDPX fullyObs, mixed observability) their values are "
                     "known from the first step, as in SARSOP: the value from the initial belief "
                     "is the average, over the start values of those variables, of the value "
                     "given them (an MDP: the average over start states of their values).")
     p.add_argument("model", help="a .pomdp or .pomdpx file")
-    p.add_argument("--timeout", type=_non_negative, default=60.0, metavar="S",
-                   help="stop after S seconds (default 60)")
-    p.add_argument("--precision", type=_positive, default=1e-3, metavar="E",
+    p.add_argument("--timeout", type=_seconds, default=60.0, metavar="S",
+                   help=f"stop after S seconds, 0 to {MAX_SECONDS:g} (default 60)")
+    p.add_argument("--precision", type=_precision, default=1e-3, metavar="E",
                    help="stop when upper - lower <= E (default 0.001)")
     p.add_argument("-o", "--output", metavar="POLICY",
                    help="write the policy to this file (numpy .npz format, any file name)")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (lower, upper, seconds, ...)")
+    _add_memory_limit(p)
     p.set_defaults(func=cmd_solve)
 
 
@@ -222,7 +336,12 @@ def cmd_solve(args: argparse.Namespace) -> int:
     """``hrc_pomdp solve MODEL [--timeout S] [--precision E] [-o POLICY] [--json]``."""
     from ros_hrc.pomdp import hsvi
 
-    model = load_with_progress(args.model)
+    began = getattr(args, "started", None)          # when run() began (None: called directly)
+    if began is None:
+        began = time.perf_counter()
+    if args.output:
+        check_writable(args.output)     # not after a long solve
+    model = load_with_progress(args.model, args.memory_limit)
     shown = [0.0]
 
     def show(p) -> None:
@@ -232,10 +351,11 @@ def cmd_solve(args: argparse.Namespace) -> int:
             progress(f"{p.seconds:.0f} s: lower {lo:.6g}, upper {up:.6g} ({p.trials} trials)")
 
     start = time.perf_counter()
-    policy = hsvi.solve(model, timeout=args.timeout, precision=args.precision, progress=show)
+    # The timeout counts from the start of the command: the solver gets what reading left.
+    remaining = max(0.0, args.timeout - (start - began))
+    policy = hsvi.solve(model, timeout=remaining, precision=args.precision, progress=show,
+                        memory_limit=args.memory_limit)
     seconds = time.perf_counter() - start
-    if args.output:
-        policy.save(args.output)
     lower, upper = _in_model_terms(model, policy.lower, policy.upper)
     stats = {k: v for k, v in policy.stats.items() if k not in ("seconds", "state_policy")}
     facts = {"model": args.model, "kind": model_kind(model), "solver": stats.pop("solver"),
@@ -243,17 +363,26 @@ def cmd_solve(args: argparse.Namespace) -> int:
              "gap": upper - lower, "precision": args.precision,
              "converged": bool(upper - lower <= args.precision), "seconds": round(seconds, 4),
              "policy": args.output, "vectors": int(policy.actions.size), "stats": stats}
-    if args.json:
-        print(json.dumps(facts))
-        return 0
-    how = "converged" if facts["converged"] else f"stopped after {args.timeout:g} s"
-    print(f"{args.model}: {facts['kind']} solved by {facts['solver']} in {seconds:.3f} s ({how})")
-    print(f"  lower bound   {lower:.6f}")
-    print(f"  upper bound   {upper:.6f}")
-    print(f"  gap           {upper - lower:.3g} (target {args.precision:g})")
-    print(f"  {facts['values']}s at the initial belief; {facts['vectors']} vectors"
-          + (f", policy written to {args.output}" if args.output else ""))
-    return 0
+    require_finite(facts)               # before the policy file is written, too
+    if args.output:
+        policy.save(args.output)
+
+    def print_text(facts: dict) -> None:
+        if facts["converged"]:
+            how = "converged"
+        elif stats.get("memory_limit_reached"):
+            how = "stopped at the memory limit"
+        else:
+            how = f"stopped at the {args.timeout:g} s timeout"
+        print(f"{args.model}: {facts['kind']} solved by {facts['solver']} in {seconds:.3f} s "
+              f"({how})")
+        print(f"  lower bound   {lower:.6f}")
+        print(f"  upper bound   {upper:.6f}")
+        print(f"  gap           {upper - lower:.3g} (target {args.precision:g})")
+        print(f"  {facts['values']}s at the initial belief; {facts['vectors']} vectors"
+              + (f", policy written to {args.output}" if args.output else ""))
+
+    return emit(facts, args.json, print_text)
 
 
 def _register_simulate(subparsers) -> None:
@@ -272,42 +401,59 @@ def _register_simulate(subparsers) -> None:
     how.add_argument("--policy", metavar="POLICY", help="a policy file written by 'solve -o'")
     how.add_argument("--planner", choices=["despot", "mdp"],
                      help="plan online: DESPOT, or value iteration for a fully observable model")
-    p.add_argument("--sim-len", type=_count, required=True, metavar="N", help="steps per run")
-    p.add_argument("--sim-num", type=_count, required=True, metavar="M", help="number of runs")
-    p.add_argument("--seed", type=int, default=0, metavar="K", help="random seed (default 0)")
+    p.add_argument("--sim-len", type=_run_count, required=True, metavar="N",
+                   help=f"steps per run (1 to {MAX_RUNS}; N x M at most {MAX_RUNS})")
+    p.add_argument("--sim-num", type=_run_count, required=True, metavar="M",
+                   help=f"number of runs (1 to {MAX_RUNS})")
+    p.add_argument("--seed", type=_seed, default=0, metavar="K",
+                   help="random seed, 0 to 2**64-1 (default 0)")
     p.add_argument("--lookahead", action="store_true",
                    help="policy: choose by one-step lookahead over the policy's values")
     d = p.add_argument_group("DESPOT (--planner despot)")
-    d.add_argument("--time-per-step", type=_non_negative, default=1.0, metavar="S",
+    d.add_argument("--time-per-step", type=_seconds, default=1.0, metavar="S",
                    help="search time per decision (default 1)")
-    d.add_argument("--scenarios", type=_count, default=500, metavar="K", help="default 500")
-    d.add_argument("--depth", type=_non_negative_count, default=90, metavar="D",
-                   help="default 90")
-    d.add_argument("--lambda", dest="pruning", type=_non_negative, default=0.1, metavar="L",
-                   help="regularization per policy node (default 0.1)")
-    d.add_argument("--xi", type=_non_negative, default=0.95, metavar="X", help="default 0.95")
-    d.add_argument("--max-trials", type=_non_negative_count, default=None, metavar="N",
+    d.add_argument("--scenarios", type=_scenario_count, default=500, metavar="K",
+                   help=f"1 to {MAX_SCENARIOS} (default 500)")
+    d.add_argument("--depth", type=_depth, default=90, metavar="D",
+                   help=f"0 to {MAX_DEPTH} (default 90)")
+    d.add_argument("--lambda", dest="pruning", type=_regularization, default=0.1, metavar="L",
+                   help="regularization per policy node, >= 0 (default 0.1)")
+    d.add_argument("--xi", type=_fraction, default=0.95, metavar="X",
+                   help="0 to 1 (default 0.95)")
+    d.add_argument("--max-trials", type=_trial_count, default=None, metavar="N",
                    help="also stop each search after N trials (reproducible runs)")
     d.add_argument("--upper", choices=["mdp", "fib", "trivial"], default="mdp",
                    help="upper bound (default mdp)")
     d.add_argument("--lower", choices=["blind", "policy", "rollout"], default="blind",
                    help="default policy (default blind: the best fixed action)")
-    d.add_argument("--particles", type=_count, default=None, metavar="N",
+    d.add_argument("--particles", type=_scenario_count, default=None, metavar="N",
                    help="particle belief of N particles (default: exact belief for models "
                         "of up to 5000 states)")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (mean, ci95_low, ci95_high, ms_per_step, ...)")
-    p.set_defaults(func=cmd_simulate)
+    _add_memory_limit(p)
+    p.set_defaults(func=cmd_simulate, check=_check_simulate)
 
 
-def _planner_factory(model: Model, args: argparse.Namespace):
-    """A function run_seed -> planner, with the expensive tables built once; and its label."""
+def _check_simulate(args: argparse.Namespace) -> Optional[Tuple[str, str]]:
+    """What the options of ``simulate`` cannot be together: (option, message) or None."""
+    if args.sim_len * args.sim_num > MAX_RUNS:
+        return "--sim-num", (f"SIM-LEN x SIM-NUM must be at most {MAX_RUNS} steps, got "
+                             f"{args.sim_len} x {args.sim_num}")
+    return None
+
+
+def _planner_factory(model: Model, args: argparse.Namespace, used: int):
+    """A function run_seed -> planner, with the expensive tables built once; and its label.
+    ``used``: bytes the model and the simulation take already, out of ``--memory-limit``."""
+    from ros_hrc.pomdp import despot
     from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
     from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
     from ros_hrc.pomdp.policy import load as load_policy
 
+    source, limit = args.model, args.memory_limit
     if args.policy:
-        policy = load_policy(args.policy, model)
+        policy = load_policy(args.policy, model, memory_limit=limit, memory_in_use=used)
         if policy.kind == "mdp":
             return (lambda seed: MdpPlanner.from_policy(model, policy, seed)), \
                 f"policy {args.policy} (MDP)"
@@ -317,6 +463,9 @@ def _planner_factory(model: Model, args: argparse.Namespace):
         if not model.fully_observable:
             raise SolverError("--planner mdp is for fully observable models; use despot or "
                               "a policy from 'solve'")
+        from ros_hrc.pomdp.hsvi import mdp_memory_needed
+        memory.require(used + mdp_memory_needed(model), limit, source,
+                       "simulating with value iteration")
         solution = MdpPlanner(model).solution
         return (lambda seed: MdpPlanner(model, solution, seed)), "value iteration (MDP)"
     config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.pruning,
@@ -324,6 +473,12 @@ def _planner_factory(model: Model, args: argparse.Namespace):
                           max_trials=args.max_trials, upper=args.upper, lower=args.lower,
                           particles=args.particles)
     config.validate()
+    fixed = used + despot.memory_needed(model, config)
+    memory.require(fixed + 1000 * despot.BYTES_PER_NODE, limit, source,
+                   f"simulating with DESPOT ({config.scenarios} scenarios, depth "
+                   f"{config.depth})")
+    # What is left is the tree's: a search stops growing it there.
+    config.max_nodes = int((limit - fixed) // despot.BYTES_PER_NODE)
     progress("precomputing DESPOT's bounds ...")
     tables = DespotTables(model, config.upper, config.lower)
     label = (f"DESPOT ({args.time_per_step:g} s per step, K={args.scenarios}, D={args.depth}, "
@@ -336,10 +491,13 @@ def _planner_factory(model: Model, args: argparse.Namespace):
 @_solver_errors_exit_2
 def cmd_simulate(args: argparse.Namespace) -> int:
     """``hrc_pomdp simulate MODEL (--policy P | --planner despot|mdp) --sim-len N --sim-num M``."""
-    from ros_hrc.pomdp.simulate import simulate
+    from ros_hrc.pomdp.simulate import memory_needed, simulate
 
-    model = load_with_progress(args.model)
-    factory, label = _planner_factory(model, args)
+    model = load_with_progress(args.model, args.memory_limit)
+    used = memory.model_bytes(model) + memory_needed(model, args.sim_len, args.sim_num)
+    memory.require(used, args.memory_limit, args.model,
+                   f"simulating {args.sim_num} runs of {args.sim_len} steps")
+    factory, label = _planner_factory(model, args, used)
     shown = [time.perf_counter()]
 
     def show(done: int, mean: float) -> None:
@@ -358,18 +516,19 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     facts.update({"model": args.model, "planner": label, "sim_len": args.sim_len,
                   "sim_num": args.sim_num, "seed": args.seed,
                   "values": "cost" if model.minimise else "reward"})
-    if args.json:
-        print(json.dumps(facts))
-        return 0
-    print(f"{args.model}: {label}, {args.sim_num} runs x {args.sim_len} steps, seed {args.seed}")
-    print(f"  expected total discounted {facts['values']}  {facts['mean']:.6g}   95% CI "
-          f"({facts['ci95_low']:.6g}, {facts['ci95_high']:.6g})")
-    print(f"  time per step  {result.ms_per_step:.3f} ms (act p50 {result.ms_act_p50:.3f} ms, "
-          f"p99 {result.ms_act_p99:.3f} ms)")
-    if result.zero_probability_events:
-        print(f"  {result.zero_probability_events} observation(s) of probability zero: the "
-              "belief kept its prediction")
-    return 0
+
+    def print_text(facts: dict) -> None:
+        print(f"{args.model}: {label}, {args.sim_num} runs x {args.sim_len} steps, "
+              f"seed {args.seed}")
+        print(f"  expected total discounted {facts['values']}  {facts['mean']:.6g}   95% CI "
+              f"({facts['ci95_low']:.6g}, {facts['ci95_high']:.6g})")
+        print(f"  time per step  {result.ms_per_step:.3f} ms (act p50 {result.ms_act_p50:.3f} "
+              f"ms, p99 {result.ms_act_p99:.3f} ms)")
+        if result.zero_probability_events:
+            print(f"  {result.zero_probability_events} observation(s) of probability zero: the "
+                  "belief kept its prediction")
+
+    return emit(facts, args.json, print_text)
 
 
 #: Every subcommand's register function, in the order ``--help`` lists them.
@@ -392,16 +551,26 @@ def build_parser() -> argparse.ArgumentParser:
 
 def run(argv: Optional[Sequence[str]] = None) -> int:
     """Run the command line ``argv`` and return the exit status (for tests and ``main``)."""
+    started = time.perf_counter()
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
+        problem = args.check(args) if getattr(args, "check", None) else None
+        if problem is not None:
+            # A constraint between options: reported like argparse's own errors.
+            option, message = problem
+            _subparser(parser, args.command).error(f"argument {option}: {message}")
     except SystemExit as exc:           # argparse has printed its usage message
         return int(exc.code or 0)
+    args.started = started
     try:
         return int(args.func(args))
     except (ModelFormatError, ModelError) as exc:
         print(f"{PROG}: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except MemoryLimitError as exc:
+        print(f"{PROG}: {_one_line(exc)}; raise it with --memory-limit", file=sys.stderr)
+        return 1
     except HrcError as exc:
         print(f"{PROG}: {_one_line(exc)}", file=sys.stderr)
         return 1
@@ -409,9 +578,21 @@ def run(argv: Optional[Sequence[str]] = None) -> int:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"{PROG}: {where}{exc.strerror or exc}", file=sys.stderr)
         return 1
+    except MemoryError:
+        # The estimates missed (they are estimates): still one line, and a way out.
+        print(f"{PROG}: out of memory; give a lower --memory-limit so the model is refused "
+              "or the solver stops early", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
+
+
+def _subparser(parser: argparse.ArgumentParser, command: str) -> argparse.ArgumentParser:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices[command]
+    return parser
 
 
 def _one_line(exc: Exception) -> str:

@@ -43,6 +43,10 @@ order it always had, so a trial-bounded search builds the same tree to the last 
 Beliefs are exact for small models (scenarios are drawn from the exact belief) and particle
 filters for large ones (``DespotConfig.particles``).
 
+Memory: the tables are O(non-zeros of T and O + A·S); a search adds its scenarios' random numbers
+(2·K·(D+1) at most) and its tree, which ``DespotConfig.max_nodes`` caps (``hrc_pomdp`` sets it
+from ``--memory-limit``; :func:`memory_needed` estimates the rest).
+
 Time: ``time_per_step`` bounds all of act(), and the belief updates since the previous act(), not
 only the trials: the garbage collector is paused during act() (the tree has no reference cycles
 and is freed before act() returns), and the search stops before an expansion predicted to end
@@ -64,7 +68,7 @@ from typing import List, Optional
 import numpy as np
 
 from ros_hrc.errors import SolverError
-from ros_hrc.pomdp import mdp
+from ros_hrc.pomdp import mdp, sampling
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
 from ros_hrc.pomdp.policy import Policy
@@ -91,6 +95,10 @@ FREE_MAX_PER_NODE = 1e-5
 #: Weight of the newest expansion in the running means that predict the next one's duration.
 EXPAND_WEIGHT = 0.1
 
+#: What one node of a tree costs, its share of the scenario arrays included: measured 420-530
+#: bytes on Tiger and the robot model, 1.4 KB on RockSample_7_8 (13 actions), rounded up.
+BYTES_PER_NODE = 2048
+
 @dataclass
 class DespotConfig:
     """DESPOT's parameters (the paper's names in brackets)."""
@@ -105,17 +113,41 @@ class DespotConfig:
     lower: str = "blind"               # "blind" | "policy" | "rollout"
     particles: Optional[int] = None    # particle belief of this size; None: exact when small
     gap_tolerance: float = 1e-6        # [ε0] stop early once the root gap is this small
+    max_nodes: Optional[int] = None    # stop a search once its tree has this many nodes
 
     def validate(self) -> None:
         """SolverError when a parameter is out of range."""
         if self.scenarios < 1 or self.depth < 0:
             raise SolverError("DESPOT needs at least one scenario and a non-negative depth")
-        if self.pruning < 0 or not 0.0 <= self.xi <= 1.0 or self.time_per_step < 0:
-            raise SolverError("DESPOT needs pruning >= 0, 0 <= xi <= 1 and time_per_step >= 0")
+        if not (math.isfinite(self.pruning) and math.isfinite(self.time_per_step)) \
+                or self.pruning < 0 or not 0.0 <= self.xi <= 1.0 or self.time_per_step < 0:
+            raise SolverError("DESPOT needs pruning >= 0, 0 <= xi <= 1 and time_per_step >= 0, "
+                              "all finite")
+        if self.max_nodes is not None and self.max_nodes < 1:
+            raise SolverError(f"max_nodes must be at least 1, got {self.max_nodes}")
         if self.upper not in ("fib", "mdp", "trivial") or self.lower not in ("blind", "policy",
                                                                         "rollout"):
             raise SolverError(f"unknown bound: upper={self.upper!r} (fib|mdp|trivial), "
                               f"lower={self.lower!r} (blind|policy|rollout)")
+
+
+def memory_needed(model: Model, config: DespotConfig) -> int:
+    """Bytes DESPOT needs besides its tree: the model's sampler and bounds (an upper estimate
+    from the sizes and non-zeros), one belief and one search's scenarios and expansions."""
+    A, S, Z = model.n_actions, model.n_states, model.n_observations
+    nnz_t = sum(t.nnz for t in model.T)
+    nnz_o = sum(o.nnz for o in model.O)
+    tables = sampling.memory_needed(model) + 8 * (2 * nnz_t + 2 * nnz_o)  # + aligned rows, keys
+    bounds = 8 * 12 * A * S                     # value iteration, blind policies, bound rows
+    if config.upper == "fib" and mdp.fib_is_dense(model):
+        bounds += 8 * (2 * A * Z * S * S + A * A * Z * S)
+    particles = config.particles
+    if particles is None and S > EXACT_BELIEF_MAX_STATES:
+        particles = DEFAULT_PARTICLES
+    belief = 8 * 4 * S + (48 * particles if particles else 0)
+    K = config.scenarios
+    search = 16 * K * (config.depth + 2) + 8 * 8 * A * K + 8 * A * Z
+    return tables + bounds + belief + search
 
 
 class DespotTables:
@@ -268,10 +300,12 @@ class DespotPlanner(BeliefPlanner):
         particles = self.config.particles
         if particles is None and model.n_states > EXACT_BELIEF_MAX_STATES:
             particles = DEFAULT_PARTICLES
-        super().__init__(model, seed, particles)
         cfg = self.config
         if tables is None or tables.model is not model or tables.key != (cfg.upper, cfg.lower):
             tables = DespotTables(model, cfg.upper, cfg.lower, default_policy)
+        # The particle belief shares the tables' sampler (the same tables a sampler of its own
+        # would build: the same draws, without another copy per planner).
+        super().__init__(model, seed, particles, sampler=tables.sampler)
         self.tables = tables
         self.sampler = tables.sampler
         self._A = model.n_actions
@@ -518,7 +552,8 @@ class DespotPlanner(BeliefPlanner):
                 break
             if v.children is None:
                 n = v.hi - v.lo
-                if v is not root and self._out_of_time(deadline, n):
+                if v is not root and (self._out_of_time(deadline, n) or (
+                        cfg.max_nodes is not None and self._nodes >= cfg.max_nodes)):
                     self._backup(path, qpath, index)
                     return True
                 began = time.perf_counter()
@@ -626,6 +661,8 @@ class DespotPlanner(BeliefPlanner):
             if root.upper - root.lower <= cfg.gap_tolerance:
                 break
             if trials > 0 and self._out_of_time(deadline):
+                break
+            if cfg.max_nodes is not None and self._nodes >= cfg.max_nodes:
                 break
             trials += 1
             if self._trial(root, deadline):

@@ -5,15 +5,22 @@ Only the format modules (``cassandra``, ``pomdpx``, ``io``) import this; solvers
 from __future__ import annotations
 
 import math
+import os
+import stat
 from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
 from ros_hrc.errors import ModelFormatError
+from ros_hrc.pomdp import memory
 from ros_hrc.pomdp.model import PROBABILITY_TOLERANCE
 
 __all__ = ["PROBABILITY_TOLERANCE", "FULL_REWARD_STATES", "format_number", "name_lookup",
-           "resolve_token", "check_writable_names", "default_names", "joint_names", "is_identity"]
+           "resolve_token", "check_writable_names", "default_names", "joint_names", "is_identity",
+           "read_file", "decode_text", "strip_bom", "check_set_size"]
+
+#: A byte-order mark some editors (Notepad) put at the start of UTF-8 text; it is not content.
+BOM = "\ufeff"
 
 #: Up to this many states R(s, a, s') is kept wherever the file gives it (a human typing an
 #: unlikely next state still gets the file's reward). Above it, R is kept only where
@@ -97,3 +104,50 @@ def is_identity(matrix) -> bool:
     rows, cols, data = coo.row[keep], coo.col[keep], coo.data[keep]
     return rows.size == n and bool(np.all(rows == cols)) and bool(np.all(data == 1.0)) \
         and np.unique(rows).size == n
+
+
+def read_file(path: str, memory_limit: Optional[int] = None) -> bytes:
+    """A model file's bytes; MemoryLimitError, before reading, when parsing a file that size
+    would need more than ``memory_limit`` bytes (a device or pipe is read up to that point)."""
+    try:
+        with open(path, "rb") as fh:
+            if memory_limit is None:
+                return fh.read()
+            most = memory_limit // memory.PARSE_BYTES_PER_FILE_BYTE
+            info = os.fstat(fh.fileno())
+            if stat.S_ISREG(info.st_mode):
+                memory.require(info.st_size * memory.PARSE_BYTES_PER_FILE_BYTE, memory_limit,
+                               path, f"reading this {info.st_size}-byte file")
+            data = fh.read(most + 1)
+            if len(data) > most:
+                raise memory.MemoryLimitError(path, "reading this stream (not a regular file)",
+                                              len(data) * memory.PARSE_BYTES_PER_FILE_BYTE,
+                                              memory_limit)
+            return data
+    except OSError as exc:
+        raise ModelFormatError(path, None, f"cannot read the file: {exc.strerror or exc}") from None
+
+
+def strip_bom(text: str) -> str:
+    """``text`` without a leading byte-order mark."""
+    return text[1:] if text.startswith(BOM) else text
+
+
+def decode_text(data: bytes, source: str) -> str:
+    """A text model file's bytes as text: UTF-8 (a leading byte-order mark dropped; bytes that
+    are not UTF-8 become U+FFFD, which the parser then names). UTF-16 and UTF-32 are refused
+    in one line rather than read as garbage."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise ModelFormatError(source, "1", "the file is UTF-16 or UTF-32 text (it starts with "
+                                            "that byte-order mark); save it as UTF-8")
+    return strip_bom(data.decode("utf-8", errors="replace"))
+
+
+def check_set_size(kind: str, count: int, memory_limit: Optional[int], source: str,
+                   where: Optional[str]) -> None:
+    """Refuse a count of states, actions or observations whose names alone would not fit in
+    ``memory_limit`` (``states: 99999999999`` must not allocate before it is refused)."""
+    if memory_limit is not None and count * memory.BYTES_PER_NAME > memory_limit:
+        raise memory.MemoryLimitError(f"{source}:{where}" if where else source,
+                                      f"{count} {kind}", count * memory.BYTES_PER_NAME,
+                                      memory_limit)

@@ -29,17 +29,29 @@ weighted excess gap P(k)·(gap(b_k) − precision), and the bounds reported at t
 policy's) are the weighted sums. Without a key there is one root, the initial belief.
 
 A fully observable model is an MDP: ``solve`` then runs value iteration instead.
+
+Time and memory: ``solve``'s timeout counts from the call, so building the tables and the MDP
+bounds (blind policies, QMDP or the fast informed bound) is inside it; every stage stops at the
+deadline with bounds that are still valid (each iterate of those bounds is one). Memory is
+O(non-zeros of T + A·Z·S) plus the stored vectors (alpha vectors, upper-bound points, beliefs,
+the current trial's path: S numbers each), never an S x S array for a large model. With
+``memory_limit`` the solver refuses, before building anything, a model whose tables and working
+arrays would not fit (:class:`~ros_hrc.pomdp.memory.MemoryLimitError`), and stops, as at a
+timeout, when its stored vectors would outgrow the rest of the budget (after pruning once);
+``stats["memory_limit_reached"]`` then says so.
 """
 from __future__ import annotations
 
+import hashlib
+import math
 import time
 from dataclasses import dataclass
-from typing import Callable, List, Optional, Tuple
+from typing import Callable, Iterator, List, Optional, Tuple
 
 import numpy as np
 
 from ros_hrc.errors import SolverError
-from ros_hrc.pomdp import mdp
+from ros_hrc.pomdp import mdp, memory
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.policy import Policy
 
@@ -51,6 +63,18 @@ MAX_DENSE_ENTRIES = 20_000_000
 
 #: Work per sweep, in sawtooth terms (beliefs x actions x observations x points x states).
 SWEEP_BUDGET = 3e6
+
+#: Numbers in one block of the sawtooth's (states x beliefs x points) temporary, and in one
+#: chunk of a sweep's (beliefs x actions x observations x states) arrays: 32 MB each.
+RATIO_BLOCK = 4_000_000
+SWEEP_CHUNK = 4_000_000
+
+#: A trial keeps each step's successor beliefs (A·Z·S numbers) for the backups on its way back
+#: while they are at most this many numbers; larger ones are computed again in the backup.
+KEEP_SUCCESSORS = 1_000_000
+
+#: Fewest stored vectors (beliefs, points, alpha vectors) the memory budget must leave room for.
+MIN_VECTORS = 64
 
 
 @dataclass
@@ -65,18 +89,54 @@ class SolveProgress:
     n_points: int
 
 
+def _check_size(model: Model) -> None:
+    A, S, Z = model.n_actions, model.n_states, model.n_observations
+    if A * Z * S > MAX_DENSE_ENTRIES:
+        raise SolverError(f"model too large for the point-based solver "
+                          f"({A} actions x {Z} observations x {S} states); "
+                          f"plan online with DESPOT instead")
+
+
+def memory_needed(model: Model) -> int:
+    """Bytes HSVI needs besides its stored vectors: the model, the solver's tables, the MDP
+    bounds and the working arrays of a trial step, a backup and a sweep's chunk (an upper
+    estimate, from the sizes and T's non-zeros)."""
+    A, S, Z = model.n_actions, model.n_states, model.n_observations
+    azs = A * Z * S
+    nnz_t = sum(t.nnz for t in model.T)
+    tables = 8 * azs + 8 * 4 * A * S + memory.csr_bytes(nnz_t, A * S)      # OT, R, T transposed
+    if model.dense_tables_fit:
+        tables += 8 * A * S * (S + Z)                                       # dense T and O
+    bounds = 8 * 10 * A * S                     # value iteration, blind and informed bounds
+    if mdp.fib_is_dense(model):
+        bounds += 8 * (2 * A * Z * S * S + A * A * Z * S)
+    working = 8 * 8 * azs                       # successors, their bounds, a backup
+    n_max = max(32, int(math.sqrt(SWEEP_BUDGET / max(azs, 1))))
+    sweep = 8 * 6 * max(azs, min(SWEEP_CHUNK, n_max * azs))
+    sawtooth = 8 * 3 * RATIO_BLOCK
+    # The roots (one per fully observed start value): split from the initial belief, stacked,
+    # and each also a belief and an upper-bound point.
+    roots = 8 * 8 * S * _root_count(model)
+    return memory.model_bytes(model) + tables + bounds + working + sweep + sawtooth + roots
+
+
+def _root_count(model: Model) -> int:
+    """How many roots ``Model.start_split`` will make, counted without making them."""
+    b = np.asarray(model.initial_belief)
+    if model.observed_key is None:
+        return 1
+    return max(1, int(np.unique(np.asarray(model.observed_key)[b > 0]).size))
+
+
 class _Tables:
     """The model's arrays in the shapes the backups want (dense T when small, sparse otherwise)."""
 
     def __init__(self, model: Model) -> None:
         self.A, self.S, self.Z = model.n_actions, model.n_states, model.n_observations
-        if self.A * self.Z * self.S > MAX_DENSE_ENTRIES:
-            raise SolverError(f"model too large for the point-based solver "
-                              f"({self.A} actions x {self.Z} observations x {self.S} states); "
-                              f"plan online with DESPOT instead")
+        _check_size(model)
         self.gamma = float(model.discount)
         self.R = np.asarray(model.R_sa, dtype=float)                    # (A, S)
-        self.dense = self.S <= mdp.DENSE_STATE_LIMIT
+        self.dense = model.dense_tables_fit
         self.T = model.dense_T if self.dense else model.T                # (A, S, S') or list
         if self.dense:
             self.OT = np.transpose(model.dense_O, (0, 2, 1)).copy()     # (A, Z, S')
@@ -122,9 +182,17 @@ class _LowerBound:
         self.alphas = np.vstack([self.alphas[keep], alpha])
         self.actions = np.append(self.actions[keep], action)
 
-    def prune(self, beliefs: np.ndarray) -> None:
-        """Keep the vectors best at one of ``beliefs`` (the others are valid too, but cost time)."""
-        keep = np.unique(self.best(beliefs))
+    def prune(self, *belief_blocks: np.ndarray, corners: bool = False) -> None:
+        """Keep the vectors best at one of the beliefs (the others are valid too, but cost
+        time), and with ``corners`` at one of the corners (the point masses).
+
+        The best vector at corner s is the argmax of column s: the same as ``best`` at the
+        rows of an identity matrix, without making that S x S matrix.
+        """
+        found = [self.best(block) for block in belief_blocks if len(block)]
+        if corners:
+            found.append(self.alphas.argmax(axis=0))
+        keep = np.unique(np.concatenate(found))
         self.alphas = self.alphas[keep]
         self.actions = self.actions[keep]
 
@@ -162,11 +230,29 @@ class _UpperBound:
         base = X @ self.corner
         if self.vals.size == 0:
             return base
-        tents = base[:, None] + self.ratios(X, self.inv_t) * self.excess[None, :]
-        return np.minimum(base, tents.min(axis=1))
+        m, S = X.shape
+        n = self.vals.size
+        if m * S * n <= RATIO_BLOCK:
+            tents = base[:, None] + self.ratios(X, self.inv_t) * self.excess[None, :]
+            return np.minimum(base, tents.min(axis=1))
+        # In blocks of rows and points, so the (S, rows, points) temporary stays within
+        # RATIO_BLOCK numbers; every step is an exact min, so the result is the same.
+        rows = max(1, RATIO_BLOCK // (S * n))
+        cols = n if rows > 1 else max(1, RATIO_BLOCK // S)
+        out = np.empty(m)
+        for lo in range(0, m, rows):
+            x, b = X[lo:lo + rows], base[lo:lo + rows]
+            best = b.copy()
+            for c in range(0, n, cols):
+                tents = b[:, None] + self.ratios(x, self.inv_t[:, c:c + cols]) \
+                    * self.excess[None, c:c + cols]
+                best = np.minimum(best, tents.min(axis=1))
+            out[lo:lo + rows] = best
+        return out
 
-    def add(self, B: np.ndarray, values: np.ndarray) -> None:
-        """Record that V* <= values[i] at belief B[i] (rows at a vertex lower that corner)."""
+    def add(self, B: np.ndarray, values: np.ndarray, prune: bool = True) -> None:
+        """Record that V* <= values[i] at belief B[i] (rows at a vertex lower that corner);
+        ``prune``: prune when the points have doubled since the last pruning."""
         B = np.atleast_2d(B)
         values = np.atleast_1d(np.asarray(values, dtype=float))
         vertex = B.max(axis=1) >= 1.0 - 1e-12
@@ -187,7 +273,7 @@ class _UpperBound:
             keep = points @ self.corner + ratio * (v - b @ self.corner) > vals + _TINY
             points, vals = points[keep], vals[keep]
         self._set(np.vstack([points, B]), np.concatenate([vals, values]))
-        if self.vals.size > 2 * self._pruned_size + 16:
+        if prune and self.vals.size > 2 * self._pruned_size + 16:
             self.prune()
 
     def prune(self) -> None:
@@ -224,8 +310,9 @@ class _BeliefSet:
     toward closure.
     """
 
-    def __init__(self, S: int) -> None:
+    def __init__(self, S: int, capacity: Optional[int] = None) -> None:
         self.S = S
+        self.capacity = capacity               # most beliefs kept (None: no limit)
         self._rows: List[np.ndarray] = []
         self._weights: List[float] = []
         self._expanded: List[bool] = []
@@ -238,9 +325,13 @@ class _BeliefSet:
         B = np.atleast_2d(B)
         weights = np.broadcast_to(np.asarray(weights, dtype=float), (B.shape[0],))
         for b, w in zip(B, weights):
-            key = np.round(b, 10).tobytes()
+            # A digest of the rounded belief, not its bytes: the key of a 50,000-state belief
+            # would otherwise take as much memory as the belief.
+            key = hashlib.blake2b(np.round(b, 10).tobytes(), digest_size=16).digest()
             i = self._keys.get(key)
             if i is None:
+                if self.capacity is not None and len(self._rows) >= self.capacity:
+                    continue                   # full: the memory budget is spent
                 self._keys[key] = len(self._rows)
                 self._rows.append(b.copy())
                 self._weights.append(float(w))
@@ -258,8 +349,11 @@ class _BeliefSet:
     def rows(self, idx: np.ndarray) -> np.ndarray:
         return np.array([self._rows[i] for i in idx]).reshape(len(idx), self.S)
 
-    def all_rows(self) -> np.ndarray:
-        return np.array(self._rows).reshape(len(self._rows), self.S)
+    def blocks(self, rows: int) -> Iterator[np.ndarray]:
+        """Every belief, as arrays of at most ``rows`` rows (a copy of the whole set at once
+        would double its memory)."""
+        for lo in range(0, len(self._rows), rows):
+            yield np.array(self._rows[lo:lo + rows]).reshape(-1, self.S)
 
     def weights(self, idx: np.ndarray) -> np.ndarray:
         return np.array([self._weights[i] for i in idx])
@@ -273,11 +367,29 @@ class _BeliefSet:
 
 
 class HsviSolver:
-    """The solver's state; ``run`` may be called again to continue (anytime)."""
+    """The solver's state; ``run`` may be called again to continue (anytime).
 
-    def __init__(self, model: Model) -> None:
+    ``deadline`` (a ``time.perf_counter()`` instant) bounds the setup: the MDP bounds stop
+    there, still valid. ``memory_limit`` (bytes) is the budget of :data:`memory_needed` plus
+    the stored vectors; None: no limit.
+    """
+
+    def __init__(self, model: Model, deadline: Optional[float] = None,
+                 memory_limit: Optional[int] = None) -> None:
         if model.fully_observable:
             raise SolverError("HSVI is for POMDPs; solve an MDP with value iteration")
+        began = time.perf_counter()
+        _check_size(model)
+        S = model.n_states
+        # Vectors of S numbers the budget leaves for beliefs, points and alpha vectors.
+        self.max_vectors: Optional[int] = None
+        if memory_limit is not None:
+            fixed = memory_needed(model)
+            memory.require(fixed + MIN_VECTORS * 8 * S, memory_limit,
+                           model.source or model.name or "the model",
+                           f"solving ({S} states, {model.n_actions} actions, "
+                           f"{model.n_observations} observations)")
+            self.max_vectors = int((memory_limit - fixed) // (8 * S))
         self.model = model
         self.t = _Tables(model)
         self.b0 = np.asarray(model.initial_belief, dtype=float)
@@ -286,19 +398,44 @@ class HsviSolver:
         split = model.start_split()
         self.root_weights = np.array([w for w, _ in split])
         self.roots = np.array([b for _, b in split]).reshape(len(split), self.t.S)
-        blind = mdp.blind_lower_bound(model)
+        blind = mdp.blind_lower_bound(model, deadline=deadline)
         self.lower = _LowerBound(blind.copy(), np.arange(model.n_actions))
-        fib = mdp.fast_informed_bound(model)
+        fib = mdp.fast_informed_bound(model, deadline=deadline)
         self.upper = _UpperBound(fib.max(axis=0))
         for root in self.roots:
             self.upper.add(root, float((fib @ root).max()))
-        self.beliefs = _BeliefSet(self.t.S)
+        capacity = None if self.max_vectors is None else max(len(self.roots),
+                                                             self.max_vectors // 2)
+        self.beliefs = _BeliefSet(self.t.S, capacity)
         for w, root in zip(self.root_weights, self.roots):
             self.beliefs.add(root, w)
+        self.keep_successors = self.t.A * self.t.Z * self.t.S <= KEEP_SUCCESSORS
         self.trials = 0
         self.sweeps = 0
         self.backups = 0
-        self.seconds = 0.0
+        self.memory_limit_reached = False
+        self.seconds = time.perf_counter() - began
+
+    # -- memory --------------------------------------------------------------------------------
+    def _vectors_in_use(self) -> int:
+        """Stored vectors of S numbers, with the copies their updates make: a point is kept
+        with its reciprocal and copied when points are added; alpha vectors are copied too."""
+        return len(self.beliefs) + 4 * self.upper.vals.size + 2 * self.lower.actions.size
+
+    def _room(self, vectors: int) -> bool:
+        """Whether ``vectors`` more fit in the memory budget."""
+        return self.max_vectors is None or self._vectors_in_use() + vectors <= self.max_vectors
+
+    def _sweep_growth(self) -> int:
+        """Vectors one sweep may add before it prunes: a point and an alpha vector per belief
+        it backs up, and their copies, plus its rows."""
+        n_max = max(32, int(np.sqrt(SWEEP_BUDGET / (self.t.A * self.t.Z * self.t.S))))
+        return 8 * min(n_max, len(self.beliefs))
+
+    def _step_cost(self) -> int:
+        """Vectors one more step of a trial's path costs: the belief, its successors when they
+        are kept, and what its backup adds (a belief, a point, an alpha vector, their copies)."""
+        return 8 + (self.t.A * self.t.Z if self.keep_successors else 0)
 
     # -- bounds at one belief ------------------------------------------------------------------
     def bounds(self, b: Optional[np.ndarray] = None) -> Tuple[float, float]:
@@ -330,8 +467,9 @@ class HsviSolver:
         k = int(np.argmax(self.root_weights * (up - lo - precision)))
         b = self.roots[k]
         width = precision
-        path: List[Tuple[np.ndarray, np.ndarray, np.ndarray, float]] = []
+        path: List[Tuple[np.ndarray, Optional[np.ndarray], Optional[np.ndarray], float]] = []
         weight = float(self.root_weights[k])
+        step_cost = self._step_cost()
         while True:
             p, B = self.t.successors(b)
             q_up, ub_succ = self._q_upper(b, p, B)
@@ -341,7 +479,8 @@ class HsviSolver:
             up_b = float(self.upper.values(b[None])[0])
             if up_b - lo_b <= width or gamma == 0.0:
                 break
-            path.append((b, p, B, weight))
+            # A large model's successors are computed again in the backup rather than kept.
+            path.append((b, p, B, weight) if self.keep_successors else (b, None, None, weight))
             a = int(np.argmax(q_up))
             width /= gamma
             lo_succ = self.lower.values(B[a])
@@ -349,11 +488,17 @@ class HsviSolver:
             z = int(np.argmax(score))
             if p[a, z] <= 0.0 or time.perf_counter() > deadline:
                 break
+            if not self._room((len(path) + 1) * step_cost):
+                break                          # a deeper path would not fit in the budget
             b = B[a, z]
             weight *= gamma * p[a, z]
         for b, p, B, weight in reversed(path):
+            if p is None:
+                p, B = self.t.successors(b)
             self._backup(b, p, B)
             self.beliefs.add(b, weight)
+            if time.perf_counter() > deadline:
+                break                          # the deeper backups are done; all stay valid
         self.trials += 1
 
     def _backup(self, b: np.ndarray, p: np.ndarray, B: np.ndarray) -> None:
@@ -385,13 +530,14 @@ class HsviSolver:
         idx = self.beliefs.top(n_max)
         return idx, self.beliefs.rows(idx)
 
-    def _sweep(self) -> None:
+    def _sweep(self, deadline: float = math.inf) -> None:
         """Back both bounds up at every belief of the sweep set at once (PBVI-style).
 
         In numpy a batch costs about as much as a single backup, and on problems whose trials
         cycle through the same beliefs (Tiger) sweeps propagate improvements far faster than
         trials alone. Both updates keep the bounds valid: any backup of valid vectors is a valid
-        vector, and the Bellman backup of an upper bound is an upper bound.
+        vector, and the Bellman backup of an upper bound is an upper bound. At ``deadline`` the
+        sweep ends after its current chunk and keeps the backups done so far.
         """
         t = self.t
         idx, X = self._sweep_set()
@@ -401,11 +547,18 @@ class HsviSolver:
         A, Z = t.A, t.Z
         n_pts = max(1, self.upper.vals.size)
         # Chunks keep the sawtooth's (beliefs x points x states) temporary array bounded.
-        chunk = max(1, int(4_000_000 // (A * Z * n_pts * S)))
+        chunk = max(1, int(SWEEP_CHUNK // (A * Z * n_pts * S)))
         new_up = np.empty(N)
         new_alpha = np.empty((N, S))
         new_act = np.empty(N, dtype=np.int64)
+        # The current bounds at the sweep's beliefs, chunk by chunk too (on a large model they
+        # cost as much as a chunk): the backups change them only after the loop.
+        old_lo = np.empty(N)
+        old_up = np.empty(N)
+        done = 0
         for lo in range(0, N, chunk):
+            if lo > 0 and time.perf_counter() > deadline:
+                break
             x = X[lo:lo + chunk]
             n = x.shape[0]
             if t.dense:
@@ -433,19 +586,29 @@ class HsviSolver:
             a = np.einsum("nas,ns->na", cand, x).argmax(axis=1)
             new_alpha[lo:lo + n] = cand[np.arange(n), a]
             new_act[lo:lo + n] = a
+            old_lo[lo:lo + n] = self.lower.values(x)
+            old_up[lo:lo + n] = self.upper.values(x)
+            done = lo + n
+        if done < N:
+            X, new_up, new_alpha, new_act = X[:done], new_up[:done], new_alpha[:done], \
+                new_act[:done]
+            old_lo, old_up = old_lo[:done], old_up[:done]
         # Lower: keep the candidates that improve at their own belief.
-        gain = np.einsum("ns,ns->n", new_alpha, X) - self.lower.values(X)
+        gain = np.einsum("ns,ns->n", new_alpha, X) - old_lo
         better = gain > _TINY
         if better.any():
             self.lower.alphas = np.vstack([self.lower.alphas, new_alpha[better]])
             self.lower.actions = np.concatenate([self.lower.actions, new_act[better]])
-            self.lower.prune(np.vstack([np.eye(S), X]))
-        # Upper: record the backed-up values that improve on the current bound.
-        lower_up = new_up < self.upper.values(X) - _TINY
+            self.lower.prune(X, corners=True)
+        # Upper: record the backed-up values that improve on the current bound. Pruning the
+        # points costs O(points² · S), seconds on a large model: not once the time is up.
+        in_time = time.perf_counter() <= deadline
+        lower_up = new_up < old_up - _TINY
         if lower_up.any():
-            self.upper.add(X[lower_up], new_up[lower_up])
-            self.upper.prune()
-        self.backups += N
+            self.upper.add(X[lower_up], new_up[lower_up], prune=in_time)
+            if in_time:
+                self.upper.prune()
+        self.backups += done
         self.sweeps += 1
 
     def _sweeps(self, precision: float, deadline: float, max_sweeps: int = 10_000) -> None:
@@ -457,7 +620,9 @@ class HsviSolver:
         for k in range(max_sweeps):
             if up - lo <= precision or time.perf_counter() > deadline:
                 return
-            self._sweep()
+            if not self._room(self._sweep_growth()):
+                return
+            self._sweep(deadline)
             new_lo, new_up = self.bounds()
             if k >= 2 and (up - lo) - (new_up - new_lo) < wanted * (up - lo):
                 return
@@ -465,15 +630,28 @@ class HsviSolver:
 
     def _prune(self) -> None:
         self.upper.prune()
-        beliefs = np.vstack([np.eye(self.t.S), self.roots, self.beliefs.all_rows()])
-        self.lower.prune(beliefs)
+        # Beliefs in blocks, so their rows are never all copied at once.
+        rows = max(1, RATIO_BLOCK // self.t.S)
+        self.lower.prune(self.roots, *self.beliefs.blocks(rows), corners=True)
+
+    def _out_of_memory(self) -> bool:
+        """Whether the stored vectors leave no room for another trial step and a sweep, even
+        after pruning; True also records that the budget stopped the solver."""
+        needed = self._sweep_growth() + 2 * self._step_cost()
+        if self._room(needed):
+            return False
+        self._prune()
+        if self._room(needed):
+            return False
+        self.memory_limit_reached = True
+        return True
 
     # -- the loop ------------------------------------------------------------------------------
     def run(self, timeout: Optional[float] = 60.0, precision: float = 1e-3,
             progress: Optional[Callable[[SolveProgress], None]] = None,
             max_trials: Optional[int] = None) -> Tuple[float, float]:
-        """Improve the bounds until their gap at the start (see ``bounds``) is <= ``precision``
-        or time is up."""
+        """Improve the bounds until their gap at the start (see ``bounds``) is <= ``precision``,
+        time is up or (with a memory limit) the stored vectors would outgrow the budget."""
         if precision <= 0:
             raise SolverError(f"precision must be positive, got {precision}")
         start = time.perf_counter()
@@ -483,9 +661,11 @@ class HsviSolver:
         while up - lo > precision and time.perf_counter() < deadline:
             if max_trials is not None and trials >= max_trials:
                 break
+            if self._out_of_memory():
+                break
             self._sweeps(precision, deadline)
             lo, up = self.bounds()
-            if up - lo <= precision:
+            if up - lo <= precision or time.perf_counter() > deadline:
                 break
             self._trial(precision, deadline)
             trials += 1
@@ -496,9 +676,11 @@ class HsviSolver:
         self.seconds += time.perf_counter() - start
         return lo, up
 
-    def policy(self) -> Policy:
-        """The lower-bound vectors as a Policy, with the bounds at the start and statistics."""
-        self._prune()
+    def policy(self, prune: bool = True) -> Policy:
+        """The lower-bound vectors as a Policy, with the bounds at the start and statistics;
+        ``prune`` first drops the vectors and points that are best nowhere the solver looked."""
+        if prune:
+            self._prune()
         lo, up = self.bounds()
         m = self.model
         return Policy(alphas=self.lower.alphas.copy(), actions=self.lower.actions.copy(),
@@ -507,31 +689,51 @@ class HsviSolver:
                       stats={"solver": "hsvi2", "seconds": self.seconds, "trials": self.trials,
                              "sweeps": self.sweeps, "backups": self.backups,
                              "alphas": int(self.lower.actions.size),
-                             "upper_points": int(self.upper.vals.size)})
+                             "upper_points": int(self.upper.vals.size),
+                             "memory_limit_reached": self.memory_limit_reached})
 
 
 def solve(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3,
-          progress: Optional[Callable[[SolveProgress], None]] = None) -> Policy:
+          progress: Optional[Callable[[SolveProgress], None]] = None,
+          memory_limit: Optional[int] = None) -> Policy:
     """Solve ``model`` offline: HSVI2 for a POMDP, value iteration for an MDP.
 
     The returned policy carries ``lower``/``upper``, bounds on the optimal value at the start
     (the initial belief; with fully observed variables Σ_k P(k) V*(b_k) over
     ``model.start_split()``, what SARSOP reports), and ``stats`` (seconds, trials, ...). Stops
-    when ``upper - lower <= precision`` or after ``timeout`` seconds (None: no limit).
+    when ``upper - lower <= precision`` or ``timeout`` seconds (None: no limit) after the call,
+    the building of the solver's tables included. ``memory_limit`` (bytes, None: none): see
+    the module's docstring.
     """
+    start = time.perf_counter()
+    deadline = start + timeout if timeout is not None else None
     if model.fully_observable:
-        return solve_mdp(model, timeout=timeout, precision=precision)
-    solver = HsviSolver(model)
-    solver.run(timeout=timeout, precision=precision, progress=progress)
-    return solver.policy()
+        return solve_mdp(model, timeout=timeout, precision=precision, memory_limit=memory_limit)
+    solver = HsviSolver(model, deadline=deadline, memory_limit=memory_limit)
+    remaining = None if deadline is None else max(0.0, deadline - time.perf_counter())
+    solver.run(timeout=remaining, precision=precision, progress=progress)
+    # Pruning the upper bound's points costs O(points² · S): skipped once the time is up
+    # (the unpruned vectors and points are as valid, and the bounds at least as tight).
+    return solver.policy(prune=deadline is None or time.perf_counter() < deadline)
 
 
-def solve_mdp(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3) -> Policy:
+def mdp_memory_needed(model: Model) -> int:
+    """Bytes value iteration needs: the model and a few (A, S) arrays (dense T when small)."""
+    A, S = model.n_actions, model.n_states
+    dense = 8 * A * S * S if model.dense_tables_fit else 0
+    return memory.model_bytes(model) + 8 * 8 * A * S + dense
+
+
+def solve_mdp(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3,
+              memory_limit: Optional[int] = None) -> Policy:
     """Value iteration, stored as a policy with one vector Q[a] per action (kind "mdp").
 
     Its bounds are b0·V ± the error bound: the start value of an MDP, whose start state is seen
     (each state its own key, so Σ_k P(k) V(b_k) = b0·V).
     """
+    memory.require(mdp_memory_needed(model), memory_limit, model.source or model.name or
+                   "the model", f"value iteration ({model.n_states} states, "
+                                f"{model.n_actions} actions)")
     start = time.perf_counter()
     # The bracket b0·V ± error_bound must be narrower than the precision asked for.
     sol = mdp.value_iteration(model, epsilon=min(precision / 2.0, 1e-6), timeout=timeout)

@@ -3,12 +3,13 @@
 ``.pomdp`` is Cassandra's format (:mod:`ros_hrc.pomdp.cassandra`), ``.pomdpx`` is POMDPX
 (:mod:`ros_hrc.pomdp.pomdpx`); the case of the extension does not matter (the seed writes
 ``humanModel.POMDPx``). Converting either way and back gives identical tables, bit for bit.
+A model is written whole or not at all (:mod:`ros_hrc.pomdp.output`).
 """
 from __future__ import annotations
 
 from pathlib import Path
 from types import ModuleType
-from typing import List
+from typing import List, Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -16,6 +17,7 @@ import scipy.sparse as sp
 from ros_hrc.errors import ModelFormatError
 from ros_hrc.pomdp import cassandra, pomdpx
 from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.output import write_text_atomically
 
 __all__ = ["FORMATS", "format_of", "load_model", "save_model", "convert", "differences"]
 
@@ -38,22 +40,23 @@ def format_of(path) -> str:
     return FORMATS[Path(str(path)).suffix.lower()][0]
 
 
-def load_model(path) -> Model:
-    """Read a model file, choosing the parser by extension (.pomdp or .pomdpx)."""
-    return _module(path).load(path)
+def load_model(path, memory_limit: Optional[int] = None) -> Model:
+    """Read a model file, choosing the parser by extension (.pomdp or .pomdpx); with
+    ``memory_limit`` (bytes), MemoryLimitError for a file too large to read within it."""
+    return _module(path).load(path, memory_limit=memory_limit)
 
 
 def save_model(model: Model, path) -> None:
-    """Write ``model`` in the format the extension of ``path`` names."""
+    """Write ``model`` in the format the extension of ``path`` names, whole or not at all."""
     module = _module(path)
-    text = module.dump(model)          # fully written before the file is touched
-    Path(path).write_text(text, encoding="utf-8")
+    text = module.dump(model)          # fully made before the file is touched
+    write_text_atomically(path, text)
 
 
-def convert(source, target) -> Model:
+def convert(source, target, memory_limit: Optional[int] = None) -> Model:
     """Read ``source`` and write it to ``target`` in the format of ``target``'s extension."""
     _module(target)                    # refuse a bad target before reading anything
-    model = load_model(source)
+    model = load_model(source, memory_limit)
     save_model(model, target)
     return model
 

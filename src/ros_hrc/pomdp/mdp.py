@@ -1,7 +1,12 @@
 """Exact value iteration for MDPs, and the MDP-derived bounds POMDP solvers start from.
 
 All functions work on the model's per-action sparse T (dense arrays are used when the model is
-small, where they are faster); rewards R(s, a, s') enter through ``model.R_sa``.
+small, ``Model.dense_tables_fit``, where they are faster); rewards R(s, a, s') enter through
+``model.R_sa``. Memory is O(non-zeros of T + A·S) for a large model.
+
+Every iterative function stops at ``deadline`` (a ``time.perf_counter()`` instant) if given,
+after at least one iteration where it needs one for a valid result: an offline solver builds
+its bounds inside its own time budget.
 
 Bounds on the optimal POMDP value V*(b) (each returned as per-action vectors, value = max_a b·Q[a]):
     blind_lower_bound      value of repeating one action forever (Hauskrecht's blind policies)
@@ -17,10 +22,14 @@ from typing import Callable, Optional
 import numpy as np
 
 from ros_hrc.errors import SolverError
-from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.model import DENSE_STATE_LIMIT, Model
 
-#: Models with at most this many states are iterated with dense (A, S, S) arrays.
-DENSE_STATE_LIMIT = 300
+__all__ = ["DENSE_STATE_LIMIT", "FIB_DENSE_ENTRIES", "MdpSolution", "value_iteration",
+           "evaluate_policy", "mdp_upper_bound", "fast_informed_bound", "blind_lower_bound"]
+
+#: The fast informed bound iterates a dense (A, Z, S, S) array; above this many numbers
+#: (64 MB) it is not built and the QMDP bound, looser but valid, stands in.
+FIB_DENSE_ENTRIES = 8_000_000
 
 
 @dataclass
@@ -49,7 +58,7 @@ class _Backup:
     """Computes Σ_s' T(s'|s,a) V(s') for every action, dense or sparse."""
 
     def __init__(self, model: Model) -> None:
-        self.dense = model.n_states <= DENSE_STATE_LIMIT
+        self.dense = model.dense_tables_fit
         self.T = model.dense_T if self.dense else model.T
 
     def expect(self, V: np.ndarray) -> np.ndarray:
@@ -61,11 +70,13 @@ class _Backup:
 
 def value_iteration(model: Model, epsilon: float = 1e-6, max_iterations: int = 1_000_000,
                     timeout: Optional[float] = None,
-                    progress: Optional[Callable[[int, float], None]] = None) -> MdpSolution:
+                    progress: Optional[Callable[[int, float], None]] = None,
+                    deadline: Optional[float] = None) -> MdpSolution:
     """Value iteration until the values are within ``epsilon`` of optimal (sup norm).
 
     Works for any model (the observations are ignored: this is the underlying MDP). Stops early,
-    with a larger ``error_bound``, on ``max_iterations`` or ``timeout`` seconds.
+    with a larger ``error_bound``, on ``max_iterations``, ``timeout`` seconds or ``deadline``;
+    it always makes one iteration, so the error bound is finite.
     """
     if epsilon <= 0:
         raise SolverError(f"epsilon must be positive, got {epsilon}")
@@ -90,6 +101,8 @@ def value_iteration(model: Model, epsilon: float = 1e-6, max_iterations: int = 1
         if progress is not None and it % 100 == 0:
             progress(it, residual)
         if timeout is not None and time.perf_counter() - start > timeout:
+            break
+        if deadline is not None and time.perf_counter() > deadline:
             break
     return MdpSolution(V=V, Q=Q, policy=Q.argmax(axis=0), iterations=it, residual=residual,
                        discount=gamma)
@@ -116,12 +129,13 @@ def evaluate_policy(model: Model, policy: np.ndarray, epsilon: float = 1e-9,
 
 
 def mdp_upper_bound(model: Model, solution: Optional[MdpSolution] = None,
-                    epsilon: float = 1e-6) -> np.ndarray:
+                    epsilon: float = 1e-6, deadline: Optional[float] = None) -> np.ndarray:
     """QMDP upper bound: (A, S) array Q with V*(b) <= max_a b·Q[a] for every belief b.
 
     The MDP's Q values are raised by the VI error bound so the bound holds despite stopping early.
     """
-    sol = solution if solution is not None else value_iteration(model, epsilon)
+    sol = solution if solution is not None else value_iteration(model, epsilon,
+                                                                deadline=deadline)
     slack = sol.error_bound
     gamma = float(model.discount)
     V_up = sol.V + slack
@@ -129,16 +143,18 @@ def mdp_upper_bound(model: Model, solution: Optional[MdpSolution] = None,
 
 
 def fast_informed_bound(model: Model, epsilon: float = 1e-6, max_iterations: int = 10_000,
-                        timeout: Optional[float] = None) -> np.ndarray:
+                        timeout: Optional[float] = None,
+                        deadline: Optional[float] = None) -> np.ndarray:
     """The fast informed bound (A, S): tighter than QMDP because it accounts for observations.
 
     Q(s,a) = R(s,a) + γ Σ_o max_a' Σ_s' T(s'|s,a) O(o|s',a) Q(s',a'), iterated from the QMDP
     bound; every iterate is itself a valid upper bound, so stopping early is safe.
-    Only for small models (cost A²·Z·S² per iteration).
+    Only for small models (cost A²·Z·S² per iteration, a dense (A, Z, S, S) array of at most
+    FIB_DENSE_ENTRIES numbers); for the others it is the QMDP bound.
     """
     gamma = float(model.discount)
-    Q = mdp_upper_bound(model, epsilon=epsilon)
-    if model.n_states > DENSE_STATE_LIMIT:
+    Q = mdp_upper_bound(model, epsilon=epsilon, deadline=deadline)
+    if not fib_is_dense(model) or (deadline is not None and time.perf_counter() > deadline):
         return Q
     T = model.dense_T                    # (A, S, S')
     O = model.dense_O                    # (A, S', Z)
@@ -157,15 +173,26 @@ def fast_informed_bound(model: Model, epsilon: float = 1e-6, max_iterations: int
             break
         if timeout is not None and time.perf_counter() - start > timeout:
             break
+        if deadline is not None and time.perf_counter() > deadline:
+            break
     return Q
 
 
+def fib_is_dense(model: Model) -> bool:
+    """Whether :func:`fast_informed_bound` iterates (rather than returning QMDP)."""
+    S = model.n_states
+    return model.dense_tables_fit and model.n_actions * model.n_observations * S * S \
+        <= FIB_DENSE_ENTRIES
+
+
 def blind_lower_bound(model: Model, epsilon: float = 1e-6,
-                      max_iterations: int = 100_000) -> np.ndarray:
+                      max_iterations: int = 100_000,
+                      deadline: Optional[float] = None) -> np.ndarray:
     """(A, S) values of repeating each action forever: V*(b) >= max_a b·L[a].
 
     Iterated upward from min_s R(s,a)/(1-γ); each iterate is the value of repeating ``a`` for k
-    steps and then collecting the worst reward forever, so stopping early stays a lower bound.
+    steps and then collecting the worst reward forever, so stopping early (at ``deadline``)
+    stays a lower bound.
     """
     gamma = float(model.discount)
     R = np.asarray(model.R_sa, dtype=float)
@@ -184,5 +211,7 @@ def blind_lower_bound(model: Model, epsilon: float = 1e-6,
         change = float(np.max(np.abs(L_new - L)))
         L = np.maximum(L_new, L)
         if change <= target:
+            break
+        if deadline is not None and time.perf_counter() > deadline:
             break
     return L

@@ -30,6 +30,17 @@ from ros_hrc.errors import ModelError
 #: Printed tables (the seed's, pomdp.org's) carry 3-6 significant digits.
 PROBABILITY_TOLERANCE = 1e-4
 
+#: The largest |value| a model may reach: every reward must satisfy |R| / (1 - discount) <=
+#: MAX_VALUE. Values, bounds, sums of returns and the squares in a confidence interval's
+#: variance then all stay far from float64's overflow at 1.8e308 (1e150 squared is 1e300).
+MAX_VALUE = 1e150
+
+#: Dense copies of T and O (``dense_T``, ``dense_O``) serve models of at most this many
+#: states, and only while each copy has at most DENSE_ENTRY_LIMIT numbers (32 MB): above
+#: either the solvers work on the CSR tables (see :attr:`Model.dense_tables_fit`).
+DENSE_STATE_LIMIT = 300
+DENSE_ENTRY_LIMIT = 4_000_000
+
 
 @dataclass
 class Model:
@@ -79,15 +90,32 @@ class Model:
         return np.vstack([np.asarray(self.T[a].multiply(self.R[a]).sum(axis=1)).ravel()
                           for a in range(self.n_actions)])
 
+    @property
+    def dense_tables_fit(self) -> bool:
+        """Whether the dense fast paths may copy T and O into (A, S, S) and (A, S, Z) arrays:
+        at most DENSE_STATE_LIMIT states and DENSE_ENTRY_LIMIT numbers per copy."""
+        S, A, Z = self.n_states, self.n_actions, self.n_observations
+        return S <= DENSE_STATE_LIMIT and A * S * max(S, Z) <= DENSE_ENTRY_LIMIT
+
     @cached_property
     def dense_T(self) -> np.ndarray:
         """T as a dense (A, S, S') array; only for small models."""
+        self._refuse_dense("T", self.n_states)
         return np.stack([t.toarray() for t in self.T])
 
     @cached_property
     def dense_O(self) -> np.ndarray:
         """O as a dense (A, S', O) array; only for small models."""
+        self._refuse_dense("O", self.n_observations)
         return np.stack([o.toarray() for o in self.O])
+
+    def _refuse_dense(self, label: str, width: int) -> None:
+        # A dense copy of a large model's table would take gigabytes: callers check
+        # dense_tables_fit first; this guards any that does not.
+        entries = self.n_actions * self.n_states * width
+        if entries > 10 * DENSE_ENTRY_LIMIT:
+            raise ModelError(f"a dense copy of {label} ({self.n_actions} x {self.n_states} x "
+                             f"{width} numbers) is too large; use the sparse tables")
 
     # -- mixed observability -------------------------------------------------------------------
     def start_belief(self, state: int) -> np.ndarray:
@@ -166,9 +194,35 @@ class Model:
                 if m.shape != (rows, width):
                     raise ModelError(f"{label}[{self.actions[a]}] has shape {m.shape}, "
                                      f"expected {(rows, width)}")
+        if not np.all(np.isfinite(self.initial_belief)):
+            raise ModelError("the initial belief has a non-finite number")
+        for table, label in ((self.T, "T"), (self.O, "O"), (self.R, "R")):
+            for a, m in enumerate(table):
+                data = m.data if sp.issparse(m) else np.asarray(m)
+                if data.size and not np.all(np.isfinite(data)):
+                    raise ModelError(f"{label}[{self.actions[a]}] has a non-finite number")
         for a in range(A):
             _check_distribution(f"T[{self.actions[a]}]", self.T[a], tolerance, self.states)
             _check_distribution(f"O[{self.actions[a]}]", self.O[a], tolerance, self.states)
+        problem = reward_bound_problem(max((_largest_magnitude(r) for r in self.R), default=0.0),
+                                       self.discount)
+        if problem:
+            raise ModelError(problem)
+
+
+def reward_bound_problem(largest_reward: float, discount: float) -> Optional[str]:
+    """Why rewards as large as ``largest_reward`` (in magnitude) are refused at ``discount``,
+    or None when |R| / (1 - discount) stays within MAX_VALUE."""
+    largest_reward = abs(float(largest_reward))
+    if largest_reward <= MAX_VALUE * (1.0 - discount):
+        return None
+    return (f"reward {largest_reward:.6g} is too large for discount {discount:g}: "
+            f"|R| / (1 - discount) must be at most {MAX_VALUE:g}")
+
+
+def _largest_magnitude(m) -> float:
+    data = m.data if sp.issparse(m) else np.asarray(m)
+    return float(np.abs(data).max()) if data.size else 0.0
 
 
 def _check_distribution(label: str, rows, tolerance: float,

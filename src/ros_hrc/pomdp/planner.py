@@ -81,11 +81,13 @@ class BeliefPlanner(Planner):
     """A planner over a ``Belief`` object, with the zero-probability fallback in one place."""
 
     def __init__(self, model: Model, seed: Optional[int] = None,
-                 particles: Optional[int] = None) -> None:
+                 particles: Optional[int] = None, sampler=None) -> None:
         self.model = model
         self.rng = np.random.default_rng(seed)
         self.particles = particles
-        self._belief: Belief = make_belief(model, self.rng, particles)
+        # A particle belief steps its particles with ``sampler`` (a ModelSampler of the model,
+        # e.g. DESPOT's, shared), or builds its own.
+        self._belief: Belief = make_belief(model, self.rng, particles, sampler=sampler)
         self.last_stats = PlannerStats()
         self.zero_probability_events = 0
         self.last_update_zero_probability = False
@@ -124,8 +126,10 @@ class PolicyPlanner(BeliefPlanner):
         self.policy = policy
         self.lookahead = lookahead
         if lookahead:
-            if model.n_states > belief_mod.DENSE_STATE_LIMIT:
-                raise SolverError("one-step lookahead is only for small models")
+            if not model.dense_tables_fit:
+                raise SolverError("one-step lookahead is only for small models (at most "
+                                  f"{belief_mod.DENSE_STATE_LIMIT} states and dense T and O "
+                                  "of a few million numbers)")
             self._T = model.dense_T                                   # (A, S, S')
             self._OT = np.transpose(model.dense_O, (0, 2, 1))         # (A, Z, S')
 

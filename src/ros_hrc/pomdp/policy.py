@@ -22,7 +22,10 @@ written to exactly the path given, with these arrays:
     model_name     str     ()
     stats_json     str     ():     solver statistics (seconds, trials, ...) as a JSON object
 
-Read one with ``numpy.load(path)``; the file name's extension does not matter.
+Read one with ``numpy.load(path)``; the file name's extension does not matter. ``save`` writes
+the whole file or nothing; ``load`` refuses non-finite vectors and, given a memory limit, an
+archive whose arrays would not fit in it (from the sizes its zip directory declares, before
+anything is unpacked).
 """
 from __future__ import annotations
 
@@ -35,7 +38,9 @@ from typing import List, Optional
 import numpy as np
 
 from ros_hrc.errors import SolverError
+from ros_hrc.pomdp import memory
 from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.output import write_atomically
 
 FORMAT = "ros_hrc-policy"
 VERSION = 1
@@ -86,13 +91,14 @@ class Policy:
         """Raise SolverError unless the policy was made for a model of this shape."""
         if self.n_states != model.n_states:
             raise SolverError(f"policy is for {self.n_states} states, model has {model.n_states}")
-        if self.actions.max() >= model.n_actions:
+        if self.actions.max() >= model.n_actions or self.actions.min() < 0:
             raise SolverError(f"policy uses action {int(self.actions.max())}, "
-                              f"model has {model.n_actions} actions")
+                              f"model has {model.n_actions} actions (0..{model.n_actions - 1})")
 
     def save(self, path: str) -> None:
-        """Write the policy to ``path`` (npz format above, exactly that file name)."""
-        with open(path, "wb") as fh:
+        """Write the policy to ``path`` (npz format above, exactly that file name), whole or
+        not at all."""
+        def write(fh) -> None:
             np.savez_compressed(
                 fh, format=np.array(FORMAT), version=np.array(VERSION), kind=np.array(self.kind),
                 alphas=self.alphas, actions=self.actions,
@@ -102,15 +108,25 @@ class Policy:
                 upper=np.array(float(self.upper)), model_name=np.array(self.model_name),
                 stats_json=np.array(json.dumps(self.stats, default=float)))
 
+        write_atomically(path, write)
+
     @classmethod
-    def load(cls, path: str) -> "Policy":
-        """Read a policy written by ``save``; SolverError naming the file when it is not one."""
+    def load(cls, path: str, memory_limit: Optional[int] = None,
+             memory_in_use: int = 0) -> "Policy":
+        """Read a policy written by ``save``; SolverError naming the file when it is not one,
+        MemoryLimitError when its arrays and ``memory_in_use`` bytes would need more than
+        ``memory_limit`` bytes."""
         try:
             if not os.path.isfile(path):
                 raise SolverError(f"{path}: no such policy file")
             if not zipfile.is_zipfile(path):
                 raise SolverError(f"{path}: not a policy file (expected the .npz archive that "
                                   f"'hrc_pomdp solve -o' writes)")
+            with zipfile.ZipFile(path) as archive:
+                unpacked = sum(info.file_size for info in archive.infolist())
+            # Each array is unpacked, then checked and copied once.
+            memory.require(memory_in_use + 2 * unpacked, memory_limit, path,
+                           "reading this policy")
             with np.load(path, allow_pickle=False) as data:
                 fmt = str(data["format"]) if "format" in data.files else ""
                 if fmt != FORMAT:
@@ -119,7 +135,11 @@ class Policy:
                 if version != VERSION:
                     raise SolverError(f"{path}: policy format version {version}, "
                                       f"this reader knows {VERSION}")
-                return cls(alphas=data["alphas"], actions=data["actions"],
+                alphas = data["alphas"]
+                if not (np.issubdtype(alphas.dtype, np.number)
+                        and np.all(np.isfinite(alphas))):
+                    raise SolverError(f"{path}: the policy's vectors are not all finite numbers")
+                return cls(alphas=alphas, actions=data["actions"],
                            state_names=[str(x) for x in data["state_names"]],
                            action_names=[str(x) for x in data["action_names"]],
                            discount=float(data["discount"]), lower=float(data["lower"]),
@@ -137,9 +157,10 @@ def save(policy: Policy, path: str) -> None:
     policy.save(path)
 
 
-def load(path: str, model: Optional[Model] = None) -> Policy:
+def load(path: str, model: Optional[Model] = None, memory_limit: Optional[int] = None,
+         memory_in_use: int = 0) -> Policy:
     """Read a policy; with ``model``, also check it fits that model."""
-    policy = Policy.load(path)
+    policy = Policy.load(path, memory_limit, memory_in_use)
     if model is not None:
         policy.check(model)
     return policy

@@ -43,8 +43,16 @@ How a factored file becomes one flat model
   ``T(s'|s,a) > 0`` above it.
 * Checks: every conditional table sums to one over its variable for every parent value
   (within :data:`~ros_hrc.pomdp.model.PROBABILITY_TOLERANCE`), no negative probability,
-  discount in [0, 1), known names, the right count of numbers. A failure raises
+  discount in [0, 1), known names, the right count of numbers, every number finite (``inf``,
+  ``nan``, ``1e999`` are refused), every reward -- each ``<Func>``'s and their sum -- within
+  |R| / (1 - discount) <= :data:`~ros_hrc.pomdp.model.MAX_VALUE`. A failure raises
   :class:`~ros_hrc.errors.ModelFormatError` with the file and the line of the element.
+* A leading byte-order mark is accepted (expat reads it as the XML standard says), from
+  bytes or from text.
+* Memory: with ``memory_limit`` (bytes) the reader refuses, with
+  :class:`~ros_hrc.pomdp.memory.MemoryLimitError`, a file, a variable's value count, the
+  conditional tables or the flat T, O and R whose size would exceed it, estimated (the flat
+  tables' non-zeros exactly, from the factors' rows) before they are made.
 
 Writing
 -------
@@ -72,10 +80,13 @@ from defusedxml import DefusedXmlException
 from defusedxml.ElementTree import DefusedXMLParser, ParseError
 
 from ros_hrc.errors import ModelError, ModelFormatError
+from ros_hrc.pomdp import memory
 from ros_hrc.pomdp.fileformat import (FULL_REWARD_STATES, PROBABILITY_TOLERANCE,
-                                      check_writable_names, default_names, format_number,
-                                      is_identity, joint_names, name_lookup, resolve_token)
-from ros_hrc.pomdp.model import Model
+                                      check_set_size, check_writable_names, default_names,
+                                      format_number, is_identity, joint_names, name_lookup,
+                                      read_file, resolve_token, strip_bom)
+from ros_hrc.pomdp.model import Model, reward_bound_problem
+from ros_hrc.pomdp.output import write_text_atomically
 
 __all__ = ["load", "loads", "dump", "save", "rowwise_kron"]
 
@@ -89,24 +100,25 @@ _DEFAULT_NAMES = {"state_prev": "state_0", "state_curr": "state_1", "action": "a
                   "observation": "obs_agent", "reward": "reward_agent"}
 
 
-def load(path) -> Model:
-    """Read a POMDPX file into a :class:`Model`."""
+def load(path, memory_limit: Optional[int] = None) -> Model:
+    """Read a POMDPX file into a :class:`Model` (``memory_limit``: bytes, see the module's
+    docstring; None: no check)."""
     path = str(path)
-    try:
-        data = Path(path).read_bytes()
-    except OSError as exc:
-        raise ModelFormatError(path, None, f"cannot read the file: {exc.strerror or exc}") from None
-    return _Reader(_parse_xml(data, path), path).read()
+    data = read_file(path, memory_limit)
+    return _Reader(_parse_xml(data, path), path, memory_limit).read()
 
 
-def loads(text: Union[str, bytes], source: str = "<string>") -> Model:
+def loads(text: Union[str, bytes], source: str = "<string>",
+          memory_limit: Optional[int] = None) -> Model:
     """Parse POMDPX text; ``source`` names it in error messages."""
-    return _Reader(_parse_xml(text, source), source).read()
+    if isinstance(text, str):
+        text = strip_bom(text)
+    return _Reader(_parse_xml(text, source), source, memory_limit).read()
 
 
 def save(model: Model, path) -> None:
-    """Write ``model`` to ``path`` as POMDPX."""
-    Path(path).write_text(dump(model), encoding="utf-8")
+    """Write ``model`` to ``path`` as POMDPX (the whole file or nothing)."""
+    write_text_atomically(path, dump(model))
 
 
 # --------------------------------------------------------------------------------------------
@@ -168,10 +180,12 @@ class _DenseTable:
     def __init__(self, shape: Tuple[int, ...]) -> None:
         self.shape = shape
         self.data = np.zeros(shape)
+        self._csr: Optional[sp.csr_matrix] = None
 
     def assign(self, selection: List[Optional[int]], values: np.ndarray) -> None:
         index = tuple(slice(None) if s is None else s for s in selection)
         self.data[index] = values
+        self._csr = None
 
     def finish(self) -> None:
         pass
@@ -183,8 +197,15 @@ class _DenseTable:
         return np.flatnonzero(self.data.ravel() < 0)
 
     def rows(self, configs: np.ndarray) -> sp.csr_matrix:
-        block = self.data.reshape(-1, self.shape[-1])[configs]
-        return sp.csr_matrix(block)
+        # Rows picked from the table as CSR: picked from the dense table they would make an
+        # (S, values) array, 100 MB for 50,000 states of a 250-valued variable.
+        if self._csr is None:
+            self._csr = sp.csr_matrix(self.data.reshape(-1, self.shape[-1]))
+        return self._csr[configs]
+
+    def row_nonzeros(self) -> np.ndarray:
+        """Non-zeros of each parent configuration's row."""
+        return np.count_nonzero(self.data.reshape(-1, self.shape[-1]), axis=1)
 
     def gather(self, flat: np.ndarray) -> np.ndarray:
         return self.data.ravel()[flat]
@@ -229,6 +250,12 @@ class _SparseTable:
 
     def negatives(self) -> np.ndarray:
         return self.flat[self.vals < 0]
+
+    def row_nonzeros(self) -> np.ndarray:
+        """Non-zeros of each parent configuration's row."""
+        n_cfg = int(np.prod(self.shape[:-1]))
+        return np.bincount(self.flat // self.shape[-1], weights=self.vals != 0,
+                           minlength=n_cfg).astype(np.int64)
 
     def rows(self, configs: np.ndarray) -> sp.csr_matrix:
         n = self.shape[-1]
@@ -296,9 +323,12 @@ def rowwise_kron(A: sp.csr_matrix, B: sp.csr_matrix) -> sp.csr_matrix:
 # The reader
 # --------------------------------------------------------------------------------------------
 class _Reader:
-    def __init__(self, root, source: str) -> None:
+    def __init__(self, root, source: str, memory_limit: Optional[int] = None) -> None:
         self.root = root
         self.source = source
+        self.memory_limit = memory_limit
+        self.discount = 0.0
+        self.table_bytes = 0            # what the conditional tables read so far hold
         self.vars: Dict[str, _Var] = {}
         self.state_vars: List[Tuple[_Var, _Var, bool]] = []     # (prev, curr, fully observed)
         self.obs_vars: List[_Var] = []
@@ -330,7 +360,7 @@ class _Reader:
         for child in _kids(root):
             if _local(child.tag) not in known:
                 self.fail(child, f"unknown element <{_local(child.tag)}> in <pomdpx>")
-        discount = self._discount()
+        discount = self.discount = self._discount()
         self._variables(self._one(root, "Variable"))
         description = self._one(root, "Description", required=False)
         minimise = description is not None and _COST_MARK in (description.text or "")
@@ -379,6 +409,8 @@ class _Reader:
         text = (num.text or "").strip()
         if not text.isdigit() or int(text) < 1:
             self.fail(num, f"<NumValues> must be a positive integer, found {text!r}")
+        check_set_size("values", int(text), self.memory_limit, self.source,
+                       str(getattr(num, "line", "")) or None)
         return default_names(prefix, int(text))
 
     def _attr(self, elem, name: str) -> str:
@@ -473,6 +505,8 @@ class _Reader:
         axes = parents + ([] if kind == "reward" else [var])
         shape = tuple(v.size for v in axes) or (1,)
         cells = int(np.prod(shape))
+        if cells <= _DENSE_CELLS:
+            self._table_memory(elem, 8 * cells)
         table = _DenseTable(shape) if cells <= _DENSE_CELLS else _SparseTable(shape)
         param = self._one(elem, "Parameter")
         ptype = (param.get("type") or "TBL").strip()
@@ -522,6 +556,9 @@ class _Reader:
             if axes else 1
         if cells > _ENTRY_CELLS:
             self.fail(inst, f"this entry covers {cells} cells, more than {_ENTRY_CELLS} allowed")
+        if isinstance(table, _SparseTable):
+            # index and value per cell, kept until finish(), which sorts a copy
+            self._table_memory(inst, 48 * cells)
         vt = self._one(entry, value_tag)
         words = (vt.text or "").split()
         need = int(np.prod(dashes)) if dashes else 1
@@ -541,13 +578,27 @@ class _Reader:
                 self.fail(vt, f"<{value_tag}> has {values.size} number(s); "
                               f"<Instance>{' '.join(tokens)}</Instance> needs {need}")
             if not np.all(np.isfinite(values)):
-                self.fail(vt, f"<{value_tag}> has a non-finite number")
+                bad = words[int(np.flatnonzero(~np.isfinite(values))[0])]
+                self.fail(vt, f"<{value_tag}> has a non-finite number {bad!r}")
+            if not probabilities and values.size:
+                problem = reward_bound_problem(float(np.abs(values).max()), self.discount)
+                if problem:
+                    self.fail(vt, problem)
             if probabilities:
                 if np.any(values < 0):
                     self.fail(vt, f"negative probability {values[values < 0][0]:g} in {label}")
                 if np.any(values > 1.0 + PROBABILITY_TOLERANCE):
                     self.fail(vt, f"probability above 1 ({values.max():g}) in {label}")
         table.assign(selection, np.reshape(values, shape))
+
+    def _table_memory(self, elem, more: int) -> None:
+        """Count ``more`` bytes of conditional tables; refuse past the memory limit."""
+        self.table_bytes += more
+        if self.memory_limit is not None and self.table_bytes > self.memory_limit:
+            line = getattr(elem, "line", None)
+            raise memory.MemoryLimitError(f"{self.source}:{line}" if line else self.source,
+                                          "the conditional tables", self.table_bytes,
+                                          self.memory_limit)
 
     def _check_normalised(self, elem, factor: _Factor) -> None:
         sums = factor.table.last_axis_sums()
@@ -596,6 +647,20 @@ class _Reader:
             self.fail(self._one(self.root, "InitialStateBelief"),
                       f"the initial belief sums to {b.sum():.6g}, not 1")
 
+        seen = [i for i, (_, _, fo) in enumerate(self.state_vars) if fo]
+        obs_f: List[_Factor] = []
+        if self.obs_vars and not fully:
+            found = {f.var.index: f for f in obs}
+            for j, v in enumerate(self.obs_vars):
+                if j not in found:
+                    self.fail(self._one(self.root, "ObsFunction"),
+                              f"no observation table for {v.name}")
+            if len(obs) != len(found):
+                self.fail(self._one(self.root, "ObsFunction"),
+                          "two observation tables for one observation variable")
+            obs_f = [found[j] for j in range(len(self.obs_vars))]
+        self._check_flat_memory(trans_f, obs_f, fully, digits, S)
+
         T = []
         for a in range(A):
             parts = [f.table.rows(self._flat(f, f.parents, a, digits, digits)) for f in trans_f]
@@ -604,7 +669,6 @@ class _Reader:
         state_names = joint_names([prev.values for prev, _, _ in self.state_vars])
         # The fully observed variables' joint value, numbered like joint states (an MDP: the
         # state itself); None when every state variable is hidden.
-        seen = [i for i, (_, _, fo) in enumerate(self.state_vars) if fo]
         observed_key = None
         if seen:
             observed_key = np.zeros(S, dtype=np.int64)
@@ -614,17 +678,6 @@ class _Reader:
             observations = list(state_names)
             O = [sp.identity(S, format="csr") for _ in range(A)]
         else:
-            obs_f = []
-            if self.obs_vars:
-                found = {f.var.index: f for f in obs}
-                for j, v in enumerate(self.obs_vars):
-                    if j not in found:
-                        self.fail(self._one(self.root, "ObsFunction"),
-                                  f"no observation table for {v.name}")
-                if len(obs) != len(found):
-                    self.fail(self._one(self.root, "ObsFunction"),
-                              "two observation tables for one observation variable")
-                obs_f = [found[j] for j in range(len(self.obs_vars))]
             value_lists = [self.state_vars[i][0].values for i in seen] + \
                           [v.values for v in self.obs_vars]
             observations = joint_names(value_lists) if value_lists else ["none"]
@@ -652,6 +705,12 @@ class _Reader:
             m = sp.csr_matrix((vals, (rows, cols)), shape=(S, S))
             m.eliminate_zeros()
             R.append(m)
+        if rewards:
+            # Each <Func> was checked; their sum may still be too large.
+            largest = max((float(np.abs(m.data).max()) for m in R if m.nnz), default=0.0)
+            problem = reward_bound_problem(largest, discount)
+            if problem:
+                self.fail(self._one(self.root, "RewardFunction"), f"the summed rewards: {problem}")
 
         meta = {"format": "pomdpx", "pomdpx": {
             "state_variables": [{"prev": p.name, "curr": c.name, "values": list(p.values),
@@ -672,6 +731,33 @@ class _Reader:
         except ModelError as exc:
             raise ModelFormatError(self.source, None, str(exc)) from None
         return model
+
+    def _check_flat_memory(self, trans_f: List[_Factor], obs_f: List[_Factor], fully: bool,
+                           digits: List[np.ndarray], S: int) -> None:
+        """Refuse, before they are built, flat T, O and R that would not fit in the memory
+        limit. Their non-zeros are counted exactly: a row of a Kronecker product has the
+        product of its factors' row non-zeros."""
+        if self.memory_limit is None:
+            return
+        A = self.action.size
+        Z = int(np.prod([v.size for v in self.obs_vars])) if self.obs_vars else 1
+
+        def flat_nonzeros(factors: List[_Factor], a: int) -> int:
+            per_state = np.ones(S, dtype=np.int64)
+            for f in factors:
+                per_state *= f.table.row_nonzeros()[self._flat(f, f.parents, a, digits, digits)]
+            return int(per_state.sum())
+
+        t_nnz = [flat_nonzeros(trans_f, a) for a in range(A)]
+        o_nnz = [S if fully else flat_nonzeros(obs_f, a) for a in range(A)]
+        r_nnz = [S * S for _ in range(A)] if S <= FULL_REWARD_STATES else t_nnz
+        # R is built from row, column and per-variable digit arrays of every cell it keeps.
+        r_build = 8 * (5 + 2 * len(digits)) * max(r_nnz)
+        needed = (memory.tables_bytes(t_nnz + o_nnz + r_nnz, S) + r_build
+                  + memory.model_overhead(S, A, S if fully else Z) + 8 * S * len(digits))
+        memory.require(needed, self.memory_limit, self.source,
+                       f"building T, O and R ({S} states; {sum(t_nnz)}, {sum(o_nnz)} and "
+                       f"{sum(r_nnz)} non-zeros)")
 
     def _flat(self, factor: _Factor, axes: List[_Var], action: Optional[int], prev_digits,
               curr_digits) -> np.ndarray:

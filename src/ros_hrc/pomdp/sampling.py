@@ -26,6 +26,14 @@ U_MAX = 1.0 - 1e-9
 _U_MAX = U_MAX
 
 
+def memory_needed(model: Model) -> int:
+    """Bytes a ModelSampler of ``model`` peaks at while built (its arrays and the Python lists
+    of the scalar path): measured 0.8 of this on RockSample_7_8 and a 8,000-state ring."""
+    rows = model.n_actions * model.n_states
+    return (180 * sum(t.nnz for t in model.T) + 150 * sum(o.nnz for o in model.O)
+            + 100 * rows)
+
+
 class _RowTable:
     """Rows of a stack of per-action CSR matrices as shifted cumulative distributions."""
 

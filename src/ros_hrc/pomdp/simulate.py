@@ -25,6 +25,7 @@ from typing import Callable, Optional, Tuple
 import numpy as np
 
 from ros_hrc.errors import SolverError
+from ros_hrc.pomdp import sampling
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import Planner
 from ros_hrc.pomdp.sampling import ModelSampler
@@ -71,6 +72,12 @@ def confidence_interval(values: np.ndarray) -> Tuple[float, float, float, float]
     return mean, mean - half, mean + half, sd
 
 
+def memory_needed(model: Model, sim_len: int, sim_num: int) -> int:
+    """Bytes a simulation needs besides its planner: the world's sampler, every step's act()
+    time (for the percentiles) and one run's uniforms as Python floats."""
+    return sampling.memory_needed(model) + 8 * sim_len * sim_num + 160 * sim_len
+
+
 def simulate(model: Model, planner_factory: Callable[[int], Planner], sim_len: int,
              sim_num: int, seed: int = 0,
              progress: Optional[Callable[[int, float], None]] = None) -> SimulationResult:
@@ -81,6 +88,8 @@ def simulate(model: Model, planner_factory: Callable[[int], Planner], sim_len: i
     """
     if sim_len < 1 or sim_num < 1:
         raise SolverError(f"sim_len and sim_num must be positive (got {sim_len}, {sim_num})")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SolverError(f"the seed must be an integer >= 0, got {seed!r}")
     sampler = ModelSampler(model)
     gamma = float(model.discount)
     children = np.random.SeedSequence(seed).spawn(sim_num)

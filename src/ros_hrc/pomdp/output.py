@@ -1,0 +1,67 @@
+"""Output files written whole or not at all.
+
+A converted model or a policy is written to a temporary file beside the target and renamed over
+it only once complete, so a full disk, an interrupt or an error mid-way never leaves a
+half-written file behind (nor damages the file being replaced).
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import BinaryIO, Callable
+
+
+def check_writable(path) -> None:
+    """Raise OSError now, before any long work, when ``path`` cannot be written: its directory
+    is missing or not writable, or it is a directory."""
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if target.is_dir():
+        raise IsADirectoryError(21, "is a directory", str(path))
+    if not folder.is_dir():
+        raise FileNotFoundError(2, "no such directory", str(folder))
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise PermissionError(13, "directory not writable", str(folder))
+
+
+def write_atomically(path, write: Callable[[BinaryIO], None]) -> None:
+    """Call ``write(file)`` on a temporary file in ``path``'s directory, then rename it to
+    ``path``; on any failure the temporary file is removed and ``path`` is left as it was."""
+    target = Path(path)
+    if target.is_dir():
+        raise IsADirectoryError(21, "is a directory", str(path))
+    try:
+        handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part",
+                                             dir=str(target.parent))
+    except OSError as exc:
+        raise _about(exc, path) from None
+    try:
+        with os.fdopen(handle, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        # mkstemp makes the file private (0600); give it the mode a plain open() would.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)
+        os.replace(temporary, target)
+    except BaseException as exc:
+        try:
+            os.unlink(temporary)
+        except OSError:
+            pass
+        if isinstance(exc, OSError):
+            raise _about(exc, path) from None
+        raise
+
+
+def _about(exc: OSError, path) -> OSError:
+    """The same error about ``path``, not about the temporary file the user never named."""
+    return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
+
+
+def write_text_atomically(path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` whole or not at all."""
+    data = text.encode("utf-8")
+    write_atomically(path, lambda fh: fh.write(data))
