@@ -36,6 +36,7 @@ from typing import Callable, List, Optional, Sequence, TextIO, Tuple
 
 import numpy as np
 
+from ros_hrc.command_line import ranged_number
 from ros_hrc.errors import HrcError, ModelError, ModelFormatError, SolverError
 from ros_hrc.pomdp import io, memory
 from ros_hrc.pomdp.memory import MemoryLimitError
@@ -229,38 +230,15 @@ def cmd_convert(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------------------------
 # solve and simulate (the solvers' subcommands)
 # --------------------------------------------------------------------------------------------
-def _number(kind: type, low: float, high: float,
-            low_open: bool = False) -> Callable[[str], float]:
-    """An argparse type: a finite ``kind`` (int or float) in [low, high], or (low, high] with
-    ``low_open``; anything else (nan, inf, out of range, not a number) is argparse's error."""
-    noun = "an integer" if kind is int else "a number"
-
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except (ValueError, OverflowError):
-            raise argparse.ArgumentTypeError(f"not {noun}: {text!r}") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
-        if value < low or (low_open and value == low):
-            raise argparse.ArgumentTypeError(
-                f"must be {'>' if low_open else '>='} {low:g}, got {text!r}")
-        if value > high:
-            raise argparse.ArgumentTypeError(f"must be at most {high:g}, got {text!r}")
-        return value
-    parse.__name__ = kind.__name__      # argparse names it in some messages
-    return parse
-
-
-_seconds = _number(float, 0.0, MAX_SECONDS)
-_precision = _number(float, 0.0, MAX_VALUE, low_open=True)
-_fraction = _number(float, 0.0, 1.0)
-_regularization = _number(float, 0.0, MAX_VALUE)
-_run_count = _number(int, 1, MAX_RUNS)
-_scenario_count = _number(int, 1, MAX_SCENARIOS)
-_depth = _number(int, 0, MAX_DEPTH)
-_trial_count = _number(int, 0, MAX_TRIALS)
-_seed = _number(int, 0, MAX_SEED)
+_seconds = ranged_number(float, 0.0, MAX_SECONDS)
+_precision = ranged_number(float, 0.0, MAX_VALUE, low_open=True)
+_fraction = ranged_number(float, 0.0, 1.0)
+_regularization = ranged_number(float, 0.0, MAX_VALUE)
+_run_count = ranged_number(int, 1, MAX_RUNS)
+_scenario_count = ranged_number(int, 1, MAX_SCENARIOS)
+_depth = ranged_number(int, 0, MAX_DEPTH)
+_trial_count = ranged_number(int, 0, MAX_TRIALS)
+_seed = ranged_number(int, 0, MAX_SEED)
 
 
 def _memory_size(text: str) -> int:

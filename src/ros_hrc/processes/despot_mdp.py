@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import math
 import os
 import queue
 import sys
@@ -36,7 +35,7 @@ import threading
 import time
 from typing import Optional, TextIO, Tuple
 
-from ros_hrc.command_line import own_arguments
+from ros_hrc.command_line import own_arguments, ranged_number
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, Ack, Error, Message, NextState, Reset, Step,
                                    is_reply_to, reply_error)
@@ -341,20 +340,12 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "step_delay")
     p.add_argument("--stdin", choices=("auto", "on", "off"), default="auto",
                    help="read typed states from the terminal (auto: when it is a terminal)")
-    p.add_argument("--reply-timeout", type=_positive_seconds, default=300.0,
+    p.add_argument("--reply-timeout", type=ranged_number(float, 0.0, 86400.0, low_open=True),
+                   default=300.0,
                    help="seconds to wait for the world and the robot to finish a step")
     add_token_arguments(p)
     return p
 
-
-def _positive_seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text}")
-    return value
 
 
 def main(argv: Optional[list] = None) -> int:
