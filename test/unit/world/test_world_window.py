@@ -6,6 +6,7 @@ under a private Xvfb (skipped without Xvfb and xdotool) and closes it with Esc, 
 """
 import logging
 import os
+import select
 import shutil
 import subprocess
 import sys
@@ -273,24 +274,29 @@ _WINDOW_SCRIPT = textwrap.dedent("""\
     """)
 
 
-def _free_display() -> int:
-    for number in range(91, 160):
-        if not Path(f"/tmp/.X{number}-lock").exists() and not Path(f"/tmp/.X11-unix/X{number}").exists():
-            return number
-    pytest.skip("no free X display number")
+def _start_xvfb():
+    """An Xvfb of the test's own, once it accepts clients: (process, display number). It picks
+    a free display itself and writes the number to -displayfd only when it is ready (the
+    socket file appears earlier, which made this test fail on a loaded machine)."""
+    read_end, write_end = os.pipe()
+    server = subprocess.Popen(["Xvfb", "-displayfd", str(write_end), "-screen", "0",
+                               "1280x800x24", "-nolisten", "tcp"], pass_fds=(write_end,),
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write_end)
+    with os.fdopen(read_end) as announced:
+        ready, _, _ = select.select([announced], [], [], 30.0)
+        line = announced.readline() if ready else ""
+    if not line.strip().isdigit():
+        server.kill()
+        server.wait()
+        pytest.skip("Xvfb could not start")
+    return server, int(line)
 
 
 @pytest.mark.skipif(not (shutil.which("Xvfb") and shutil.which("xdotool")), reason="needs Xvfb and xdotool")
 def test_the_window_under_xvfb_closes_with_esc_and_the_world_says_so():
-    number = _free_display()
-    server = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    server, number = _start_xvfb()
     try:
-        deadline = time.monotonic() + 5.0
-        while not Path(f"/tmp/.X11-unix/X{number}").exists():
-            if server.poll() is not None or time.monotonic() > deadline:
-                pytest.skip(f"Xvfb could not start on :{number}")
-            time.sleep(0.05)
         env = dict(os.environ, DISPLAY=f":{number}")
         run = subprocess.run([sys.executable, "-c", _WINDOW_SCRIPT], env=env, capture_output=True,
                              text=True, timeout=60)
