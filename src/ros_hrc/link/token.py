@@ -239,8 +239,10 @@ def add_token_arguments(parser) -> None:
                              f"prints it; or set {TOKEN_FILE_ENV})")
 
 
-def token_from_arguments(args) -> str:
-    """The token named by :func:`add_token_arguments`' options (or the environment)."""
-    token, _path = resolve_token(session=args.link_session or None,
-                                 token_file=args.token_file or None)
+def launch_token(source) -> str:
+    """The token ``source`` names: its ``link_session`` and ``token_file`` (the options of
+    :func:`add_token_arguments`, or a node's config fields of those names), else the
+    environment; raises :class:`TokenError` with one line when there is none."""
+    token, _path = resolve_token(session=source.link_session or None,
+                                 token_file=source.token_file or None)
     return token

@@ -14,7 +14,6 @@ import rospy
 from std_srvs.srv import Trigger
 
 from ros_hrc.errors import HrcError
-from ros_hrc.link.token import resolve_token
 from ros_hrc.loop import settings
 
 C = TypeVar("C")
@@ -37,15 +36,6 @@ def read_config(config_type: Type[C]) -> C:
             value = type(default)(value)
         values[f.name] = value
     return config_type(**values)
-
-
-def link_token(config: Any) -> str:
-    """The launch's link token for a node whose config has ``link_session`` (given by
-    hrc.launch) and ``token_file`` (a node started by hand); raises
-    :class:`~ros_hrc.link.token.TokenError` with one line when there is none."""
-    token, _path = resolve_token(session=config.link_session or None,
-                                 token_file=config.token_file or None)
-    return token
 
 
 def route_python_logging(level: int = logging.INFO) -> None:

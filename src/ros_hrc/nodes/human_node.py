@@ -57,6 +57,7 @@ from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, Action, DispatchTable,
                                    Error, Message, MessageError, NextState, Reset, Step,
                                    reply_error)
+from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc.loop import task
 from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, MdpRefused,
@@ -65,8 +66,8 @@ from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, 
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.msg import Status
-from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, link_token,
-                                  read_config, route_python_logging)
+from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, read_config,
+                                  route_python_logging)
 from ros_hrc.srv import (Decide, GetWorldState, ResetPlanner, SetHumanState,
                          SetHumanStateResponse)
 
@@ -326,7 +327,7 @@ class HumanNode:
         coordinator = Coordinator(CoordinatorConfig(
             max_steps=config.max_steps, end_on_goal=config.end_on_goal,
             on_episode_end=config.on_episode_end, first_epoch=first_epoch))
-        token = link_token(config)
+        token = launch_token(config)
         self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
                                    send_timeout=config.action_timeout, token=token)
         self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)

@@ -21,8 +21,9 @@ import rospy
 
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import Ack, Decision, Error, Observation, Reset
+from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, link_url
-from ros_hrc.nodes.common import link_token, read_config, route_python_logging
+from ros_hrc.nodes.common import read_config, route_python_logging
 from ros_hrc.srv import Decide, DecideResponse, ResetPlanner, ResetPlannerResponse
 
 
@@ -41,7 +42,7 @@ class ObsNode:
     def __init__(self, config: ObsNodeConfig) -> None:
         self.config = config
         self.pomdp = MessageClient(link_url(config.pomdp_port, config.host), "hrc_obs",
-                                   send_timeout=config.decide_timeout, token=link_token(config))
+                                   send_timeout=config.decide_timeout, token=launch_token(config))
 
     def decide(self, req) -> DecideResponse:
         try:

@@ -22,9 +22,10 @@ import rospy
 from ros_hrc.errors import HrcError
 from ros_hrc.link.protocol import (ERR_FAILED, ERR_INVALID, Ack, Action, DispatchTable,
                                    Message, Reset, reply_error)
+from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import task
-from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, link_token, read_config,
+from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
                                   route_python_logging)
 
 
@@ -47,7 +48,7 @@ class RobotNode:
         table.on(Action, self.on_action)
         table.on(Reset, self.on_reset)
         self.server = MessageServer(config.robot_port, table, host=config.host,
-                                    name="hrc_robot", token=link_token(config))
+                                    name="hrc_robot", token=launch_token(config))
 
     def on_action(self, msg: Action, peer: Peer) -> Message:
         if msg.action not in task.ROBOT_ACTION_SERVICES:

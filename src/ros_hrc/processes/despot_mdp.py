@@ -39,7 +39,7 @@ from ros_hrc.command_line import own_arguments, ranged_number
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, Ack, Error, Message, NextState, Reset, Step,
                                    is_reply_to, reply_error)
-from ros_hrc.link.token import add_token_arguments, token_from_arguments
+from ros_hrc.link.token import add_token_arguments, launch_token
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import load_human_model, positional_mapping_line
@@ -354,7 +354,7 @@ def main(argv: Optional[list] = None) -> int:
         model = load_human_model(args.human_model)
         agent = HumanAgent(model, HumanAgentConfig(choice=args.human_choice, temperature=args.temperature,
                                                    manual_share=args.manual_share, seed=args.seed))
-        token = token_from_arguments(args)
+        token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr)
         return 2

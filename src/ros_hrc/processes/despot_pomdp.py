@@ -31,7 +31,7 @@ from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, DispatchTable,
                                    Message, Observation, Reset, reply_error)
-from ros_hrc.link.token import add_token_arguments, token_from_arguments
+from ros_hrc.link.token import add_token_arguments, launch_token
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import load_robot_model, positional_mapping_line
@@ -179,7 +179,7 @@ def main(argv: Optional[list] = None) -> int:
     try:
         model = load_robot_model(args.robot_model)
         planner = build_planner(model, args)
-        token = token_from_arguments(args)
+        token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr)
         return 2

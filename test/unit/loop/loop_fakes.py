@@ -1,7 +1,8 @@
 """Helpers of the loop's tests (test_coordinator.py, test_runner.py): a hand driver for the
 Sans-I/O Coordinator that plays whole steps with given answers, and fake interfaces (a
 scripted world, a planner, an executor, an MDP that steps by itself, a report sink) for the
-threaded LoopRunner. No ROS, no sockets."""
+threaded LoopRunner; and (test_model_checks.py, test_positional_names.py) the one-line
+refusal of a model. No ROS, no sockets."""
 from __future__ import annotations
 
 import threading
@@ -9,7 +10,9 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
-from ros_hrc.errors import SolverError
+import pytest
+
+from ros_hrc.errors import ModelError, SolverError
 from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Call, Coordinator, CoordinatorConfig,
                                       Decide, Decision, MdpRefused, MdpReset, MdpStepDone,
                                       ObserveWorld, Outcome, PublishStep, ResetPlanner,
@@ -440,3 +443,12 @@ class Loop:
                 return False
             time.sleep(0.002)
         return True
+
+
+def refusal(load, path) -> str:
+    """The text of the ModelError ``load`` raises on ``path``: one line."""
+    with pytest.raises(ModelError) as info:
+        load(str(path))
+    text = str(info.value)
+    assert "\n" not in text
+    return text

@@ -13,6 +13,8 @@ from ros_hrc.loop import models, task
 from ros_hrc.loop.models import (ModelNotFound, check_human_model, check_robot_model,
                                  load_human_model, load_robot_model)
 
+from loop_fakes import refusal
+
 MODELS = Path(__file__).resolve().parents[3] / "models"
 HUMANS = ("humanModel", "expert", "beginner", "tired", "distracted")
 
@@ -23,14 +25,6 @@ def edited_copy(source: Path, target: Path, pattern: str, replacement: str) -> P
     assert edited != text, f"{pattern!r} not found in {source}"
     target.write_text(edited)
     return target
-
-
-def refusal(load, path) -> str:
-    with pytest.raises(ModelError) as info:
-        load(str(path))
-    text = str(info.value)
-    assert "\n" not in text
-    return text
 
 
 @pytest.mark.parametrize("name", HUMANS)

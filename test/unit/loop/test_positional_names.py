@@ -16,6 +16,8 @@ from ros_hrc.loop.models import (load_human_model, load_robot_model, name_by_pos
                                  positional_mapping_line, positional_mapping_lines)
 from ros_hrc.pomdp.io import differences, load_model, save_model
 
+from loop_fakes import refusal
+
 ROBOT_NAMES = {"states": list(task.ROBOT_STATES), "actions": list(task.ROBOT_ACTION_SERVICES),
                "observations": [task.observation_name(b) for b in task.LEGAL_BITS]}
 HUMAN_NAMES = {"states": list(task.HUMAN_STATES), "actions": list(task.HUMAN_ACTION_SERVICES)}
@@ -45,14 +47,6 @@ def positional_robot(tmp_path, name="positional.pomdpx"):
                         actions=generic(named.n_actions, "a"),
                         observations=generic(named.n_observations, "o"))
     return named, path
-
-
-def refusal(load, path) -> str:
-    with pytest.raises(ModelError) as info:
-        load(str(path))
-    text = str(info.value)
-    assert "\n" not in text
-    return text
 
 
 def test_a_positional_robot_model_gets_the_task_s_names_and_the_same_tables(tmp_path):
