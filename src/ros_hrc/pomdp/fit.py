@@ -31,10 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
-import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -43,6 +40,7 @@ import scipy.sparse as sp
 from ros_hrc.errors import ModelError
 from ros_hrc.pomdp import cassandra
 from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.output import write_atomically
 from ros_hrc.pomdp.sampling import ModelSampler
 
 __all__ = ["MAX_CELLS", "ExperienceCounts", "RowSupport", "fit_model", "row_support",
@@ -361,18 +359,7 @@ def write_fitted(model: Model, path, header_lines: Sequence[str] = ()) -> None:
     ``header_lines`` as ``# `` comments. The file appears whole or not at all."""
     model.validate()
     text = fitted_text(model, header_lines)
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=str(path.parent) or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    write_atomically(path, lambda f: f.write(text.encode("utf-8")))
 
 
 # --------------------------------------------------------------------------------------------
