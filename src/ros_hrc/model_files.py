@@ -5,19 +5,31 @@ as ``models/<kind>/<name>.pomdpx`` (then ``.pomdp``) in the package.
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 #: models/ of the package (the source tree; the devel space uses it in place).
 MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 
 
+def user_path(text: str) -> Path:
+    """A path as the user typed it, made absolute against the directory the command was run
+    from (``~`` expanded). The one rule for every file argument: entry points apply it once
+    and pass only absolute paths on, because the processes they start run elsewhere
+    (roslaunch starts nodes in ``$ROS_HOME``). Symbolic links are kept as typed."""
+    return Path(os.path.abspath(os.path.expanduser(str(text))))
+
+
 def resolve_model(name_or_path: str, kind: str) -> Path:
-    """The model file for a scenario name or a path; FileNotFoundError lists what exists."""
-    candidate = Path(name_or_path).expanduser()
-    if candidate.suffix in (".pomdp", ".pomdpx") or candidate.parent != Path("."):
+    """The absolute model file for a scenario name or a path (see :func:`user_path`);
+    FileNotFoundError lists what exists."""
+    candidate = user_path(name_or_path)
+    typed = Path(str(name_or_path))
+    if typed.suffix in (".pomdp", ".pomdpx") or typed.parent != Path(".") \
+            or str(name_or_path).startswith("~"):
         if candidate.is_file():
             return candidate
-        raise FileNotFoundError(f"no model file {candidate}")
+        raise FileNotFoundError(f"no model file {name_or_path} (looked for {candidate})")
     folder = MODELS_DIR / kind
     for suffix in (".pomdpx", ".pomdp"):
         path = folder / f"{name_or_path}{suffix}"
