@@ -9,9 +9,13 @@ Running the same command again resumes: recorded episodes are kept and skipped.
     hrc_experiment --human-models beginner,tired --policies pomdp,reactive,no_robot \\
                    --seeds 0,1 --episodes 5 --out results/experiment
 
+Every file argument (``--robot-model``, a ``--human-models`` file, ``--out``) is taken
+against the directory the command runs in, once, here: the cells get absolute paths only.
 The whole grid is checked before any stack starts (every model against the task's tables,
-every setting as hrc.launch checks it); a bad one is one line naming the argument or the file,
-exit status 2. ``--out`` is locked for the whole run: a second run on the same directory is
+every setting as hrc.launch checks it, every number against what its consumer takes); a bad
+one is one line naming the argument or the file, exit status 2. The grid is planned lazily
+(each cell's episodes to run are ranges, never a list of every episode). A file that cannot
+be written (a full disk) is one line naming it, exit status 1. ``--out`` is locked for the whole run: a second run on the same directory is
 refused. SIGINT or SIGTERM stops every cell's stack, keeps what was recorded and exits 130 or
 143; the same command then resumes.
 """
@@ -26,6 +30,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections import defaultdict
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence, Set, Tuple
@@ -35,14 +40,17 @@ from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import DEFAULT_POLICIES as POLICIES_BY_DEFAULT
 from ros_hrc.experiment.episode import ROBOT_POLICIES
 from ros_hrc.experiment.plots import plot_belief, plot_outcomes
-from ros_hrc.experiment.stack import (CellSpec, cell_name, check_launch_settings, decode_episode,
-                                      worker_command)
+from ros_hrc.experiment.stack import (MAX_EPISODES, CellSpec, EpisodeRanges, cell_name,
+                                      check_launch_settings, decode_episode, worker_command,
+                                      write_spec)
 from ros_hrc.experiment.statistics import summarize, write_summary
 from ros_hrc.experiment.store import DirectoryLocked, ResultsStore, lock_directory
 from ros_hrc.loop import settings
-from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model,
+from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
                                  positional_mapping_line)
 from ros_hrc.loop.settings import SettingError
+from ros_hrc.model_files import user_path
+from ros_hrc.pomdp.output import write_text_atomically
 
 NAME = "hrc_experiment"
 DEFAULT_HUMANS = "beginner,tired,distracted,humanModel"
@@ -85,15 +93,34 @@ def _seeds(text: str) -> List[int]:
     return seeds
 
 
-def at_least(minimum: int) -> Callable[[str], int]:
+#: A step limit travels as the ``max_steps`` ROS parameter: an XML-RPC int (int32).
+MAX_STEP_LIMIT = 2**31 - 1
+#: Stacks side by side: each is a roscore and six processes.
+MAX_JOBS = 1000
+#: Digits an integer option may have before it is not read at all (Python refuses to convert
+#: more than 4300; none of these numbers needs 20).
+_MAX_DIGITS = 40
+
+
+def at_least(minimum: int, maximum: Optional[int] = None) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``minimum`` (and <= ``maximum``)."""
     def parse(text: str) -> int:
+        shown = text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
         try:
+            if len(text.strip()) > _MAX_DIGITS:
+                raise ValueError
             value = int(text.strip())
         except ValueError:
+            if text.strip().isdigit() and maximum is not None:
+                raise argparse.ArgumentTypeError(f"must be an integer from {minimum} to "
+                                                 f"{maximum}, got {shown!r}") from None
             raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, "
-                                             f"got {text!r}") from None
+                                             f"got {shown!r}") from None
         if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {shown!r}")
+        if maximum is not None and value > maximum:
+            raise argparse.ArgumentTypeError(f"must be an integer from {minimum} to {maximum}, "
+                                             f"got {shown!r}")
         return value
 
     parse.__name__ = "int"
@@ -108,12 +135,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--policies", type=names_argument, default=names_argument(DEFAULT_POLICIES),
                    help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)}")
     p.add_argument("--seeds", type=_seeds, default=[0, 1], help="seeds, comma-separated (0,1)")
-    p.add_argument("--episodes", type=at_least(1), default=10, help="episodes per cell (10)")
-    p.add_argument("--step-limit", type=at_least(1), default=15,
+    p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=10,
+                   help=f"episodes per cell, 1 to {MAX_EPISODES} (10)")
+    p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=15,
                    help="steps before an episode ends (15)")
-    p.add_argument("--jobs", type=at_least(0), default=0,
+    p.add_argument("--jobs", type=at_least(0, MAX_JOBS), default=0,
                    help="stacks run side by side (0: one per core)")
-    p.add_argument("--out", default="results/experiment", help="results directory")
+    p.add_argument("--out", default="results/experiment",
+                   help="results directory (relative to the current directory)")
     settings.add_argument(p, "robot_model")
     settings.add_argument(p, "human_choice")
     settings.add_argument(p, "time_per_step")
@@ -136,6 +165,7 @@ def validate_grid(args: argparse.Namespace) -> None:
     if unknown:
         raise GridError(f"--policies: unknown robot policies {', '.join(unknown)}; known: "
                         f"{', '.join(ROBOT_POLICIES)}")
+    resolve_files(args)
     loaded = []
     try:
         loaded.append(load_robot_model(args.robot_model))
@@ -152,7 +182,7 @@ def validate_grid(args: argparse.Namespace) -> None:
                                 f"{hint}") from None
     for human in dict.fromkeys(args.human_models):
         try:
-            loaded.append(load_human_model(human))
+            loaded.append(load_human_model(args.human_files[human]))
         except ModelNotFound as exc:
             raise GridError(f"--human-models: {exc}") from None
     for spec in plan_cells(args, set()):
@@ -163,24 +193,59 @@ def validate_grid(args: argparse.Namespace) -> None:
         print(f"{NAME}: {line}", flush=True)
 
 
+def resolve_files(args: argparse.Namespace) -> None:
+    """Make every file argument absolute, against the directory the command runs in, once
+    (:func:`ros_hrc.model_files.user_path`): the cells' processes run elsewhere. Sets
+    ``args.robot_model``, ``args.out`` and ``args.human_files`` (grid name -> absolute
+    file); a model that is not there is a GridError naming the argument, before any cell."""
+    if getattr(args, "human_files", None) is not None:
+        return
+    args.out = str(user_path(args.out))
+    try:
+        args.robot_model = str(model_path(args.robot_model, "robot"))
+    except ModelNotFound as exc:
+        raise GridError(f"--robot-model: {exc}") from None
+    files = {}
+    for human in args.human_models:
+        try:
+            files[human] = str(model_path(human, "human"))
+        except ModelNotFound as exc:
+            raise GridError(f"--human-models: {exc}") from None
+    args.human_files = files
+
+
 def robot_model_of(policy: str, grid_model: str) -> str:
-    """The robot model a policy runs with: its own (pomdp_fitted: robot_fitted) or the grid's."""
-    return ROBOT_POLICIES[policy].robot_model or grid_model
+    """The robot model a policy runs with, as an absolute file: its own (pomdp_fitted:
+    robot_fitted) or the grid's."""
+    own = ROBOT_POLICIES[policy].robot_model
+    if own is None:
+        return grid_model
+    try:
+        return str(model_path(own, "robot"))
+    except ModelNotFound:
+        return own      # validate_grid refuses it, naming the policy
 
 
 def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
-    """The cells with episodes still to record, in grid order."""
+    """The cells with episodes still to record, in grid order. Each cell's episodes are
+    ranges (:class:`EpisodeRanges`): memory in proportion to what is recorded, not to
+    ``--episodes``."""
+    resolve_files(args)
+    recorded: Dict[Tuple[str, str, int], Set[int]] = defaultdict(set)
+    for human, policy, seed, episode in done:
+        recorded[(human, policy, seed)].add(episode)
     cells = []
     log_dir = str(Path(args.out) / "logs")
     for human in args.human_models:
         for policy in args.policies:
             for seed in args.seeds:
-                missing = [e for e in range(args.episodes)
-                           if (human, policy, seed, e) not in done]
+                missing = EpisodeRanges.missing(args.episodes,
+                                                recorded.get((human, policy, seed), ()))
                 if missing:
                     cells.append(CellSpec(
                         human_model=human, robot_policy=policy, seed=seed, episodes=missing,
                         step_limit=args.step_limit, log_dir=log_dir,
+                        human_model_file=args.human_files[human],
                         robot_model=robot_model_of(policy, args.robot_model),
                         human_choice=args.human_choice,
                         time_per_step=args.time_per_step, max_trials=args.max_trials,
@@ -248,7 +313,8 @@ def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None,
                 on_all_delivered=None) -> None:
     """Run one cell in its own process; ``deliver(row, steps)`` per episode as it ends;
     ``on_all_delivered()`` once its last episode is in (its stack is still shutting down)."""
-    proc = subprocess.Popen(worker_command(cell), stdin=subprocess.DEVNULL,
+    spec_file = write_spec(cell, Path(cell.log_dir))
+    proc = subprocess.Popen(worker_command(spec_file), stdin=subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     if stopper is not None:
         stopper.add(proc)
@@ -395,6 +461,12 @@ def _error(text: object) -> int:
     return 2
 
 
+def file_error_line(exc: OSError) -> str:
+    """``<file>: <why>`` of an I/O error (a full disk), for one line."""
+    where = f"{exc.filename}: " if exc.filename else ""
+    return f"{where}{exc.strerror or exc}"
+
+
 def main(argv: Optional[list] = None) -> int:
     words = own_arguments(argv)
     try:
@@ -404,14 +476,18 @@ def main(argv: Optional[list] = None) -> int:
         return _error(exc)
     except KeyboardInterrupt:
         return 130
-    out = Path(args.out).expanduser()
+    out = Path(args.out)        # absolute: validate_grid resolved it
     args.jobs = args.jobs or os.cpu_count() or 1
     try:
         lock = open_results(out, "--out")
     except HrcError as exc:
         return _error(exc)
     with lock:
-        return _run_locked(args, out, words)
+        try:
+            return _run_locked(args, out, words)
+        except OSError as exc:      # a results file cannot be written: a full disk, ...
+            _error(file_error_line(exc))
+            return 1
 
 
 def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
@@ -435,7 +511,7 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
               f"{figures['episodes_per_minute']:.1f} episodes/min, "
               f"{figures['simulated_seconds']:.1f} simulated s, "
               f"speed-up over real time x{figures['speedup_over_real_time']:.1f}")
-        (out / "run.json").write_text(json.dumps(figures, indent=2) + "\n")
+        write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
     report(store, out, plots=not args.no_plots)
     if figures and figures["failed_cells"]:
         print(f"{NAME}: {len(figures['failed_cells'])} cells failed (logs in {out / 'logs'}); "

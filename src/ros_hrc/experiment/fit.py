@@ -46,13 +46,17 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
-from ros_hrc.experiment.cli import (OneLineParser, at_least, names_argument, open_results,
+from ros_hrc.experiment.cli import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
+                                    file_error_line, names_argument, open_results,
                                     run_stoppable)
-from ros_hrc.experiment.stack import CellSpec
+from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
-from ros_hrc.loop import task
+from ros_hrc.loop import settings, task
+from ros_hrc.loop.settings import SettingError
 from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
                                  shown_path)
+from ros_hrc.model_files import user_path
+from ros_hrc.pomdp.output import check_writable, write_text_atomically
 from ros_hrc.pomdp.fit import ExperienceCounts, fit_model, support_lines, write_fitted
 from ros_hrc.pomdp.model import Model
 
@@ -75,11 +79,11 @@ def build_parser() -> argparse.ArgumentParser:
                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--human-models", type=names_argument, default=names_argument(DEFAULT_HUMANS),
                    help=f"human scenarios or .pomdpx files, comma-separated ({DEFAULT_HUMANS})")
-    p.add_argument("--episodes", type=at_least(1), default=100,
+    p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=100,
                    help="episodes per human model (100)")
-    p.add_argument("--seed", type=at_least(0), default=0,
+    p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the stacks: the human MDP and the exploring robot (0)")
-    p.add_argument("--step-limit", type=at_least(1), default=15,
+    p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=15,
                    help="steps before an episode ends (15, as hrc_experiment)")
     p.add_argument("--prior", default="robot",
                    help="the robot model whose rows are the prior and whose rewards are kept "
@@ -87,13 +91,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--strength", type=_non_negative, default=5.0,
                    help="the prior's pseudo-counts per row; 0: the episodes' frequencies "
                         "wherever a row has any (5)")
-    p.add_argument("--jobs", type=at_least(0), default=0,
+    p.add_argument("--jobs", type=at_least(0, MAX_JOBS), default=0,
                    help="stacks run side by side (0: one per core)")
     p.add_argument("--runs", default="results/fit",
                    help="where the episodes are kept, and found again (results/fit)")
     p.add_argument("--out", default="models/robot/robot_fitted.pomdp",
                    help="the .pomdp to write (models/robot/robot_fitted.pomdp)")
     return p
+
+
+def _seed(text: str) -> int:
+    """A seed as hrc.launch takes it (ros_hrc.loop.settings' ``seed``: its range)."""
+    try:
+        return settings.parse("seed", text.strip())
+    except SettingError as exc:
+        raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1]) from None
 
 
 def _non_negative(text: str) -> float:
@@ -121,16 +133,28 @@ def configuration(args: argparse.Namespace) -> dict:
 
 
 def check_arguments(args: argparse.Namespace) -> Model:
-    """The models load and fit the task; the output is a .pomdp. Returns the prior."""
+    """The models load and fit the task; the output is a .pomdp that can be written. Every
+    file argument is made absolute here, once, against the directory the command runs in
+    (``args.prior``, ``args.out``, ``args.runs``, ``args.human_files``: the stacks run
+    elsewhere). Returns the prior."""
     if Path(args.out).suffix != ".pomdp":
         raise FitError(f"--out {args.out}: the fitted model is written as a Cassandra .pomdp")
+    args.out = str(user_path(args.out))
+    args.runs = str(user_path(args.runs))
     try:
+        check_writable(args.out)        # not after hours of episodes
+    except OSError as exc:
+        raise FitError(f"--out {file_error_line(exc)}") from None
+    try:
+        args.prior = str(model_path(args.prior, "robot"))
         prior = load_robot_model(args.prior)
     except ModelNotFound as exc:
         raise FitError(f"--prior: {exc}") from None
+    args.human_files = {}
     for human in dict.fromkeys(args.human_models):
         try:
-            load_human_model(human)
+            args.human_files[human] = str(model_path(human, "human"))
+            load_human_model(args.human_files[human])
         except ModelNotFound as exc:
             raise FitError(f"--human-models: {exc}") from None
     return prior
@@ -140,11 +164,13 @@ def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
     """One cell per human model, the exploring robot, episodes not yet in ``--runs``."""
     cells = []
     for human in args.human_models:
-        missing = [e for e in range(args.episodes) if (human, POLICY, args.seed, e) not in done]
+        recorded = {e for h, p, seed, e in done if (h, p, seed) == (human, POLICY, args.seed)}
+        missing = EpisodeRanges.missing(args.episodes, recorded)
         if missing:
             cells.append(CellSpec(human_model=human, robot_policy=POLICY, seed=args.seed,
                                   episodes=missing, step_limit=args.step_limit,
                                   log_dir=str(Path(args.runs) / "logs"),
+                                  human_model_file=args.human_files[human],
                                   robot_model=str(args.prior)))
     return cells
 
@@ -200,13 +226,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         prior = check_arguments(args)
     except HrcError as exc:
         return _error(exc)
-    runs = Path(args.runs).expanduser()
+    runs = Path(args.runs)          # absolute: check_arguments resolved it
     args.jobs = args.jobs or os.cpu_count() or 1
     try:
         with open_results(runs, "--runs"):
             return _run_locked(args, runs, prior, words)
     except HrcError as exc:
         return _error(exc)
+    except OSError as exc:      # a file that cannot be written: a full disk, ...
+        _error(file_error_line(exc))
+        return 1
 
 
 def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[str]) -> int:
@@ -224,7 +253,7 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
         store = ResultsStore(runs)
     except (OSError, ValueError) as exc:
         raise FitError(exc) from None
-    config_path.write_text(json.dumps(config) + "\n")
+    write_text_atomically(config_path, json.dumps(config) + "\n")
     cells = plan_cells(args, store.done())
     wanted = len(args.human_models) * args.episodes
     todo = sum(len(c.episodes) for c in cells)
@@ -238,16 +267,19 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
         if figures and figures["failed_cells"]:
             raise FitError(f"{len(figures['failed_cells'])} stacks failed (logs in "
                            f"{runs / 'logs'}): {figures['failed_cells'][0]}; run again to retry")
-    keys = {(h, POLICY, args.seed, e) for h in args.human_models for e in range(args.episodes)}
-    episodes = [r for r in store.episodes()
-                if (r.human_model, r.robot_policy, r.seed, r.episode) in keys]
-    steps = [s for s in store.steps() if (s.human_model, s.robot_policy, s.seed, s.episode) in keys]
-    if len(episodes) < len(keys):
-        raise FitError(f"only {len(episodes)} of {len(keys)} episodes are in {runs}; run again")
+    humans = set(args.human_models)
+
+    def wanted_row(r) -> bool:      # no set of every key: --episodes may be large
+        return (r.human_model in humans and r.robot_policy == POLICY and r.seed == args.seed
+                and r.episode < args.episodes)
+    episodes = [r for r in store.episodes() if wanted_row(r)]
+    steps = [s for s in store.steps() if wanted_row(s)]
+    if len(episodes) < wanted:
+        raise FitError(f"only {len(episodes)} of {wanted} episodes are in {runs}; run again")
     counts = count_experience(prior, episodes, steps)
     fitted = fit_model(prior, counts, args.strength, name=Path(args.out).stem)
-    prior_path = shown_path(model_path(args.prior, "robot"))
-    out = Path(args.out).expanduser()
+    prior_path = shown_path(args.prior)
+    out = Path(args.out)
     write_fitted(fitted, out, header_lines(args, prior_path, len(episodes), len(steps), counts))
     for line in support_lines(prior, counts):
         print(f"{NAME}: {line}")

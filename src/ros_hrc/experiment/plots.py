@@ -14,6 +14,7 @@ import warnings
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Union
 
 from ros_hrc.experiment.store import EpisodeKey, ResultsWarning, StepRow, ensure_parent
+from ros_hrc.pomdp.output import write_atomically
 
 def _new_figure(width: float, height: float):
     """A Figure outside pyplot: rendered by Agg whatever backend the process chose."""
@@ -28,7 +29,8 @@ def _save(fig, png_path: Union[str, os.PathLike]) -> str:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     FigureCanvasAgg(fig)  # attach Agg explicitly: no display, no backend lookup
-    fig.savefig(path, format="png", dpi=150)
+    # Rendered in memory, then written whole or not at all (a full disk keeps the old plot).
+    write_atomically(path, lambda f: fig.savefig(f, format="png", dpi=150))
     return path
 
 

@@ -2,10 +2,13 @@
 starts and stops that stack. No ROS here.
 
 A cell is (human model, robot policy, seed). Its worker process (``python -m
-ros_hrc.nodes.experiment_cell SPEC_JSON``, see :func:`worker_command`; rospy allows one node per
-process) starts ``hrc.launch`` headless, the world's clock as fast as the machine goes, with a
-roscore and websocket ports of its own (:func:`start_stack`, so several cells run side by
-side), drives its episodes, and writes one line per episode on its standard output,
+ros_hrc.nodes.experiment_cell SPEC_FILE``, see :func:`worker_command`: the spec travels in a
+JSON file, never on the command line, whose words the kernel limits to 128 KiB; rospy allows
+one node per process) starts ``hrc.launch`` headless, the world's clock as fast as the machine goes, with a
+roscore and websocket ports of its own (:func:`pick_ports`: four distinct ports, each free
+when picked, so several cells run side by side), watches it (:class:`StackWatch`: a stack
+that exits or cannot bind its port fails the cell at once, with the last lines of its log),
+drives its episodes, and writes one line per episode on its standard output,
 ``EPISODE {json}`` (:func:`encode_episode`), as soon as the episode ends. The MDP and the robot
 run exactly as in ``roslaunch ros_hrc hrc.launch``: nothing is simulated around them.
 
@@ -18,28 +21,94 @@ import json
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Sequence
+from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
 from ros_hrc.experiment.episode import ROBOT_POLICIES
 from ros_hrc.experiment.store import EpisodeRow, StepRow
-from ros_hrc.link.transport import free_port
+from ros_hrc.link.transport import DEFAULT_HOST, free_port
 from ros_hrc.loop import settings
+from ros_hrc.pomdp.output import write_text_atomically
 
 #: The module a worker process runs (``python -m``).
 WORKER_MODULE = "ros_hrc.nodes.experiment_cell"
 
 
+#: Episode numbers are uint32 where they travel (``ros_hrc/Status.episode``, the coordinator's
+#: count from 1): a cell records at most this many.
+MAX_EPISODES = 2**32 - 1
+
+
+@dataclass(frozen=True)
+class EpisodeRanges:
+    """Episode numbers as sorted, disjoint half-open ranges ``[start, stop)``: what a cell
+    still has to record, without a list of every number (``--episodes 10**9`` is two
+    integers, not a billion)."""
+    spans: Tuple[Tuple[int, int], ...] = ()
+
+    @classmethod
+    def of(cls, numbers: Union["EpisodeRanges", Iterable[int]]) -> "EpisodeRanges":
+        """The ranges of a set of numbers (a list, a ``range``, or ranges already)."""
+        if isinstance(numbers, EpisodeRanges):
+            return numbers
+        if isinstance(numbers, range) and numbers.step == 1:
+            return cls(((numbers.start, numbers.stop),) if len(numbers) else ())
+        spans: List[List[int]] = []
+        for n in sorted(set(numbers)):
+            if spans and spans[-1][1] == n:
+                spans[-1][1] = n + 1
+            else:
+                spans.append([n, n + 1])
+        return cls(tuple((a, b) for a, b in spans))
+
+    @classmethod
+    def missing(cls, count: int, done: Iterable[int]) -> "EpisodeRanges":
+        """Episodes ``0 .. count-1`` but those in ``done``; takes memory in proportion to
+        ``done``, not to ``count``."""
+        spans, start = [], 0
+        for n in sorted(d for d in set(done) if 0 <= d < count):
+            if n > start:
+                spans.append((start, n))
+            start = n + 1
+        if start < count:
+            spans.append((start, count))
+        return cls(tuple(spans))
+
+    @classmethod
+    def from_json(cls, data: Any) -> "EpisodeRanges":
+        """From ``{"spans": [[start, stop], ...]}`` (or a plain list of numbers)."""
+        if isinstance(data, dict):
+            spans = tuple((int(a), int(b)) for a, b in data["spans"])
+            if any(not 0 <= a < b for a, b in spans) or \
+                    any(b > c for (_, b), (c, _) in zip(spans, spans[1:])):
+                raise ValueError(f"episode ranges must be sorted and disjoint: {spans}")
+            return cls(spans)
+        return cls.of(int(n) for n in data)
+
+    def __len__(self) -> int:
+        return sum(b - a for a, b in self.spans)
+
+    def __iter__(self) -> Iterator[int]:
+        for a, b in self.spans:
+            yield from range(a, b)
+
+    def __bool__(self) -> bool:
+        return bool(self.spans)
+
+
 @dataclass
 class CellSpec:
-    """What one worker runs. Defaults of the launch settings come from ros_hrc.loop.settings."""
-    human_model: str
+    """What one worker runs. Defaults of the launch settings come from ros_hrc.loop.settings.
+    Model files are absolute paths (the entry point resolves what the user typed, once:
+    roslaunch starts the processes in another directory)."""
+    human_model: str                    # as the grid names it (the results' column)
     robot_policy: str
     seed: int
-    episodes: Sequence[int]             # episode numbers still to record (resume skips others)
+    episodes: Union[EpisodeRanges, Sequence[int]]   # still to record (resume skips others)
     step_limit: int = 20
     log_dir: str = "."
     robot_model: str = settings.default("robot_model")
@@ -53,6 +122,10 @@ class CellSpec:
     extra_args: List[str] = field(default_factory=list)   # more hrc.launch arguments
     episode_timeout: float = 600.0      # wall seconds without a step before giving up
     record_bag: bool = False            # rosbag of /hrc/status next to the logs
+    human_model_file: str = ""          # the human model's absolute file ("": human_model)
+
+    def __post_init__(self) -> None:
+        self.episodes = EpisodeRanges.of(self.episodes)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self))
@@ -60,7 +133,7 @@ class CellSpec:
     @classmethod
     def from_json(cls, text: str) -> "CellSpec":
         data = json.loads(text)
-        data["episodes"] = list(data["episodes"])
+        data["episodes"] = EpisodeRanges.from_json(data["episodes"])
         return cls(**data)
 
 
@@ -96,7 +169,7 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
         raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
                          f"{', '.join(ROBOT_POLICIES)}")
     values = {
-        "human_model": spec.human_model, "robot_model": spec.robot_model,
+        "human_model": spec.human_model_file or spec.human_model, "robot_model": spec.robot_model,
         "planner": ROBOT_POLICIES[spec.robot_policy].planner, "seed": spec.seed,
         "mode": "auto", "gui": False, "viz": False, "use_sim_time": False, "real_time_factor": 0,
         "step_delay": 0, "max_steps": spec.step_limit, "on_episode_end": "reset",
@@ -128,9 +201,37 @@ def check_launch_settings(spec: CellSpec) -> Dict[str, Any]:
     return settings.resolve(launch_settings(spec, stand_in))
 
 
+#: What a cell's stack listens on: its roscore and its three websocket links.
+PORT_NAMES = ("master", "pomdp", "robot", "human")
+#: Tries per port before a cell gives up finding one.
+PORT_ATTEMPTS = 50
+
+
+def port_is_free(port: int, host: str = DEFAULT_HOST) -> bool:
+    """Whether a server could bind ``host:port`` now."""
+    with socket.socket() as s:
+        try:
+            s.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
 def pick_ports() -> Dict[str, int]:
-    """Free ports for a cell's master and its three websocket links."""
-    return {name: free_port() for name in ("master", "pomdp", "robot", "human")}
+    """Ports for a cell's master and its three websocket links: all four distinct (the
+    kernel may hand the same free port out twice in a row) and each free when picked.
+    Another process may still take one before the stack binds it: :class:`StackWatch` then
+    fails the cell at once. Raises CellFailed when no free port turns up."""
+    ports: Dict[str, int] = {}
+    for name in PORT_NAMES:
+        for _ in range(PORT_ATTEMPTS):
+            port = free_port()
+            if port not in ports.values() and port_is_free(port):
+                ports[name] = port
+                break
+        else:
+            raise CellFailed(f"no free port for the {name} after {PORT_ATTEMPTS} tries")
+    return ports
 
 
 def stack_environment(ports: Mapping[str, int], log_dir: Path) -> Dict[str, str]:
@@ -140,18 +241,88 @@ def stack_environment(ports: Mapping[str, int], log_dir: Path) -> Dict[str, str]
             "ROS_LOG_DIR": str(Path(log_dir) / "ros")}
 
 
+def stack_log(spec: CellSpec, log_dir: Path) -> Path:
+    """Where a cell's ``hrc.launch`` writes its output."""
+    return Path(log_dir) / f"{cell_name(spec)}.log"
+
+
 def start_stack(spec: CellSpec, ports: Mapping[str, int], log_dir: Path) -> subprocess.Popen:
     """Start the cell's ``hrc.launch`` (with a roscore on ``ports['master']``) in a session of
-    its own, output into ``<log_dir>/<cell>.log``. Stop it with :func:`stop_launched`."""
+    its own, output into :func:`stack_log`. Stop it with :func:`stop_launched`."""
     log_dir = Path(log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ)
     env.update(stack_environment(ports, log_dir))
     cmd = ["roslaunch", "-p", str(ports["master"]), "ros_hrc", "hrc.launch"]
     cmd += launch_arguments(spec, ports)
-    with open(log_dir / f"{cell_name(spec)}.log", "wb") as log:
+    with open(stack_log(spec, log_dir), "wb") as log:
         return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
                                 stderr=subprocess.STDOUT, start_new_session=True, env=env)
+
+
+#: Lines of a stack's log that mean it cannot run: a link's server could not bind its port
+#: (ros_hrc.link.transport's LinkError; the node would respawn into the same error forever).
+FATAL_LOG_MARKERS = ("cannot listen on", "Address already in use")
+#: How much of a log's end :func:`log_tail` reads.
+TAIL_BYTES = 16384
+_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+
+
+def log_tail(path: Path, lines: int = 5) -> List[str]:
+    """The last ``lines`` non-blank lines of a log (colour codes removed); [] if unreadable."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            f.seek(max(0, f.tell() - TAIL_BYTES))
+            text = f.read().decode("utf-8", "replace")
+    except OSError:
+        return []
+    kept = [_ANSI.sub("", line).strip() for line in text.splitlines()]
+    return [line for line in kept if line][-lines:]
+
+
+class StackWatch:
+    """Watches a cell's ``hrc.launch`` while the worker waits on it: :meth:`check` raises
+    CellFailed at once, with the reason, when roslaunch has exited (with the last lines of
+    its log) or its log shows a port that cannot be bound."""
+
+    def __init__(self, proc: subprocess.Popen, log_path: Path, name: str) -> None:
+        self.proc = proc
+        self.log_path = Path(log_path)
+        self.name = name
+        self._offset = 0
+        self._partial = b""
+
+    def _tail_text(self) -> str:
+        tail = log_tail(self.log_path)
+        return f"; last lines of {self.log_path}: " + " | ".join(tail) if tail else \
+            f"; {self.log_path} is empty"
+
+    def check(self) -> None:
+        """Raise CellFailed if the stack cannot go on; otherwise return at once."""
+        code = self.proc.poll()
+        if code is not None:
+            raise CellFailed(f"hrc.launch exited ({code}){self._tail_text()}")
+        line = self._fatal_line()
+        if line is not None:
+            raise CellFailed(f"{line} (see {self.log_path})")
+
+    def _fatal_line(self) -> Optional[str]:
+        """The first new log line with a :data:`FATAL_LOG_MARKERS` marker, if any."""
+        try:
+            with open(self.log_path, "rb") as f:
+                f.seek(self._offset)
+                data = f.read(1 << 20)
+        except OSError:
+            return None
+        self._offset += len(data)
+        data = self._partial + data
+        complete, _, self._partial = data.rpartition(b"\n")
+        for raw in complete.split(b"\n"):
+            line = _ANSI.sub("", raw.decode("utf-8", "replace")).strip()
+            if any(marker in line for marker in FATAL_LOG_MARKERS):
+                return line
+        return None
 
 
 def stop_launched(proc: subprocess.Popen, grace: float = 60.0) -> None:
@@ -190,6 +361,20 @@ def decode_episode(line: str):
             [StepRow.from_dict(s) for s in data["steps"]])
 
 
-def worker_command(spec: CellSpec) -> List[str]:
-    """The command that runs ``spec`` in a process of its own."""
-    return [sys.executable, "-m", WORKER_MODULE, spec.to_json()]
+def write_spec(spec: CellSpec, log_dir: Path) -> Path:
+    """Write the cell's spec to ``<log_dir>/<cell>.spec.json`` (whole or not at all); its path."""
+    path = Path(log_dir) / f"{cell_name(spec)}.spec.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomically(path, spec.to_json() + "\n")
+    return path
+
+
+def read_spec(path: Union[str, Path]) -> CellSpec:
+    """The spec :func:`write_spec` wrote."""
+    return CellSpec.from_json(Path(path).read_text(encoding="utf-8"))
+
+
+def worker_command(spec_file: Union[str, Path]) -> List[str]:
+    """The command that runs the cell whose spec is in ``spec_file`` (:func:`write_spec`) in
+    a process of its own: a file, because a spec can be larger than a command line may be."""
+    return [sys.executable, "-m", WORKER_MODULE, str(spec_file)]

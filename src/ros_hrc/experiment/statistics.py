@@ -3,18 +3,20 @@
 Plain Python (scipy for the t and normal quantiles, imported on first use), no ROS.
 
 :func:`mean_ci` (Student's t), :func:`proportion_ci` (Wilson score), :func:`summarize` (one
-dict per human model x robot policy), :func:`write_summary` (CSV + Markdown table). Every
+dict per human model x robot policy), :func:`write_summary` (CSV + Markdown table, each written whole or not at all). Every
 episode counts as one independent sample: seeds and episodes are not told apart.
 """
 from __future__ import annotations
 
 import csv
+import io
 import math
 import operator
 import os
 from typing import Any, Dict, Iterable, List, Mapping, Sequence, Tuple, Union
 
 from ros_hrc.experiment.store import EpisodeRow, ensure_parent
+from ros_hrc.pomdp.output import write_text_atomically
 
 def _check_confidence(confidence: float) -> None:
     if not 0 < confidence < 1:
@@ -154,13 +156,12 @@ def write_summary(summary: Sequence[Mapping[str, Any]], csv_path: Union[str, os.
     """Write the :func:`summarize` output as a CSV (every number, full precision) and as a
     Markdown table of means with their intervals; returns both paths."""
     csv_path, markdown_path = os.fspath(csv_path), os.fspath(markdown_path)
-    ensure_parent(csv_path)
-    with open(csv_path, "w", encoding="utf-8", newline="") as f:
-        writer = csv.writer(f, lineterminator="\n")
-        writer.writerow(SUMMARY_COLUMNS)
-        for entry in summary:
-            writer.writerow(repr(v) if isinstance(v, float) else str(v)
-                            for v in (entry[c] for c in SUMMARY_COLUMNS))
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(SUMMARY_COLUMNS)
+    for entry in summary:
+        writer.writerow(repr(v) if isinstance(v, float) else str(v)
+                        for v in (entry[c] for c in SUMMARY_COLUMNS))
 
     levels = {entry["confidence"] for entry in summary} or {0.95}
     level = "/".join(f"{100 * c:g} %" for c in sorted(levels))
@@ -189,7 +190,9 @@ def write_summary(summary: Sequence[Mapping[str, Any]], csv_path: Union[str, os.
             "success rate, Student's t for the other quantities; [n/a] where an interval "
             "needs two episodes or more. Zero-probability observations: how many of the "
             "episodes' observations the robot's model gave probability 0, of all, and the rate.")
+    # Each file whole or not at all: a full disk leaves the previous summary, never half of one.
+    ensure_parent(csv_path)
+    write_text_atomically(csv_path, buffer.getvalue())
     ensure_parent(markdown_path)
-    with open(markdown_path, "w", encoding="utf-8") as f:
-        f.write("\n".join(lines) + "\n\n" + note + "\n")
+    write_text_atomically(markdown_path, "\n".join(lines) + "\n\n" + note + "\n")
     return csv_path, markdown_path

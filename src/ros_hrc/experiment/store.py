@@ -13,9 +13,11 @@ Store
     :class:`ResultsStore` owns ``episodes.csv`` and ``steps.csv`` in one directory. Each
     :meth:`~ResultsStore.add` appends an episode's steps, then its episode row, and fsyncs each
     file, so the episode row is the commit mark: after a kill, :meth:`~ResultsStore.done` lists
-    exactly the episodes that are complete, and the runner resumes with the others. On open, a
-    partially written last line is cut off and step rows of an episode that has no episode row
-    (killed between the two writes) are removed, each with a :class:`ResultsWarning`.
+    exactly the episodes that are complete, and the runner resumes with the others. On open,
+    both files are checked whole first (UTF-8 text, the header, every row; a file that is
+    not, a binary one say, is refused naming it, and nothing is changed); only then is a
+    partially written last line cut off and step rows of an episode that has no episode row
+    (killed between the two writes) removed, each with a :class:`ResultsWarning`.
 
 Lock
     One writer per directory: :func:`lock_directory` takes an exclusive, non-blocking
@@ -282,49 +284,85 @@ class ResultsStore:
         os.makedirs(self.directory, exist_ok=True)
         self.episodes_path = os.path.join(self.directory, EPISODES_FILE)
         self.steps_path = os.path.join(self.directory, STEPS_FILE)
-        for path, columns in ((self.episodes_path, EPISODE_COLUMNS),
-                              (self.steps_path, STEP_COLUMNS)):
-            self._prepare(path, columns)
-        episodes = self._read(self.episodes_path, EpisodeRow)
+        # Everything is checked before anything is changed: a bad file (binary, another
+        # header, a bad row) is refused with both files as they were.
+        plans = [self._inspect(path) for path in (self.episodes_path, self.steps_path)]
+        (_, episodes_text), (_, steps_text) = plans
+        episodes = self._parse(self.episodes_path, episodes_text, EpisodeRow)
+        steps = self._parse(self.steps_path, steps_text, StepRow)
         self._done: Set[EpisodeKey] = set()
         for line, row in episodes:
             if row.key in self._done:
                 raise ValueError(f"{self.episodes_path}:{line}: episode {row.key} recorded twice")
             self._done.add(row.key)
-        self._drop_orphan_steps()
+        for (path, columns), (keep, text) in zip(((self.episodes_path, EPISODE_COLUMNS),
+                                                  (self.steps_path, STEP_COLUMNS)), plans):
+            self._repair(path, columns, keep, text)
+        self._drop_orphan_steps(steps)
 
     # -- opening ------------------------------------------------------------------------------
 
-    def _prepare(self, path: str, columns: Tuple[str, ...]) -> None:
-        """Cut a partial last line, and write the header into a missing or empty file."""
-        if os.path.exists(path):
+    @staticmethod
+    def _inspect(path: str) -> Tuple[Optional[int], str]:
+        """(where to cut a partial last line or None, the text kept) of a results file, read
+        but not changed; ValueError naming the file when it is not UTF-8 text."""
+        try:
+            with open(path, "rb") as f:
+                data = f.read()
+        except FileNotFoundError:
+            return None, ""
+        nul = data.find(b"\0")
+        if nul >= 0:
+            raise ValueError(f"{path}: not a results CSV: binary data (a NUL byte at byte "
+                             f"{nul}); left as it is")
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{path}: not a results CSV: byte {exc.start} is not UTF-8 "
+                             "text; left as it is") from None
+        if data and not data.endswith(b"\n"):
+            keep = data.rfind(b"\n") + 1  # 0 when even the header is partial
+            return keep, data[:keep].decode("utf-8")
+        return None, text
+
+    def _repair(self, path: str, columns: Tuple[str, ...], keep: Optional[int],
+                text: str) -> None:
+        """Cut a partial last line (``keep``: bytes kept), and write the header into a
+        missing or empty file."""
+        if keep is not None:
             with open(path, "r+b") as f:
                 data = f.read()
-                if data and not data.endswith(b"\n"):
-                    keep = data.rfind(b"\n") + 1  # 0 when even the header is partial
-                    lost = data[keep:].decode("utf-8", "replace")
-                    line = data.count(b"\n") + 1
-                    warnings.warn(f"{path}:{line}: dropped a partially written last line "
-                                  f"({len(lost)} characters: {lost[:60]!r}...)", ResultsWarning,
-                                  stacklevel=3)
-                    f.truncate(keep)
-                    f.flush()
-                    os.fsync(f.fileno())
-                    data = data[:keep]
-            if data:
-                return
+                lost = data[keep:].decode("utf-8", "replace")
+                line = data.count(b"\n") + 1
+                warnings.warn(f"{path}:{line}: dropped a partially written last line "
+                              f"({len(lost)} characters: {lost[:60]!r}...)", ResultsWarning,
+                              stacklevel=4)
+                f.truncate(keep)
+                f.flush()
+                os.fsync(f.fileno())
+        if text:
+            return
         with open(path, "w", encoding="utf-8", newline="") as f:
             csv.writer(f, lineterminator="\n").writerow(columns)
             f.flush()
             os.fsync(f.fileno())
         _fsync_directory(self.directory)
 
-    @staticmethod
-    def _read(path: str, row_type: Type[_R]) -> List[Tuple[int, _R]]:
+    @classmethod
+    def _read(cls, path: str, row_type: Type[_R]) -> List[Tuple[int, _R]]:
         """(line number, row) for every row of ``path``; ValueError ``path:line`` if bad."""
+        keep, text = cls._inspect(path)
+        return cls._parse(path, text, row_type)
+
+    @staticmethod
+    def _parse(path: str, text: str, row_type: Type[_R]) -> List[Tuple[int, _R]]:
+        """(line number, row) for every row of a results file's ``text`` (empty: a file not
+        written yet); ValueError ``path:line`` if bad."""
         columns = row_type.COLUMNS
         out: List[Tuple[int, _R]] = []
-        with open(path, encoding="utf-8", newline="") as f:
+        if not text:
+            return out
+        with io.StringIO(text, newline="") as f:
             reader = csv.reader(f)
             header = next(reader, None)
             if header is None or tuple(header) != columns:
@@ -344,12 +382,11 @@ class ResultsStore:
                     raise ValueError(f"{path}:{line}: {e}") from None
         return out
 
-    def _drop_orphan_steps(self) -> None:
+    def _drop_orphan_steps(self, steps: List[Tuple[int, "StepRow"]]) -> None:
         """Remove step rows of episodes without an episode row (written before a kill).
 
         Left in place, the rerun of that episode would append its steps a second time.
         """
-        steps = self._read(self.steps_path, StepRow)
         kept = [row for _, row in steps if row.key in self._done]
         if len(kept) == len(steps):
             return

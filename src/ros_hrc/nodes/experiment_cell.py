@@ -1,12 +1,16 @@
 """The ROS side of one experiment cell, and the worker process that runs it.
 
-``python -m ros_hrc.nodes.experiment_cell SPEC_JSON`` is what ``hrc_experiment`` starts, one
+``python -m ros_hrc.nodes.experiment_cell SPEC_FILE`` (the cell's spec, a JSON file written by
+:func:`ros_hrc.experiment.stack.write_spec`) is what ``hrc_experiment`` starts, one
 process per cell (rospy allows one node per process, and each cell has a master of its own).
 :func:`run_cell` checks the robot model, starts the cell's ``hrc.launch``
 (:func:`ros_hrc.experiment.stack.start_stack`), in which the coordinator ends each episode
 and starts the next (``on_episode_end:=reset``), and :func:`drive_cell` collects each
 episode's ``/hrc/status`` messages, scores it and hands the row over. The process writes one line per
-episode on its standard output, ``EPISODE {json}``, as soon as the episode ends.
+episode on its standard output, ``EPISODE {json}``, as soon as the episode ends. While it
+waits (for the master, for a step) it watches the stack
+(:class:`ros_hrc.experiment.stack.StackWatch`): a roslaunch that exits, or a link that cannot
+bind its port, fails the cell at once with the reason and the last lines of its log.
 
 SIGINT or SIGTERM stops the cell: the stack (roslaunch runs in a session of its own, so no
 signal reaches it by itself) is stopped as Ctrl-C would, and the process exits 128 + the
@@ -26,12 +30,14 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, List, Optional
 
+import rosgraph
 import rospy
 
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import score_episode, step_rows
-from ros_hrc.experiment.stack import (CellFailed, CellSpec, cell_name, encode_episode,
-                                      pick_ports, stack_environment, start_stack, stop_launched)
+from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch, cell_name,
+                                      encode_episode, pick_ports, read_spec, stack_environment,
+                                      stack_log, start_stack, stop_launched)
 from ros_hrc.experiment.store import EpisodeRow
 from ros_hrc.loop.models import load_robot_model, positional_mapping_line
 from ros_hrc.msg import Status
@@ -132,12 +138,14 @@ class EpisodeInbox:
                     self.current = []
             self.cond.notify_all()
 
-    def next_episode(self, timeout: float) -> tuple:
+    def next_episode(self, timeout: float, check: Callable[[], None] = lambda: None) -> tuple:
         """The oldest finished episode not taken yet: (steps, monotonic time its first step
         arrived, the same for its last step); raises CellFailed after ``timeout`` wall
-        seconds without any status."""
+        seconds without any status. ``check()`` runs every second meanwhile and may raise
+        (the stack died)."""
         with self.cond:
             while not self.done:
+                check()
                 if time.monotonic() - self.last_seen > timeout:
                     raise CellFailed(f"no step for {timeout:.0f} s")
                 self.cond.wait(1.0)
@@ -146,6 +154,20 @@ class EpisodeInbox:
 
 #: An epoch cut short by a fault is retried, but not forever.
 MAX_ABANDONED = 5
+#: Wall seconds a cell's roscore gets to come up while its roslaunch runs.
+MASTER_WAIT = 120.0
+
+
+def wait_for_master(watch: StackWatch, wait: float = MASTER_WAIT) -> None:
+    """Until the cell's master (``ROS_MASTER_URI``) answers; CellFailed at once when the stack
+    dies meanwhile (``watch``), or after ``wait`` s."""
+    deadline = time.monotonic() + wait
+    while not rosgraph.is_master_online():
+        watch.check()
+        if time.monotonic() > deadline:
+            raise CellFailed(f"no ROS master after {wait:.0f} s; see "
+                             f"{watch.log_path}")
+        time.sleep(0.25)
 
 
 def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
@@ -153,7 +175,9 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
     """Record ``spec``'s episodes from the stack ``proc`` (``hrc.launch``, already started,
     ending and resetting episodes itself): score and ``deliver`` each. Returns how many were
     delivered."""
-    init_node_when_master_is_up("hrc_experiment_cell", wait=120.0)
+    watch = StackWatch(proc, stack_log(spec, log_dir), name)
+    wait_for_master(watch)
+    init_node_when_master_is_up("hrc_experiment_cell", wait=30.0)
     inbox = EpisodeInbox()
     rospy.Subscriber("/hrc/status", Status, inbox.on_status, queue_size=1000)
     bag = None
@@ -167,10 +191,9 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
         delivered = 0
         previous_end = None
         for episode in spec.episodes:
-            if proc.poll() is not None:
-                raise CellFailed(f"{name}: hrc.launch exited ({proc.returncode}); see "
-                                 f"{log_dir / (name + '.log')}")
-            steps, first_arrived, last_arrived = inbox.next_episode(spec.episode_timeout)
+            watch.check()
+            steps, first_arrived, last_arrived = inbox.next_episode(spec.episode_timeout,
+                                                                    watch.check)
             # Wall time of the episode: since the previous one ended (its reset included);
             # the first one from when its first step began, not from the stack's start-up.
             began = previous_end if previous_end is not None else \
@@ -220,9 +243,13 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
 def main(argv: Optional[List[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
-        print("usage: python -m ros_hrc.nodes.experiment_cell SPEC_JSON", file=sys.stderr)
+        print("usage: python -m ros_hrc.nodes.experiment_cell SPEC_FILE", file=sys.stderr)
         return 2
-    spec = CellSpec.from_json(argv[0])
+    try:
+        spec = read_spec(argv[0])
+    except (OSError, ValueError, TypeError, KeyError) as exc:
+        print(f"cell spec {argv[0]}: unreadable ({exc})", file=sys.stderr, flush=True)
+        return 2
     label = f"cell {spec.human_model}/{spec.robot_policy}/seed {spec.seed}"
 
     def deliver(row, steps) -> None:
@@ -236,7 +263,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         pass
     except (CellFailed, HrcError, OSError, ValueError) as exc:
         if SIGNALS.signum is None:
-            print(f"{label} failed: {exc}", file=sys.stderr, flush=True)
+            # The last line the parent shows after the cell's name: the reason alone.
+            print(f"failed: {' '.join(str(exc).split())}", file=sys.stderr, flush=True)
             return 1
     if SIGNALS.signum is not None:
         print(f"{label}: stopped by {signal.Signals(SIGNALS.signum).name}; its stack is down",

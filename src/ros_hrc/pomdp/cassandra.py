@@ -63,7 +63,8 @@ from ros_hrc.pomdp import memory
 from ros_hrc.pomdp.fileformat import (FULL_REWARD_STATES, PROBABILITY_TOLERANCE,
                                       check_set_size, check_writable_names, decode_text,
                                       default_names, format_number, is_identity, name_lookup,
-                                      read_file, resolve_token, strip_bom)
+                                      read_file, resolve_token, strip_bom, MAX_DIGITS,
+                                      is_number_text, shown_token)
 from ros_hrc.pomdp.model import Model, reward_bound_problem
 from ros_hrc.pomdp.output import write_text_atomically
 
@@ -460,6 +461,9 @@ class _Reader:
         if not st.data:
             self.fail(st.line, f"'{kind}:' needs a count or a list of names")
         if len(st.data) == 1 and st.data[0].isdigit():
+            if not is_number_text(st.data[0]):
+                self.fail(st.line, f"'{kind}:' count {shown_token(st.data[0])} is not a "
+                                   f"count (decimal digits, at most {MAX_DIGITS})")
             count = int(st.data[0])
             if count < 1:
                 self.fail(st.line, f"'{kind}:' count must be at least 1, found {count}")
@@ -551,7 +555,8 @@ class _Reader:
             return None
         index = resolve_token(token, self.lookups[kind], len(self.names[kind]))
         if index is None:
-            self.fail(st.line, f"unknown {_KINDS[kind]} {token!r} in '{st.header}'")
+            self.fail(st.line, f"unknown {_KINDS[kind]} {shown_token(token)!r} in "
+                               f"'{shown_token(st.header, 80)}'")
         return index
 
     def _each(self, kind: str, index: Optional[int]) -> Sequence[int]:
@@ -702,7 +707,7 @@ class _Reader:
                 self.fail(st.line, f"start probabilities sum to {b.sum():.6g}, not 1 "
                                    f"(tolerance {PROBABILITY_TOLERANCE:g})")
             return b
-        if len(data) == 1 and data[0].isdigit() and int(data[0]) < S:
+        if len(data) == 1 and is_number_text(data[0]) and int(data[0]) < S:
             b = np.zeros(S)                      # a lone index names a state
             b[int(data[0])] = 1.0
             return b

@@ -47,6 +47,22 @@ def name_lookup(names: Sequence[str]) -> Dict[str, int]:
     return {name: i for i, name in enumerate(names)}
 
 
+#: Digits a count or an index in a model file may have: no table has 10**18 entries, and
+#: Python refuses to convert a number of more than 4300 digits (a traceback).
+MAX_DIGITS = 18
+
+
+def is_number_text(text: str) -> bool:
+    """Whether ``text`` is a count or an index this reader converts: decimal digits, at most
+    :data:`MAX_DIGITS` of them."""
+    return text.isdecimal() and len(text) <= MAX_DIGITS
+
+
+def shown_token(text: str, most: int = 40) -> str:
+    """``text`` for a one-line message: a long one cut, with its length."""
+    return text if len(text) <= most else f"{text[:most]}... ({len(text)} characters)"
+
+
 def resolve_token(token: str, lookup: Dict[str, int], size: int) -> Optional[int]:
     """A name or a 0-based index -> index; None when it is neither.
 
@@ -56,7 +72,7 @@ def resolve_token(token: str, lookup: Dict[str, int], size: int) -> Optional[int
     index = lookup.get(token)
     if index is not None:
         return index
-    if token.isdigit():
+    if is_number_text(token):
         index = int(token)
         if index < size:
             return index
@@ -108,16 +124,26 @@ def is_identity(matrix) -> bool:
 
 def read_file(path: str, memory_limit: Optional[int] = None) -> bytes:
     """A model file's bytes; MemoryLimitError, before reading, when parsing a file that size
-    would need more than ``memory_limit`` bytes (a device or pipe is read up to that point)."""
+    would need more than ``memory_limit`` bytes. A device, a FIFO or a directory is refused
+    before anything is read (a FIFO nobody writes would wait for ever)."""
     try:
-        with open(path, "rb") as fh:
+        # O_NONBLOCK: opening a FIFO without a writer returns at once instead of waiting.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            os.close(fd)
+            kind = "a directory" if stat.S_ISDIR(info.st_mode) else \
+                "a character device" if stat.S_ISCHR(info.st_mode) else \
+                "a FIFO" if stat.S_ISFIFO(info.st_mode) else "a special file"
+            raise ModelFormatError(path, None, f"is {kind}, not a regular file: give a model "
+                                               "file")
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "rb") as fh:
             if memory_limit is None:
                 return fh.read()
             most = memory_limit // memory.PARSE_BYTES_PER_FILE_BYTE
-            info = os.fstat(fh.fileno())
-            if stat.S_ISREG(info.st_mode):
-                memory.require(info.st_size * memory.PARSE_BYTES_PER_FILE_BYTE, memory_limit,
-                               path, f"reading this {info.st_size}-byte file")
+            memory.require(info.st_size * memory.PARSE_BYTES_PER_FILE_BYTE, memory_limit,
+                           path, f"reading this {info.st_size}-byte file")
             data = fh.read(most + 1)
             if len(data) > most:
                 raise memory.MemoryLimitError(path, "reading this stream (not a regular file)",

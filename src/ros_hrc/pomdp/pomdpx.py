@@ -84,7 +84,8 @@ from ros_hrc.pomdp import memory
 from ros_hrc.pomdp.fileformat import (FULL_REWARD_STATES, PROBABILITY_TOLERANCE,
                                       check_set_size, check_writable_names, default_names,
                                       format_number, is_identity, joint_names, name_lookup,
-                                      read_file, resolve_token, strip_bom)
+                                      read_file, resolve_token, strip_bom, MAX_DIGITS,
+                                      is_number_text, shown_token)
 from ros_hrc.pomdp.model import Model, reward_bound_problem
 from ros_hrc.pomdp.output import write_text_atomically
 
@@ -407,8 +408,9 @@ class _Reader:
                 seen.add(v)
             return values
         text = (num.text or "").strip()
-        if not text.isdigit() or int(text) < 1:
-            self.fail(num, f"<NumValues> must be a positive integer, found {text!r}")
+        if not is_number_text(text) or int(text) < 1:
+            self.fail(num, f"<NumValues> must be a positive integer of at most {MAX_DIGITS} "
+                           f"digits, found {shown_token(text)!r}")
         check_set_size("values", int(text), self.memory_limit, self.source,
                        str(getattr(num, "line", "")) or None)
         return default_names(prefix, int(text))

@@ -15,8 +15,9 @@ from pathlib import Path
 import pytest
 
 from ros_hrc.experiment.cli import build_parser, main, plan_cells, validate_grid
-from ros_hrc.experiment.stack import (CellSpec, cell_name, check_launch_settings,
-                                      launch_arguments, worker_command)
+from ros_hrc.experiment import stack
+from ros_hrc.experiment.stack import (CellSpec, EpisodeRanges, cell_name, check_launch_settings,
+                                      launch_arguments, read_spec, worker_command, write_spec)
 from ros_hrc.experiment.store import DirectoryLocked, lock_directory
 from ros_hrc.loop import settings
 from ros_hrc.loop.settings import SettingError
@@ -143,14 +144,119 @@ def test_every_cell_s_launch_arguments_pass_the_launch_s_checks():
         check_launch_settings(CellSpec("tired", "pomdp", 0, [0], extra_args=["belt_speed:=9"]))
 
 
-def test_a_cell_runs_in_the_node_module_and_its_spec_travels_as_json():
+def test_a_cell_runs_in_the_node_module_and_its_spec_travels_in_a_file(tmp_path):
+    """Before: the spec was one argv word; at --episodes >= ~22,000 it passed 128 KiB and every
+    cell failed with "Argument list too long"."""
     spec = CellSpec("/data/my model.pomdpx", "no_robot", 2, episodes=[1, 3])
-    command = worker_command(spec)
-    assert command[:3] == [sys.executable, "-m", "ros_hrc.nodes.experiment_cell"]
-    assert CellSpec.from_json(command[3]) == spec
-    assert json.loads(command[3])["time_per_step"] == 0.1
+    path = write_spec(spec, tmp_path)
+    command = worker_command(path)
+    assert command == [sys.executable, "-m", "ros_hrc.nodes.experiment_cell", str(path)]
+    assert read_spec(command[3]) == spec
+    assert json.loads(path.read_text())["time_per_step"] == 0.1
     assert cell_name(spec) == "my_model-no_robot-seed2"
     assert cell_name(CellSpec("tired", "pomdp", 0, [0])) == "tired-pomdp-seed0"
+    # every other episode recorded: the spec lists ranges, and no command line grows with it
+    many = CellSpec("tired", "pomdp", 0, EpisodeRanges.missing(100_000, range(0, 100_000, 2)))
+    assert len(many.episodes) == 50_000 and list(many.episodes)[:3] == [1, 3, 5]
+    assert read_spec(write_spec(many, tmp_path)) == many
+    assert sum(len(word) for word in worker_command(write_spec(many, tmp_path))) < 4096
+
+
+def test_the_grid_is_planned_lazily(tmp_path):
+    """Before: --episodes 1000000000 built every episode's entry (MemoryError at 4 GB)."""
+    args = build_parser().parse_args(["--human-models", "tired", "--policies", "no_robot",
+                                      "--seeds", "0", "--episodes", str(10**9),
+                                      "--out", str(tmp_path)])
+    cells = plan_cells(args, {("tired", "no_robot", 0, 5), ("tired", "no_robot", 0, 6)})
+    assert len(cells) == 1 and len(cells[0].episodes) == 10**9 - 2
+    assert cells[0].episodes.spans == ((0, 5), (7, 10**9))
+    assert len(cells[0].to_json()) < 4096
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--episodes", str(2**32)], "argument --episodes: must be an integer from 1 to 4294967295, "
+                                 "got '4294967296'"),
+    (["--episodes", "9" * 5000], "argument --episodes: must be an integer from 1 to "
+                                 f"4294967295, got '{'9' * 40}... (5000 characters)'"),
+    (["--step-limit", str(2**31)], "argument --step-limit: must be an integer from 1 to "
+                                   "2147483647, got '2147483648'"),
+    (["--jobs", "1000000"], "argument --jobs: must be an integer from 0 to 1000, "
+                            "got '1000000'"),
+])
+def test_numbers_past_what_their_consumers_take_are_one_line(args, message, capsys):
+    """Before: accepted, and a 5000-digit --episodes was a traceback."""
+    with pytest.raises(SystemExit) as info:
+        build_parser().parse_args(args)
+    assert info.value.code == 2
+    assert capsys.readouterr().err == f"hrc_experiment: {message}\n"
+
+
+def test_file_arguments_are_made_absolute_once_for_the_cells(tmp_path, monkeypatch):
+    """Before: a relative --robot-model reached the robot process, which runs in $ROS_HOME,
+    as typed: "no model file", respawned every second, and the cell waited 600 s."""
+    work = tmp_path / "work"
+    (work / "mine").mkdir(parents=True)
+    for kind, name in (("robot", "robot.pomdp"), ("human", "tired.pomdpx")):
+        (work / "mine" / name).write_text((ROOT / "models" / kind / name).read_text())
+    monkeypatch.chdir(work)
+    args = build_parser().parse_args(["--robot-model", "mine/robot.pomdp", "--human-models",
+                                      "./mine/tired.pomdpx,expert", "--policies",
+                                      "pomdp,pomdp_fitted", "--seeds", "0", "--episodes", "1",
+                                      "--out", "results"])
+    validate_grid(args)
+    cells = plan_cells(args, set())
+    assert [(c.human_model, c.robot_policy) for c in cells] == [
+        ("./mine/tired.pomdpx", "pomdp"), ("./mine/tired.pomdpx", "pomdp_fitted"),
+        ("expert", "pomdp"), ("expert", "pomdp_fitted")]
+    for cell in cells:
+        assert Path(cell.robot_model).is_absolute() and Path(cell.robot_model).is_file()
+        values = dict(w.split(":=", 1) for w in launch_arguments(cell, {
+            "master": 1, "pomdp": 2, "robot": 3, "human": 4}))
+        assert Path(values["human_model"]).is_absolute() and Path(values["robot_model"]) \
+            .is_absolute(), values
+        assert Path(cell.log_dir) == work / "results" / "logs"
+    assert cells[0].robot_model == str(work / "mine" / "robot.pomdp")
+    assert cells[1].robot_model == str(ROOT / "models" / "robot" / "robot_fitted.pomdp")
+    assert cells[0].human_model_file == str(work / "mine" / "tired.pomdpx")
+    assert cells[2].human_model_file == str(ROOT / "models" / "human" / "expert.pomdpx")
+
+
+def test_a_missing_relative_model_is_one_line_before_any_stack(tmp_path, fake_ros):
+    env, log = fake_ros
+    done = subprocess.run(experiment("--robot-model", "nowhere/robot.pomdp", "--out", "out"),
+                          env=env, cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                          stdin=subprocess.DEVNULL)
+    line = the_line(done)
+    assert line.startswith("hrc_experiment: --robot-model: no model file ")
+    assert line.endswith(f"(looked for {tmp_path}/nowhere/robot.pomdp)")
+    assert not log.exists() and not (tmp_path / "out").exists()
+
+
+# ------------------------------------------------------------------------------------ ports
+
+def test_the_ports_of_a_cell_are_distinct_and_free(monkeypatch):
+    """Before: free_port() four times could give the master and the human link one port
+    (about 1 cell in 190), and hrc_human died on "Address already in use" until the 600 s
+    timeout."""
+    handed_out = iter([7001, 7001, 7002, 7001, 7002, 7003, 7004, 7004, 7005])
+    monkeypatch.setattr(stack, "free_port", lambda: next(handed_out))
+    monkeypatch.setattr(stack, "port_is_free", lambda port: port != 7003)   # taken meanwhile
+    ports = stack.pick_ports()
+    assert set(ports) == {"master", "pomdp", "robot", "human"}
+    assert ports == {"master": 7001, "pomdp": 7002, "robot": 7004, "human": 7005}
+
+
+def test_a_cell_without_free_ports_fails_with_the_reason(monkeypatch):
+    monkeypatch.setattr(stack, "free_port", lambda: 7001)
+    with pytest.raises(stack.CellFailed, match="no free port for the pomdp after 50 tries"):
+        stack.pick_ports()
+
+
+def test_real_ports_are_distinct_and_bindable():
+    for _ in range(20):
+        ports = stack.pick_ports()
+        assert len(set(ports.values())) == 4
+        assert all(stack.port_is_free(p) for p in ports.values())
 
 
 # ------------------------------------------------------------------------------------ lock
@@ -243,3 +349,63 @@ def test_a_signal_to_the_experiment_stops_every_stack_and_keeps_the_results(
     assert "Resume with: hrc_experiment --human-models tired" in err
     assert (out / "episodes.csv").exists()       # what was recorded (here nothing) stays
 
+
+
+# ------------------------------------------------------------------ a stack that cannot run
+
+DYING_ROSLAUNCH = """#!/bin/sh
+echo "start $$ $*" >> "$FAKE_ROSLAUNCH_LOG"
+echo "... logging to /nowhere/roslaunch.log"
+echo "OSError: [Errno 28] No space left on device: '/full/disk/log'"
+exit 1
+"""
+
+UNBINDABLE_ROSLAUNCH = """#!/bin/sh
+echo "start $$ $*" >> "$FAKE_ROSLAUNCH_LOG"
+trap 'echo "SIGINT $$" >> "$FAKE_ROSLAUNCH_LOG"; exit 0' INT
+echo "process[hrc_human-5]: started with pid [4242]"
+printf '\\033[31m[FATAL] hrc_human: cannot listen on 127.0.0.1:9: [Errno 98] Address already in use\\033[0m\\n'
+while :; do sleep 0.1; done
+"""
+
+
+def fake_roslaunch(fake_ros, script: str):
+    env, log = fake_ros
+    roslaunch = Path(env["PATH"].split(os.pathsep)[0]) / "roslaunch"
+    roslaunch.write_text(script)
+    return env, log
+
+
+@pytest.mark.skipif(importlib.util.find_spec("rospy") is None, reason="the worker needs rospy")
+def test_a_stack_that_dies_at_start_fails_its_cell_at_once_with_its_log(tmp_path, fake_ros):
+    """Before: waited on silently for 602 s (the master, then the first step), then a
+    traceback; here the test's 120 s timeout would end it."""
+    env, log = fake_roslaunch(fake_ros, DYING_ROSLAUNCH)
+    out = tmp_path / "out"
+    done = run_experiment(env, "--human-models", "tired", "--policies", "no_robot", "--seeds",
+                          "0", "--episodes", "1", "--out", str(out), "--no-plots")
+    assert done.returncode == 1, done.stderr
+    assert log.read_text().count("start ") == 1
+    failed = [line for line in (done.stdout + done.stderr).splitlines() if "cell failed" in line]
+    assert len(failed) == 1, done.stdout + done.stderr
+    assert "cell failed: tired-no_robot-seed0: failed: hrc.launch exited (1); last lines of " \
+        in failed[0]
+    assert "No space left on device: '/full/disk/log'" in failed[0]
+    assert "Traceback" not in done.stderr + done.stdout
+
+
+@pytest.mark.skipif(importlib.util.find_spec("rospy") is None, reason="the worker needs rospy")
+def test_a_link_that_cannot_bind_fails_its_cell_at_once(tmp_path, fake_ros):
+    """Before: hrc_human respawned into "Address already in use" until the 600 s timeout."""
+    env, log = fake_roslaunch(fake_ros, UNBINDABLE_ROSLAUNCH)
+    out = tmp_path / "out"
+    done = run_experiment(env, "--human-models", "tired", "--policies", "no_robot", "--seeds",
+                          "0", "--episodes", "1", "--out", str(out), "--no-plots")
+    assert done.returncode == 1, done.stderr
+    failed = [line for line in (done.stdout + done.stderr).splitlines() if "cell failed" in line]
+    assert len(failed) == 1, done.stdout + done.stderr
+    assert failed[0].endswith("tired-no_robot-seed0: failed: [FATAL] hrc_human: cannot listen on "
+                              "127.0.0.1:9: [Errno 98] Address already in use (see "
+                              f"{out}/logs/tired-no_robot-seed0.log)")
+    pid = int(log.read_text().split()[1])
+    assert f"SIGINT {pid}" in log.read_text(), "the stack was stopped"

@@ -303,3 +303,92 @@ def test_the_plots_need_no_display_and_leave_pyplot_alone(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MPLBACKEND")}
     subprocess.run([sys.executable, "-c", code], check=True, env=env)
     assert_png(tmp_path / "o.png")
+
+
+# ------------------------------------------------------------------ files that cannot be used
+
+def test_a_binary_results_file_is_refused_by_name_and_left_as_it_is(tmp_path):
+    """Before: refused without naming the file, after being cut back to its last newline."""
+    binary = b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\x00\x01\x00 not a csv"
+    (tmp_path / "episodes.csv").write_bytes(binary)
+    with pytest.raises(ValueError) as info:
+        ResultsStore(tmp_path)
+    assert str(info.value).startswith(f"{tmp_path / 'episodes.csv'}: not a results CSV: "
+                                      "binary data")
+    assert (tmp_path / "episodes.csv").read_bytes() == binary
+
+
+def test_nothing_is_repaired_when_the_other_file_is_refused(tmp_path):
+    """A partial last line of episodes.csv is cut only once steps.csv is known to be good."""
+    store = ResultsStore(tmp_path)
+    store.add(episode(number=0), steps_of(episode(number=0)))
+    partial = (tmp_path / "episodes.csv").read_bytes() + b"careful,pomdp,0,1,1,hu"
+    (tmp_path / "episodes.csv").write_bytes(partial)
+    (tmp_path / "steps.csv").write_bytes(b"\xff\xfe" + "human_model".encode("utf-16-le"))
+    with pytest.raises(ValueError, match=f"^{tmp_path / 'steps.csv'}: not a results CSV"):
+        ResultsStore(tmp_path)
+    assert (tmp_path / "episodes.csv").read_bytes() == partial
+
+
+def test_the_experiment_refuses_a_binary_results_file_in_one_line(tmp_path, capsys):
+    from ros_hrc.experiment.cli import main
+    (tmp_path / "episodes.csv").write_bytes(b"\x00\x01\x02binary\nmore")
+    assert main(["--human-models", "tired", "--policies", "no_robot", "--seeds", "0",
+                 "--episodes", "1", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"hrc_experiment: {tmp_path / 'episodes.csv'}: not a results CSV: binary "
+                   "data (a NUL byte at byte 0); left as it is\n")
+    assert (tmp_path / "episodes.csv").read_bytes() == b"\x00\x01\x02binary\nmore"
+
+
+def test_a_summary_that_cannot_be_written_leaves_the_previous_one(tmp_path, monkeypatch):
+    """Before: the summary was opened for writing in place: a full disk left it cut short."""
+    import errno
+    from ros_hrc.pomdp import output
+    rows = [episode(number=n) for n in range(3)]
+    csv_path, md_path = write_summary(summarize(rows), tmp_path / "s.csv", tmp_path / "s.md")
+    before = (open(csv_path).read(), open(md_path).read())
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(output.os, "fsync", full)
+    with pytest.raises(OSError) as info:
+        write_summary(summarize(rows[:1]), csv_path, md_path)
+    assert info.value.errno == errno.ENOSPC and info.value.filename == str(csv_path)
+    assert (open(csv_path).read(), open(md_path).read()) == before
+    assert sorted(os.listdir(tmp_path)) == ["s.csv", "s.md"], "no temporary file left"
+
+
+def _can_mount_a_small_disk() -> bool:
+    try:
+        return subprocess.run(["unshare", "-rm", "sh", "-c",
+                               "mount -t tmpfs -o size=64k tmpfs /mnt 2>/dev/null || "
+                               "mount -t tmpfs -o size=64k tmpfs /tmp"],
+                              capture_output=True, timeout=30).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+
+
+@pytest.mark.skipif(not _can_mount_a_small_disk(),
+                    reason="needs a mount namespace for a small tmpfs (unshare -rm)")
+def test_a_full_disk_while_writing_the_summary_is_one_line(tmp_path):
+    """Before: OSError: [Errno 28] with a traceback. A real full disk: a 256 KiB tmpfs in a
+    mount namespace of the test's own, filled before hrc_experiment writes its summary."""
+    recorded = tmp_path / "recorded"
+    store = ResultsStore(recorded)
+    row = episode(human="tired", policy="no_robot", number=0)
+    store.add(row, steps_of(row))
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    out = disk / "out"
+    script = (f"mount -t tmpfs -o size=256k tmpfs {disk} && mkdir {out} && "
+              f"cp {recorded}/episodes.csv {recorded}/steps.csv {out}/ && echo 1 > {out}/.lock "
+              f"&& (dd if=/dev/zero of={disk}/filler bs=4096 2>/dev/null; true) && "
+              f"exec {sys.executable} -m ros_hrc.experiment.cli --human-models tired "
+              f"--policies no_robot --seeds 0 --episodes 1 --no-plots --out {out}")
+    done = subprocess.run(["unshare", "-rm", "sh", "-c", script], capture_output=True,
+                          text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.splitlines() == [
+        f"hrc_experiment: {out / 'summary.csv'}: No space left on device"]
+    assert "0 to run" in done.stdout
