@@ -1,4 +1,5 @@
-"""What the package's ROS-free commands share about their command line."""
+"""What the package's ROS-free commands share about their command line: dropping roslaunch's
+own arguments, ranged numbers, and a solver's options from its launch session."""
 from __future__ import annotations
 
 import argparse
@@ -35,3 +36,25 @@ def ranged_number(kind: type, low: float, high: float,
         return value
     parse.__name__ = kind.__name__      # argparse names it in some messages
     return parse
+
+
+def parse_launch_options(parser: argparse.ArgumentParser,
+                         argv: Optional[Sequence[str]] = None) -> argparse.Namespace:
+    """Parse a solver process's command line (:func:`own_arguments` of ``argv``). With
+    ``--link-session NAME`` (what hrc.launch gives), the launch's resolved settings, which its
+    pre-flight wrote beside the session's token (:func:`ros_hrc.link.token.read_session_settings`),
+    are the defaults of the options made from settings: every path in them is absolute,
+    resolved in the directory the user ran roslaunch from. An option on the command line still
+    wins. Settings that cannot be read are argparse's one-line error (exit status 2)."""
+    from ros_hrc.link.token import TokenError, read_session_settings
+    from ros_hrc.loop.settings import use_as_defaults
+
+    words = own_arguments(argv)
+    known, _rest = parser.parse_known_args(words)
+    session = getattr(known, "link_session", "")
+    if session:
+        try:
+            use_as_defaults(parser, read_session_settings(session))
+        except TokenError as exc:
+            parser.error(str(exc))
+    return parser.parse_args(words)

@@ -20,16 +20,23 @@ def user_path(text: str) -> Path:
     return Path(os.path.abspath(os.path.expanduser(str(text))))
 
 
+def names_a_file(name_or_path: str) -> bool:
+    """Whether a model argument is a path (it has a directory part, starts with ``~`` or ends
+    in ``.pomdp``/``.pomdpx``) rather than a scenario name looked up in the package."""
+    typed = Path(str(name_or_path))
+    return (typed.suffix in (".pomdp", ".pomdpx") or typed.parent != Path(".")
+            or str(name_or_path).startswith("~"))
+
+
 def resolve_model(name_or_path: str, kind: str) -> Path:
     """The absolute model file for a scenario name or a path (see :func:`user_path`);
     FileNotFoundError lists what exists."""
     candidate = user_path(name_or_path)
-    typed = Path(str(name_or_path))
-    if typed.suffix in (".pomdp", ".pomdpx") or typed.parent != Path(".") \
-            or str(name_or_path).startswith("~"):
+    if names_a_file(name_or_path):
         if candidate.is_file():
             return candidate
-        raise FileNotFoundError(f"no model file {name_or_path} (looked for {candidate})")
+        looked = "" if str(candidate) == str(name_or_path) else f" (looked for {candidate})"
+        raise FileNotFoundError(f"no model file {name_or_path}{looked}")
     folder = MODELS_DIR / kind
     for suffix in (".pomdpx", ".pomdp"):
         path = folder / f"{name_or_path}{suffix}"

@@ -19,6 +19,16 @@ whose ``auth`` is the same HMAC over "server" instead of "client". So a process 
 link's port before the stack started learns nothing it could use on another port, and a
 client never takes a server that cannot prove it knows the token for its own.
 
+Beside the token, the pre-flight writes the launch's resolved settings (every launch argument
+checked, defaults filled in, paths made absolute against the directory roslaunch was started
+from)::
+
+    $ROS_HOME/ros_hrc/links/<NAME>.settings.json   (file 0600, written once)
+
+A solver process given ``--link-session NAME`` takes its options from there
+(:func:`read_session_settings`), so that no path the user typed reaches it unresolved, and
+nothing a user typed is split by the launch file's command lines. It goes when the token goes.
+
 No ROS, no sockets: :mod:`ros_hrc.link.transport` uses these functions on both ends.
 """
 from __future__ import annotations
@@ -26,12 +36,13 @@ from __future__ import annotations
 import errno
 import hashlib
 import hmac
+import json
 import os
 import re
 import secrets
 import stat
 from pathlib import Path
-from typing import Mapping, Optional, Tuple
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 from ros_hrc.errors import LinkError
 
@@ -44,6 +55,7 @@ NONCE_BYTES = 16
 #: An ``auth`` field: HMAC-SHA256, 64 hex digits.
 AUTH_HEX_CHARS = 64
 _TOKEN_SUFFIX = ".token"
+_SETTINGS_SUFFIX = ".settings.json"
 _SESSION_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,199}")
 _HEX = re.compile(r"[0-9a-f]+")
 # The text every proof is taken over: the role, the server's port, the sender's name, the
@@ -69,6 +81,58 @@ def session_token_file(session: str, environ: Optional[Mapping[str, str]] = None
         raise TokenError(f"link session {session!r}: must be 1 to 200 letters, digits, '_', "
                          "'.' or '-', starting with a letter or digit")
     return token_dir(environ) / (session + _TOKEN_SUFFIX)
+
+
+def session_settings_file(session: str, environ: Optional[Mapping[str, str]] = None) -> Path:
+    """The resolved settings of launch session ``session``, beside its token file."""
+    token = session_token_file(session, environ)
+    return token.with_name(token.name[:-len(_TOKEN_SUFFIX)] + _SETTINGS_SUFFIX)
+
+
+def write_session_settings(session: str, config: Mapping[str, Any],
+                           environ: Optional[Mapping[str, str]] = None) -> Path:
+    """Write the launch's resolved settings (JSON values: text, numbers, booleans, null) for
+    its processes; created exclusively with mode 0600 like the token. Its path; raises
+    :class:`TokenError`."""
+    path = session_settings_file(session, environ)
+    _private_dir(path.parent)
+    text = json.dumps(dict(config), ensure_ascii=False, indent=1) + "\n"
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
+    try:
+        fd = os.open(path, flags, 0o600)
+    except FileExistsError:
+        raise TokenError(f"{path}: the settings of this session exist already; a session "
+                         "name is used by one launch only") from None
+    except OSError as exc:
+        raise TokenError(f"{path}: cannot write the launch's settings: "
+                         f"{exc.strerror or exc}") from None
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as exc:     # a full disk: no half-written file left behind
+        remove_token(path)
+        raise TokenError(f"{path}: cannot write the launch's settings: "
+                         f"{exc.strerror or exc}") from None
+    return path
+
+
+def read_session_settings(session: str, environ: Optional[Mapping[str, str]] = None
+                          ) -> Dict[str, Any]:
+    """The resolved settings the pre-flight of launch session ``session`` wrote (setting name
+    -> value); :class:`TokenError` with one line when there are none or they are unreadable."""
+    path = session_settings_file(session, environ)
+    try:
+        with open(path, encoding="utf-8") as f:
+            config = json.load(f)
+    except FileNotFoundError:
+        raise TokenError(f"{path}: no settings for link session {session} (hrc.launch's "
+                         "pre-flight, hrc_check --link-session, writes them)") from None
+    except (OSError, ValueError) as exc:
+        raise TokenError(f"{path}: cannot read the launch's settings: "
+                         f"{getattr(exc, 'strerror', None) or exc}") from None
+    if not isinstance(config, dict):
+        raise TokenError(f"{path}: not a launch's settings (expected a JSON object)")
+    return config
 
 
 def _private_dir(path: Path) -> None:
@@ -206,6 +270,7 @@ def prune_tokens(environ: Optional[Mapping[str, str]] = None) -> int:
         if len(words) == 2 and words[0] == b"launcher" and words[1].isdigit():
             if not _alive(int(words[1])):
                 removed += remove_token(path)
+                remove_token(path.with_name(path.name[:-len(_TOKEN_SUFFIX)] + _SETTINGS_SUFFIX))
     return removed
 
 

@@ -4,7 +4,9 @@ ports are checked before anything starts; the resolved configuration is printed 
     hrc_check human_model:=tired robot_port:=8081 ...     # the launch arguments, name:=value
 
 On success it prints the configuration (every setting, defaults filled in, a mapping name ->
-value) on stdout and exits 0. On the first problem it prints one line on stderr,
+value) on stdout and exits 0. Every path in it (a model file, ``policy_file``,
+``snapshot_dir``) is absolute: resolved here, in the directory roslaunch was started from,
+because the processes of the launch run in ``$ROS_HOME``. On the first problem it prints one line on stderr,
 ``hrc.launch: <what is wrong>`` naming the argument or the file, and exits 2; never a traceback.
 ``hrc.launch`` runs it as a ``<param command=...>`` so that roslaunch refuses to start anything
 when it fails::
@@ -19,6 +21,9 @@ before the YAML. Not on stdout: roslaunch reads stdout as the value of ``/hrc/co
 never shows it, while it passes the command's stderr through to the terminal, so the line is
 seen when the launch starts; a YAML comment would be parsed away unseen.
 
+``gui:=true`` and ``rviz:=true`` need a display: without DISPLAY, or when no X server answers
+there, the launch is refused (the window or RViz would die and the stack run on unseen).
+
 ``--no-port-check`` skips binding the ports (to check a configuration for later). The
 POMDP's port is only checked with ``start_pomdp:=true``: started by hand, the POMDP process
 may already serve it.
@@ -28,14 +33,19 @@ prints those, and starts its error lines with ``world.launch``.
 
 ``--link-session=NAME`` (hrc.launch gives ``$(anon hrc_link)``): once every check passed, make
 the launch's link token (:mod:`ros_hrc.link.token`), remove the tokens of launches that ended,
-and add the token file's path to the configuration as ``token_file``. When a solver is left to
-be run by hand (``start_mdp:=false`` / ``start_pomdp:=false``), one line on stderr says how to
-give it the token.
+write the resolved configuration beside the token (the solver processes, given the same
+``--link-session``, take their options from it) and add the token file's path to the
+configuration as ``token_file``. When a solver is left to be run by hand (``start_mdp:=false``
+/ ``start_pomdp:=false``), one line on stderr gives the whole command to run it with::
+
+    hrc.launch: run despot_mdp by hand: rosrun ros_hrc despot_mdp --host 127.0.0.1 --port 9090 \
+        --model humanModel --token-file ~/.ros/ros_hrc/links/hrc_link_....token
 """
 from __future__ import annotations
 
 import errno
 import os
+import shlex
 import socket
 import sys
 from typing import Dict, List, Mapping, Optional, Sequence
@@ -69,10 +79,17 @@ def parse_words(words: Sequence[str]) -> Dict[str, str]:
     return values
 
 
-def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None) -> None:
+def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None,
+                 given: Optional[Mapping[str, str]] = None) -> None:
     """Load both models and check them against the task's tables (and the policy file against
     the robot model for planner:=policy). The start-up line of each model named by position
-    is appended to ``notes``."""
+    is appended to ``notes``. An error names the argument as typed (``given``, the words'
+    values) and the file it looked for."""
+    given = given or {}
+
+    def typed(name: str) -> str:
+        return str(given.get(name) or config[name]).strip()
+
     from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model,
                                      positional_mapping_line)
 
@@ -81,7 +98,7 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
         try:
             loaded[name] = load(str(config[name]))
         except ModelNotFound as exc:
-            raise CheckError(f"{name}:={config[name]}: {exc}") from None
+            raise CheckError(f"{name}:={typed(name)}: {exc}") from None
         line = positional_mapping_line(loaded[name])
         if line is not None and notes is not None:
             notes.append(line)
@@ -92,7 +109,7 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
             load_policy(str(config["policy_file"]), loaded["robot_model"])
         except (HrcError, OSError, ValueError) as exc:
             text = " ".join(str(exc).split())
-            raise CheckError(f"policy_file:={config['policy_file']}: {text}") from None
+            raise CheckError(f"policy_file:={typed('policy_file')}: {text}") from None
 
 
 def ports_to_bind(config: Mapping[str, object]) -> List[str]:
@@ -131,16 +148,87 @@ def check_ports(config: Mapping[str, object]) -> None:
                                  f"({exc.strerror or exc})") from None
 
 
+def display_problem(display: Optional[str], timeout: float = 2.0) -> Optional[str]:
+    """Why no window can open on X display ``display`` (DISPLAY's value), or None when an X
+    server accepts connections there (local ``:N``: its socket; ``host:N``: TCP 6000+N)."""
+    if not display:
+        return "DISPLAY is not set"
+    host, sep, rest = display.rpartition(":")
+    number = rest.split(".", 1)[0]
+    if not sep or not number.isdigit():
+        return f"DISPLAY={display} is not a display name (such as :0)"
+    if host in ("", "unix"):
+        path = f"/tmp/.X11-unix/X{int(number)}"
+        # Linux X servers listen on an abstract socket of the same name too.
+        addresses = ["\0" + path, path] if sys.platform.startswith("linux") else [path]
+        for address in addresses:
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+                sock.settimeout(timeout)
+                try:
+                    sock.connect(address)
+                    return None
+                except OSError:
+                    continue
+        return f"no X server answers on DISPLAY={display}"
+    try:
+        with socket.create_connection((host, 6000 + int(number)), timeout=timeout):
+            return None
+    except OSError as exc:
+        return f"no X server answers on DISPLAY={display} ({exc.strerror or exc})"
+
+
+def check_display(config: Mapping[str, object],
+                  environ: Optional[Mapping[str, str]] = None) -> None:
+    """gui:=true (PyBullet's window) and rviz:=true need a display that answers."""
+    wanted = [name for name in ("gui", "rviz") if config.get(name)]
+    if not wanted:
+        return
+    env = os.environ if environ is None else environ
+    problem = display_problem(env.get("DISPLAY", ""))
+    if problem:
+        raise CheckError(f"{wanted[0]}:=true: needs a display, but {problem} (run it on a "
+                         f"desktop or under Xvfb, or leave {wanted[0]}:=false)")
+
+
 def check(words: Sequence[str], port_check: bool = True,
           notes: Optional[List[str]] = None) -> Dict[str, object]:
     """The resolved configuration of the launch arguments ``words``; raises HrcError (a
     SettingError, ModelError, ModelFormatError or CheckError) with one line on the first
     problem. Each model named by position adds its mapping line to ``notes``."""
-    config = settings.resolve(parse_words(words))
-    check_models(config, notes)
+    given = parse_words(words)
+    config = settings.resolve(given)
+    check_models(config, notes, given)
+    check_display(config)
     if port_check:
         check_ports(config)
     return config
+
+
+#: The solver processes a launch may leave to be run by hand: (its start_* setting, its port).
+BY_HAND = {"despot_mdp": ("start_mdp", "human_port"), "despot_pomdp": ("start_pomdp", "pomdp_port")}
+
+
+def hand_run_command(process: str, config: Mapping[str, object], token_file: str) -> str:
+    """The whole command that runs ``process`` by hand into this launch: its host, port,
+    model and token file, and each other option of its own whose setting is not the default
+    (taken from the process's own parser, so the command is what it accepts)."""
+    if process == "despot_mdp":
+        from ros_hrc.processes.despot_mdp import build_parser
+    else:
+        from ros_hrc.processes.despot_pomdp import build_parser
+    always = {"host", BY_HAND[process][1], "human_model", "robot_model"}
+    words = ["rosrun", "ros_hrc", process]
+    for action in build_parser()._actions:
+        name = getattr(action, "setting", None)
+        if name is None or name not in config:
+            continue
+        value = config[name]
+        if name not in always and value == settings.default(name):
+            continue
+        flag = max(action.option_strings, key=len)
+        words += [flag, shlex.quote(settings._shown(value))]
+    words += ["--token-file", shlex.quote(str(token_file))]
+    return " ".join(words)
 
 
 def make_link_token(session: str):
@@ -183,16 +271,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             given = parse_words(words)
             resolved = settings.resolve(given)
             config = {name: resolved[name] for name in given}
+            check_display(config)
         else:
             config = check(words, port_check, notes)
         if sessions:
-            config["token_file"] = str(make_link_token(sessions[-1]))
-            by_hand = [name for name, flag in (("despot_mdp", "start_mdp"),
-                                               ("despot_pomdp", "start_pomdp"))
-                       if not config[flag]]
-            if by_hand:
-                notes.append(f"run {' and '.join(by_hand)} by hand with --token-file "
-                             f"{config['token_file']} (this launch's link token)")
+            from ros_hrc.link.token import write_session_settings
+
+            token_file = str(make_link_token(sessions[-1]))
+            write_session_settings(sessions[-1], config)
+            config["token_file"] = token_file
+            for process, (flag, _port) in BY_HAND.items():
+                if not config[flag]:
+                    notes.append(f"run {process} by hand: "
+                                 f"{hand_run_command(process, config, token_file)}")
         for line in notes:   # only once every check passed: a refusal stays one line
             print(f"{prefix}: {line}", file=sys.stderr, flush=True)
         import yaml

@@ -14,6 +14,16 @@ value and what is wrong::
     default(name)                   -> the default
     resolve({name: value, ...})     -> every setting, checked together (ports distinct, ...)
     add_argument(parser, name, ...) -> an argparse option with the table's type, default, help
+    use_as_defaults(parser, config) -> resolved settings as the defaults of those options
+
+Paths: a model path, ``policy_file`` and ``snapshot_dir`` are made absolute against the
+directory of the command that parses them (:func:`ros_hrc.model_files.user_path`), so the entry
+point that the user ran resolves them once and only absolute paths travel on to processes that
+run elsewhere. Scenario names (``tired``) stay names.
+
+Numbers: an integer setting is at most :data:`INT32_MAX`, the largest integer the ROS parameter
+server (XML-RPC) carries, since every setting is on it (``/hrc/config``) and several are node
+parameters; each other bound is what the setting's consumer takes.
 """
 from __future__ import annotations
 
@@ -25,15 +35,26 @@ from dataclasses import dataclass
 from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
 from ros_hrc.errors import HrcError
+from ros_hrc.model_files import names_a_file, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
-           "add_argument", "TRUE_WORDS", "FALSE_WORDS"]
+           "add_argument", "use_as_defaults", "TRUE_WORDS", "FALSE_WORDS", "AUTO_WORD",
+           "NO_FILE_WORD", "INT32_MAX"]
 
 TRUE_WORDS = ("true", "1", "yes", "on")
 FALSE_WORDS = ("false", "0", "no", "off")
+#: What an automatic setting (default None) is given to leave the choice to :func:`resolve`
+#: (the launch files' default, so that ``roslaunch --ros-args`` lists it as optional).
+AUTO_WORD = "auto"
+#: A file setting's "no file" (the launch files' default for ``policy_file``; a file of that
+#: name is given as ``./none``).
+NO_FILE_WORD = "none"
+#: The largest integer any setting may take: the ROS parameter server's ints are XML-RPC's
+#: 32-bit ones, and roslaunch fails with a traceback on a larger one.
+INT32_MAX = 2**31 - 1
 
 #: Setting kinds: how a value is read.
-KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file")
+KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir")
 
 
 class SettingError(HrcError):
@@ -60,7 +81,7 @@ def _shown(value: Any) -> str:
 
 
 def _number(x: float) -> str:
-    return f"{x:g}"
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e15 else f"{x:g}"
 
 
 @dataclass(frozen=True)
@@ -79,6 +100,7 @@ class Setting:
     choices: Optional[Tuple[str, ...]] = None
     exclusive_minimum: bool = False    # value > minimum rather than >=
     unit: str = ""
+    smallest_nonzero: Optional[float] = None   # 0, or at least this (a float's off switch)
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -97,6 +119,8 @@ class Setting:
         if self.kind in ("int", "float"):
             noun = "an integer" if self.kind == "int" else "a number"
             lo, hi = self.minimum, self.maximum
+            if self.smallest_nonzero is not None:
+                noun, lo = f"0 or {noun}", self.smallest_nonzero
             if lo is not None and hi is not None and not self.exclusive_minimum:
                 return f"must be {noun} from {_number(lo)} to {_number(hi)}{unit}"
             parts = []
@@ -115,6 +139,8 @@ class Setting:
             return "must name a model (a scenario name or a model file)"
         if self.kind == "file":
             return "must be a readable file"
+        if self.kind == "dir":
+            return "must be a directory (made if missing)"
         return "must be a string"
 
     def parse(self, value: Any) -> Any:
@@ -129,6 +155,8 @@ class Setting:
         return SettingError(self.name, value, self.requirement(), unparsable)
 
     def _in_range(self, value: Any, number: float) -> None:
+        if self.smallest_nonzero is not None and 0 < number < self.smallest_nonzero:
+            raise self._refuse(value)
         if self.minimum is not None:
             if number < self.minimum or (self.exclusive_minimum and number == self.minimum):
                 raise self._refuse(value)
@@ -160,13 +188,15 @@ class Setting:
         self._in_range(value, number)
         return number
 
-    def _parse_bool(self, value: Any) -> bool:
+    def _parse_bool(self, value: Any) -> Optional[bool]:
         if isinstance(value, bool):
             return value
         if isinstance(value, int) and value in (0, 1):
             return bool(value)
         if isinstance(value, str):
             word = value.strip().lower()
+            if word == AUTO_WORD and self.default is None:
+                return None
             if word in TRUE_WORDS:
                 return True
             if word in FALSE_WORDS:
@@ -185,9 +215,11 @@ class Setting:
         return value.strip()
 
     def _parse_model(self, value: Any) -> str:
+        """A scenario name as it is; a path made absolute (:func:`user_path`)."""
         if not isinstance(value, str) or any(c in value for c in "\n\r\0"):
             raise self._refuse(value)
-        return value.strip()
+        text = value.strip()
+        return str(user_path(text)) if names_a_file(text) else text
 
     def _parse_host(self, value: Any) -> str:
         text = str(value).strip()
@@ -196,11 +228,23 @@ class Setting:
         return text
 
     def _parse_file(self, value: Any) -> str:
-        if not isinstance(value, str) or "\0" in value:
+        """An absolute path (:func:`user_path`) to a readable file; ``none``: no file."""
+        if not isinstance(value, str) or any(c in value for c in "\n\r\0"):
             raise self._refuse(value)
-        path = os.path.expanduser(value.strip())
+        if value.strip() == NO_FILE_WORD:
+            return self.default
+        path = str(user_path(value.strip()))
         if not os.path.isfile(path) or not os.access(path, os.R_OK):
-            raise SettingError(self.name, value, "no readable file there")
+            raise SettingError(self.name, value, f"no readable file there (looked for {path})")
+        return path
+
+    def _parse_dir(self, value: Any) -> str:
+        """An absolute path (:func:`user_path`) that is a directory or not there yet."""
+        if not isinstance(value, str) or any(c in value for c in "\n\r\0"):
+            raise self._refuse(value)
+        path = str(user_path(value.strip()))
+        if os.path.exists(path) and not os.path.isdir(path):
+            raise SettingError(self.name, value, f"{path} is not a directory")
         return path
 
 
@@ -242,20 +286,22 @@ _TABLE: Iterable[Setting] = (
        "it (or call /hrc/set_human_state)", choices=("auto", "manual")),
     _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
     _s("seed", "int", 0, "random seed of the world and both solvers: same seed, same run",
-       minimum=0),
+       minimum=0, maximum=INT32_MAX),
     _s("use_sim_time", "bool", False,
        "the world publishes /clock and every node runs on simulated time"),
+    # (a factor below 0.001 would have the world sleep longer than a clock can count)
     _s("real_time_factor", "float", 1.0,
-       "simulated seconds per wall second; 0 = as fast as possible", minimum=0),
-    _s("pause_when_idle", "bool", None, "freeze simulated time between actions; empty = "
-       "automatic: true exactly when real_time_factor is 0 (the run then depends only on the "
-       "seed)"),
+       "simulated seconds per wall second; 0 = as fast as possible", minimum=0, maximum=1000,
+       smallest_nonzero=0.001),
+    _s("pause_when_idle", "bool", None, "freeze simulated time between actions; auto (or "
+       "empty): true when real_time_factor is 0 (the run then depends only on the seed) or in "
+       "manual mode (the world waits while you type a state)"),
     _s("belt_speed", "float", 0.02, "conveyor belt speed", minimum=0, maximum=0.5, unit="m/s"),
     # watching it
     _s("viz", "bool", True, "publish what RViz shows: each agent's description and joint "
        "states, /tf (robot_state_publisher per agent) and the step's markers"),
     _s("rviz", "bool", False, "start RViz with launch/hrc.rviz (needs a display; implies viz)"),
-    _s("snapshot_dir", "str", "", "where /hrc/world/snapshot writes its PNGs (empty: "
+    _s("snapshot_dir", "dir", "", "where /hrc/world/snapshot writes its PNGs (empty: "
        "$ROS_HOME/hrc_snapshots); names are unique per run"),
     _s("camera_rate", "float", 0.0, "rate of /hrc/camera/image, the snapshot renderer's view "
        "(0: off)", minimum=0, maximum=30, unit="Hz"),
@@ -276,8 +322,10 @@ _TABLE: Iterable[Setting] = (
        exclusive_minimum=True),
     _s("manual_share", "float", 0.8, "belief share of a manually entered state", minimum=0,
        maximum=1, exclusive_minimum=True),
-    _s("step_delay", "float", 1.0, "pause between steps in auto mode", minimum=0, unit="s"),
-    _s("max_steps", "int", 0, "end an episode after this many steps (0: no limit)", minimum=0),
+    _s("step_delay", "float", 1.0, "pause between steps in auto mode", minimum=0,
+       maximum=3600, unit="s"),
+    _s("max_steps", "int", 0, "end an episode after this many steps (0: no limit)", minimum=0,
+       maximum=INT32_MAX),
     _s("on_episode_end", "choice", "wait", "wait (for Enter or /hrc/reset), reset (start a new "
        "episode) or continue", choices=("wait", "reset", "continue")),
     _s("end_on_goal", "bool", True,
@@ -289,17 +337,19 @@ _TABLE: Iterable[Setting] = (
        "never acts); explore (a uniformly random action each step, seeded: hrc_fit's "
        "exploring robot)", choices=("despot", "policy", "reactive", "none", "explore")),
     _s("policy_file", "file", "",
-       "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that planner"),
+       "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that planner "
+       "(none: no file)"),
     _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision", minimum=0,
        maximum=60, exclusive_minimum=True, unit="s"),
     _s("scenarios", "int", 500, "DESPOT's number of sampled scenarios K", minimum=1,
        maximum=100000),
     _s("depth", "int", 90, "DESPOT's maximum search depth", minimum=1, maximum=1000),
-    _s("lambda", "float", 0.1, "DESPOT's regularisation constant", minimum=0),
+    _s("lambda", "float", 0.1, "DESPOT's regularisation constant", minimum=0, maximum=1000),
     _s("max_trials", "int", 0, "cap on DESPOT trials per decision (0: time only; set it for "
-       "reproducible runs)", minimum=0),
+       "reproducible runs)", minimum=0, maximum=INT32_MAX),
     _s("reactive_budget", "int", 8, "planner:=reactive helps after this many steps since the "
-       "reset without the human getting the object (0: never for that reason)", minimum=0),
+       "reset without the human getting the object (0: never for that reason)", minimum=0,
+       maximum=INT32_MAX),
     _s("read_stdin", "bool", True, "Enter on the roslaunch terminal resets everything"),
 )
 
@@ -333,7 +383,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
             ) -> Dict[str, Any]:
     """Every setting, in table order: the given ones parsed, the others their defaults, then
     the checks that involve several (distinct ports, policy_file with planner:=policy) and the
-    automatic ones (pause_when_idle, mdp_xterm; ``environ`` for DISPLAY, os.environ by default).
+    automatic ones (pause_when_idle: when real_time_factor is 0 or in manual mode; mdp_xterm:
+    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default).
 
     Raises SettingError on the first problem; unknown names are refused, all of them named.
     """
@@ -359,7 +410,9 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
         raise SettingError("policy_file", values.get("policy_file"),
                            f"only used with planner:=policy, not planner:={out['planner']}")
     if out["pause_when_idle"] is None:
-        out["pause_when_idle"] = out["real_time_factor"] == 0
+        # Manual mode: the world must not run on (the belt carrying the object away) while
+        # someone types the human's next state.
+        out["pause_when_idle"] = out["real_time_factor"] == 0 or out["mode"] == "manual"
     if out["mdp_xterm"] is None:
         env = os.environ if environ is None else environ
         out["mdp_xterm"] = out["mode"] == "manual" and bool(env.get("DISPLAY", ""))
@@ -393,4 +446,14 @@ def add_argument(parser, name: str, *flags: str, **kwargs: Any):
     if flags and all(f.startswith("-") for f in flags):
         options["dest"] = name        # -p for planner still sets args.planner
     options.update(kwargs)
-    return parser.add_argument(*(flags or (setting.flag,)), **options)
+    action = parser.add_argument(*(flags or (setting.flag,)), **options)
+    action.setting = name             # what use_as_defaults matches on
+    return action
+
+
+def use_as_defaults(parser, config: Mapping[str, Any]) -> None:
+    """Make the values of ``config`` (setting name -> resolved value, e.g. a launch session's
+    settings) the defaults of the parser's options made by :func:`add_argument`; an option
+    given on the command line still wins."""
+    parser.set_defaults(**{action.dest: config[action.setting] for action in parser._actions
+                           if getattr(action, "setting", None) in config})

@@ -22,7 +22,10 @@ recovery) puts the human back to its initial state, step 0, zero reward.
 
 The human node takes only processes of its own launch: this one proves the launch's link token
 in its hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
-``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`).
+``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`). Under hrc.launch its options are the
+launch's resolved settings, which the pre-flight wrote beside the token (every path absolute);
+an option on its command line wins (:func:`ros_hrc.command_line.parse_launch_options`). A
+relative ``--model`` given by hand is taken from the directory it runs in.
 """
 from __future__ import annotations
 
@@ -35,7 +38,7 @@ import threading
 import time
 from typing import Optional, TextIO, Tuple
 
-from ros_hrc.command_line import own_arguments, ranged_number
+from ros_hrc.command_line import parse_launch_options, ranged_number
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, Ack, Error, Message, NextState, Reset, Step,
                                    is_reply_to, reply_error)
@@ -349,7 +352,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[list] = None) -> int:
-    args = build_parser().parse_args(own_arguments(argv))
+    args = parse_launch_options(build_parser(), argv)
     try:
         model = load_human_model(args.human_model)
         agent = HumanAgent(model, HumanAgentConfig(choice=args.human_choice, temperature=args.temperature,

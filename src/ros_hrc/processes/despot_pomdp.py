@@ -15,7 +15,10 @@ belief keeps the prediction through T without it, the step goes on, and the term
 
 It serves only processes of its own launch: a client must prove the launch's link token in its
 hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
-``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`).
+``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`). Under hrc.launch its options are the
+launch's resolved settings, which the pre-flight wrote beside the token (every path absolute);
+an option on its command line wins (:func:`ros_hrc.command_line.parse_launch_options`). A
+relative ``--model`` or ``--policy`` given by hand is taken from the directory it runs in.
 """
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ from typing import Optional
 
 import numpy as np
 
-from ros_hrc.command_line import own_arguments
+from ros_hrc.command_line import parse_launch_options
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, DispatchTable,
                                    Message, Observation, Reset, reply_error)
@@ -175,7 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[list] = None) -> int:
-    args = build_parser().parse_args(own_arguments(argv))
+    args = parse_launch_options(build_parser(), argv)
     try:
         model = load_robot_model(args.robot_model)
         planner = build_planner(model, args)

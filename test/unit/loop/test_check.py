@@ -11,7 +11,7 @@ import yaml
 
 from ros_hrc.link.transport import free_port
 from ros_hrc.loop import settings
-from ros_hrc.loop.check import check, main, parse_words
+from ros_hrc.loop.check import CheckError, check, check_display, main, parse_words
 
 ROOT = Path(__file__).resolve().parents[3]
 SCRIPT = ROOT / "scripts" / "hrc_check"
@@ -76,9 +76,9 @@ def test_without_arguments_every_default(capsys):
      "explore"),
     ("time_per_step:=-1", "hrc.launch: time_per_step:=-1: must be a number > 0 and <= 60 (s)"),
     ("scenarios:=0", "hrc.launch: scenarios:=0: must be an integer from 1 to 100000"),
-    ("step_delay:=-1", "hrc.launch: step_delay:=-1: must be a number >= 0 (s)"),
+    ("step_delay:=-1", "hrc.launch: step_delay:=-1: must be a number from 0 to 3600 (s)"),
     ("belt_speed:=-5", "hrc.launch: belt_speed:=-5: must be a number from 0 to 0.5 (m/s)"),
-    ("seed:=-1", "hrc.launch: seed:=-1: must be an integer >= 0"),
+    ("seed:=-1", "hrc.launch: seed:=-1: must be an integer from 0 to 2147483647"),
     ("on_episode_end:=never", "hrc.launch: on_episode_end:=never: must be one of wait, reset, "
                               "continue"),
     ("bogus_argument:=1", "hrc.launch: bogus_argument:=1: no such argument; known: human_model, "),
@@ -166,8 +166,9 @@ def test_a_link_session_makes_the_launch_s_private_token_once_every_check_passed
     # The secret is in the file only: not in the configuration, not on the terminal.
     token = token_file.read_text().split()[0]
     assert token not in out and token not in err
-    assert err.splitlines() == [f"hrc.launch: run despot_pomdp by hand with --token-file "
-                                f"{token_file} (this launch's link token)"]
+    assert err.splitlines() == [f"hrc.launch: run despot_pomdp by hand: rosrun ros_hrc "
+                                f"despot_pomdp --model robot --host 127.0.0.1 --port 7070 "
+                                f"--token-file {token_file}"]
     # A refused launch makes no token.
     assert main(["--no-port-check", "seed:=-1", "--link-session=hrc_link_t2"]) == 2
     assert not (tmp_path / "ros_hrc" / "links" / "hrc_link_t2.token").exists()
@@ -177,4 +178,102 @@ def test_world_mode_checks_and_prints_only_the_world_s_arguments(capsys):
     assert main(["--world", "seed:=4", "belt_speed:=0.1"]) == 0
     assert yaml.safe_load(capsys.readouterr().out) == {"seed": 4, "belt_speed": 0.1}
     assert main(["--world", "seed:=-1"]) == 2
-    assert capsys.readouterr().err == "world.launch: seed:=-1: must be an integer >= 0\n"
+    assert capsys.readouterr().err == ("world.launch: seed:=-1: must be an integer from 0 to "
+                                       "2147483647\n")
+
+
+def test_world_mode_decides_pause_when_idle_from_the_loop_s_mode(capsys):
+    assert main(["--world", "pause_when_idle:=auto", "mode:=manual"]) == 0
+    assert yaml.safe_load(capsys.readouterr().out)["pause_when_idle"] is True
+    assert main(["--world", "pause_when_idle:=auto", "mode:=auto"]) == 0
+    assert yaml.safe_load(capsys.readouterr().out)["pause_when_idle"] is False
+
+
+def test_every_path_is_made_absolute_where_the_check_runs(tmp_path, monkeypatch, capsys):
+    """The processes of the launch run in $ROS_HOME: they get only absolute paths."""
+    root = tmp_path / "my models é"
+    root.mkdir()
+    (root / "r.pomdp").write_text((ROOT / "models" / "robot" / "robot.pomdp").read_text())
+    (root / "h.pomdpx").write_text((ROOT / "models" / "human" / "tired.pomdpx").read_text())
+    monkeypatch.chdir(root)
+    assert main(["--no-port-check", "robot_model:=./r.pomdp", "human_model:=h.pomdpx",
+                 "snapshot_dir:=../shots"]) == 0
+    config = yaml.safe_load(capsys.readouterr().out)
+    assert config["robot_model"] == str(root / "r.pomdp")
+    assert config["human_model"] == str(root / "h.pomdpx")
+    assert config["snapshot_dir"] == str(tmp_path / "shots")
+
+
+def test_a_window_needs_a_display_that_answers(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    for name in ("gui", "rviz"):
+        assert refused("--no-port-check", f"{name}:=true") == (
+            f"hrc.launch: {name}:=true: needs a display, but DISPLAY is not set (run it on a "
+            f"desktop or under Xvfb, or leave {name}:=false)")
+    with pytest.raises(CheckError, match="DISPLAY=nonsense is not a display name"):
+        check_display({"gui": True}, {"DISPLAY": "nonsense"})
+    with socket.socket() as unused:       # a port nobody listens on: display number - 6000
+        unused.bind(("127.0.0.1", 0))
+        port = unused.getsockname()[1]
+    if port > 6000:
+        with pytest.raises(CheckError, match="no X server answers on DISPLAY=127.0.0.1:"):
+            check_display({"rviz": True}, {"DISPLAY": f"127.0.0.1:{port - 6000}"})
+    check_display({"gui": False, "rviz": False}, {})      # no window: no display needed
+
+
+def test_the_session_s_settings_beside_its_token_are_the_solver_s_options(
+        tmp_path, monkeypatch, capsys):
+    """What a solver given --link-session runs with: the check's resolved settings, paths
+    absolute (it runs in $ROS_HOME, not where the user typed them); its own options win."""
+    from ros_hrc.command_line import parse_launch_options
+    from ros_hrc.processes import despot_mdp, despot_pomdp
+
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "home"))
+    (tmp_path / "r.pomdp").write_text((ROOT / "models" / "robot" / "robot.pomdp").read_text())
+    monkeypatch.chdir(tmp_path)
+    assert main(["--no-port-check", "robot_model:=r.pomdp", "seed:=9", "mode:=manual",
+                 "human_port:=9191", "--link-session=hrc_link_t3"]) == 0
+    capsys.readouterr()
+    monkeypatch.chdir(tmp_path / "home")
+    pomdp = parse_launch_options(despot_pomdp.build_parser(),
+                                 ["--link-session=hrc_link_t3", "__name:=despot_pomdp"])
+    assert (pomdp.robot_model, pomdp.seed) == (str(tmp_path / "r.pomdp"), 9)
+    mdp = parse_launch_options(despot_mdp.build_parser(),
+                               ["--link-session=hrc_link_t3", "--seed=4"])
+    assert (mdp.human_model, mdp.mode, mdp.human_port, mdp.seed) == \
+        ("humanModel", "manual", 9191, 4)
+    with pytest.raises(SystemExit):
+        parse_launch_options(despot_mdp.build_parser(), ["--link-session=hrc_link_none"])
+    assert "no settings for link session hrc_link_none" in capsys.readouterr().err
+
+
+def test_the_printed_hand_run_command_is_one_the_solver_takes(tmp_path, monkeypatch, capsys):
+    """Before: it gave only --token-file, not the port, host or model of this launch."""
+    import shlex
+
+    from ros_hrc.command_line import parse_launch_options
+    from ros_hrc.processes import despot_mdp, despot_pomdp
+
+    monkeypatch.setenv("ROS_HOME", str(tmp_path))
+    folder = tmp_path / "my models"
+    folder.mkdir()
+    (folder / "r.pomdp").write_text((ROOT / "models" / "robot" / "robot.pomdp").read_text())
+    monkeypatch.chdir(tmp_path)
+    assert main(["--no-port-check", "start_mdp:=false", "start_pomdp:=false", "mode:=manual",
+                 "human_port:=9393", "robot_model:=my models/r.pomdp", "planner:=reactive",
+                 "--link-session=hrc_link_t4"]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 2
+    commands = {}
+    for line in lines:
+        head, _, command = line.partition(" by hand: ")
+        words = shlex.split(command)
+        assert words[:2] == ["rosrun", "ros_hrc"]
+        commands[words[2]] = words[3:]
+    mdp = parse_launch_options(despot_mdp.build_parser(), commands["despot_mdp"])
+    assert (mdp.human_port, mdp.host, mdp.mode, mdp.human_model) == \
+        (9393, "127.0.0.1", "manual", "humanModel")
+    assert mdp.token_file == str(tmp_path / "ros_hrc" / "links" / "hrc_link_t4.token")
+    pomdp = parse_launch_options(despot_pomdp.build_parser(), commands["despot_pomdp"])
+    assert (pomdp.pomdp_port, pomdp.planner, pomdp.robot_model) == \
+        (7070, "reactive", str(folder / "r.pomdp"))

@@ -19,25 +19,39 @@ CASES = [
     ("scenarios:=0", "hrc.launch: scenarios:=0"),
     ("step_delay:=-1", "hrc.launch: step_delay:=-1"),
     ("belt_speed:=-5", "hrc.launch: belt_speed:=-5"),
-    ("seed:=-1", "hrc.launch: seed:=-1: must be an integer >= 0"),
-    ("real_time_factor:=-1", "hrc.launch: real_time_factor:=-1: must be a number >= 0"),
+    ("seed:=-1", "hrc.launch: seed:=-1: must be an integer from 0 to 2147483647"),
+    ("real_time_factor:=-1",
+     "hrc.launch: real_time_factor:=-1: must be 0 or a number from 0.001 to 1000"),
     ("temperature:=nan", "hrc.launch: temperature:=nan"),
+    # Past int32 the parameter server cannot carry them: roslaunch ended in a traceback.
+    (f"seed:={2**64}", f"hrc.launch: seed:={2**64}: must be an integer from 0 to 2147483647"),
+    (f"seed:={2**31}", f"hrc.launch: seed:={2**31}: must be an integer from 0 to 2147483647"),
+    (f"max_steps:={2**40}",
+     f"hrc.launch: max_steps:={2**40}: must be an integer from 0 to 2147483647"),
+    # A value with a space is one argument: it was split ("'with': expected name:=value").
+    ("robot_model:=my models/r.pomdp", "hrc.launch: robot_model:=my models/r.pomdp: no model "
+     "file "),
+    ("human_model:=it's here.pomdpx", "hrc.launch: human_model:=it's here.pomdpx: no model "
+     "file "),
 ]
 
 WORLD_CASES = [
-    ("seed:=-1", "world.launch: seed:=-1: must be an integer >= 0"),
-    ("real_time_factor:=-1", "world.launch: real_time_factor:=-1: must be a number >= 0"),
+    ("seed:=-1", "world.launch: seed:=-1: must be an integer from 0 to 2147483647"),
+    (f"seed:={2**31}", f"world.launch: seed:={2**31}: must be an integer from 0 to 2147483647"),
+    ("real_time_factor:=-1",
+     "world.launch: real_time_factor:=-1: must be 0 or a number from 0.001 to 1000"),
     ("camera_rate:=nan", "world.launch: camera_rate:=nan: must be a number from 0 to 30"),
     ("belt_speed:=fast", "world.launch: belt_speed:=fast"),
 ]
 
 
-def roslaunch(*args, launch="hrc.launch"):
+def roslaunch(*args, launch="hrc.launch", cwd=None, environ=None):
     port = free_port()
-    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
+    env = dict(os.environ if environ is None else environ,
+               ROS_MASTER_URI=f"http://127.0.0.1:{port}")
     done = subprocess.run(["roslaunch", "-p", str(port), "ros_hrc", launch, *args],
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, env=env,
-                          timeout=120)
+                          timeout=120, cwd=cwd)
     with socket.socket() as s:
         master_up = s.connect_ex(("127.0.0.1", port)) == 0
     return done, master_up
@@ -77,3 +91,69 @@ def test_a_robot_model_that_does_not_fit_the_task_stops_the_launch(tmp_path):
     assert ours == [f"hrc.launch: {bad}: observations O36 are not the task's observations "
                     "(missing: O35)"], done.stderr
     assert not master_up
+
+
+def refused_in_one_line(done, master_up, prefix="hrc.launch: "):
+    assert done.returncode != 0
+    ours = [x for x in done.stderr.splitlines() if x.startswith(prefix)]
+    assert len(ours) == 1, done.stderr
+    assert "Traceback" not in done.stderr + done.stdout
+    assert "process[" not in done.stdout, "a process was started"
+    assert not master_up
+    return ours[0]
+
+
+def test_a_missing_relative_model_stops_the_launch_naming_it_as_typed(tmp_path):
+    """Resolved in the directory roslaunch runs in: before, hrc_check took it there and the
+    solver (which runs in $ROS_HOME) died on "no model file" and respawned forever."""
+    done, master_up = roslaunch("human_model:=./tired.pomdpx", cwd=tmp_path)
+    line = refused_in_one_line(done, master_up)
+    assert line == (f"hrc.launch: human_model:=./tired.pomdpx: no model file "
+                    f"{tmp_path / 'tired.pomdpx'}")
+
+
+def test_a_missing_relative_policy_file_stops_the_launch(tmp_path):
+    done, master_up = roslaunch("planner:=policy", "policy_file:=robot.policy", cwd=tmp_path)
+    line = refused_in_one_line(done, master_up)
+    assert line == (f"hrc.launch: policy_file:=robot.policy: no readable file there "
+                    f"(looked for {tmp_path / 'robot.policy'})")
+
+
+def without_display():
+    return {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+
+
+@pytest.mark.parametrize("word", ["rviz:=true", "gui:=true"])
+def test_a_window_without_a_display_stops_the_launch(word):
+    """Before: RViz died (or the world's window could not open) and the stack ran on."""
+    done, master_up = roslaunch(word, environ=without_display())
+    name = word.split(":=")[0]
+    assert refused_in_one_line(done, master_up) == (
+        f"hrc.launch: {name}:=true: needs a display, but DISPLAY is not set (run it on a "
+        f"desktop or under Xvfb, or leave {name}:=false)")
+
+
+def test_rviz_on_a_display_nobody_serves_stops_the_launch():
+    number = next(n for n in range(190, 290) if not os.path.exists(f"/tmp/.X11-unix/X{n}"))
+    environ = dict(os.environ, DISPLAY=f":{number}")
+    done, master_up = roslaunch("rviz:=true", environ=environ)
+    assert refused_in_one_line(done, master_up).startswith(
+        f"hrc.launch: rviz:=true: needs a display, but no X server answers on "
+        f"DISPLAY=:{number}")
+    done, master_up = roslaunch("rviz:=true", launch="world.launch", environ=environ)
+    assert refused_in_one_line(done, master_up, "world.launch: ").startswith(
+        "world.launch: rviz:=true: needs a display")
+
+
+@pytest.mark.parametrize("launch", ["hrc.launch", "world.launch"])
+def test_ros_args_lists_every_argument_as_optional_with_its_doc(launch):
+    """Before: every argument of hrc.launch was "Required" (an empty default) and the
+    derived _mdp_prefix showed as "undocumented"."""
+    done = subprocess.run(["roslaunch", "ros_hrc", launch, "--ros-args"], capture_output=True,
+                          text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0] == "Optional Arguments:" and "Required Arguments:" not in lines
+    for line in lines[1:]:
+        assert not line.strip().startswith("_"), line
+        assert "undocumented" not in line, line

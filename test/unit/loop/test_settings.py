@@ -63,9 +63,18 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("human_port", "abc", "human_port:=abc: must be an integer from 1 to 65535, got 'abc'"),
     ("pomdp_port", "0", "pomdp_port:=0: must be an integer from 1 to 65535"),
     ("pomdp_port", "80.5", "pomdp_port:=80.5: must be an integer from 1 to 65535, got '80.5'"),
-    ("seed", "-1", "seed:=-1: must be an integer >= 0"),
-    ("seed", "x", "seed:=x: must be an integer >= 0, got 'x'"),
-    ("step_delay", "-1", "step_delay:=-1: must be a number >= 0 (s)"),
+    ("seed", "-1", "seed:=-1: must be an integer from 0 to 2147483647"),
+    ("seed", "x", "seed:=x: must be an integer from 0 to 2147483647, got 'x'"),
+    # Past int32 the ROS parameter server cannot carry it (roslaunch died with a traceback).
+    ("seed", "2147483648", "seed:=2147483648: must be an integer from 0 to 2147483647"),
+    ("seed", str(2**64), f"seed:={2**64}: must be an integer from 0 to 2147483647"),
+    ("max_steps", str(2**40), f"max_steps:={2**40}: must be an integer from 0 to 2147483647"),
+    ("max_trials", str(2**31), f"max_trials:={2**31}: must be an integer from 0 to 2147483647"),
+    ("reactive_budget", str(2**31),
+     f"reactive_budget:={2**31}: must be an integer from 0 to 2147483647"),
+    ("step_delay", "-1", "step_delay:=-1: must be a number from 0 to 3600 (s)"),
+    # time.sleep and queue timeouts overflow on such a delay
+    ("step_delay", "1e300", "step_delay:=1e300: must be a number from 0 to 3600 (s)"),
     ("belt_speed", "-5", "belt_speed:=-5: must be a number from 0 to 0.5 (m/s)"),
     ("belt_speed", "0.6", "belt_speed:=0.6: must be a number from 0 to 0.5 (m/s)"),
     ("time_per_step", "-1", "time_per_step:=-1: must be a number > 0 and <= 60 (s)"),
@@ -75,11 +84,14 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("scenarios", "0", "scenarios:=0: must be an integer from 1 to 100000"),
     ("scenarios", "100001", "scenarios:=100001: must be an integer from 1 to 100000"),
     ("depth", "0", "depth:=0: must be an integer from 1 to 1000"),
-    ("lambda", "-0.1", "lambda:=-0.1: must be a number >= 0"),
-    ("max_trials", "-1", "max_trials:=-1: must be an integer >= 0"),
-    ("reactive_budget", "-2", "reactive_budget:=-2: must be an integer >= 0"),
-    ("max_steps", "-1", "max_steps:=-1: must be an integer >= 0"),
-    ("real_time_factor", "-1", "real_time_factor:=-1: must be a number >= 0"),
+    ("lambda", "-0.1", "lambda:=-0.1: must be a number from 0 to 1000"),
+    ("max_trials", "-1", "max_trials:=-1: must be an integer from 0 to 2147483647"),
+    ("reactive_budget", "-2", "reactive_budget:=-2: must be an integer from 0 to 2147483647"),
+    ("max_steps", "-1", "max_steps:=-1: must be an integer from 0 to 2147483647"),
+    ("real_time_factor", "-1", "real_time_factor:=-1: must be 0 or a number from 0.001 to 1000"),
+    # the world would sleep longer per physics step than a clock can count
+    ("real_time_factor", "1e-300",
+     "real_time_factor:=1e-300: must be 0 or a number from 0.001 to 1000"),
     ("temperature", "0", "temperature:=0: must be a number > 0"),
     ("manual_share", "0", "manual_share:=0: must be a number > 0 and <= 1"),
     ("manual_share", "1.5", "manual_share:=1.5: must be a number > 0 and <= 1"),
@@ -111,6 +123,7 @@ def test_a_setting_error_is_an_hrc_error_with_its_parts():
 def test_numbers_and_python_values():
     assert settings.parse("seed", "  42 ") == 42
     assert settings.parse("seed", 7) == 7
+    assert settings.parse("seed", str(2**31 - 1)) == 2**31 - 1
     assert settings.parse("robot_port", "65535") == 65535
     assert settings.parse("time_per_step", "60") == 60.0
     assert settings.parse("time_per_step", 1) == 1.0
@@ -118,7 +131,8 @@ def test_numbers_and_python_values():
     assert settings.parse("real_time_factor", "0") == 0.0
     assert settings.parse("lambda", "1e-3") == 0.001
     assert settings.parse("manual_share", "1") == 1.0
-    with pytest.raises(SettingError, match=r"^seed:=true: must be an integer >= 0, got 'true'$"):
+    with pytest.raises(SettingError,
+                       match=r"^seed:=true: must be an integer from 0 to 2147483647, got 'true'$"):
         settings.parse("seed", True)
     with pytest.raises(SettingError):
         settings.parse("scenarios", 2.5)
@@ -149,13 +163,35 @@ def test_models_are_names_or_paths_checked_elsewhere():
     assert settings.parse("robot_model", "/tmp/x.pomdp") == "/tmp/x.pomdp"
 
 
+def test_paths_are_made_absolute_against_the_directory_the_command_runs_in(tmp_path,
+                                                                           monkeypatch):
+    """The processes that use them run elsewhere (roslaunch starts them in $ROS_HOME): the
+    entry point resolves every path once. Scenario names stay names."""
+    folder = tmp_path / "my models é"
+    folder.mkdir()
+    (folder / "p.policy").write_bytes(b"x")
+    monkeypatch.chdir(tmp_path)
+    assert settings.parse("robot_model", "my models é/r.pomdp") == str(folder / "r.pomdp")
+    assert settings.parse("human_model", "./tired.pomdpx") == str(tmp_path / "tired.pomdpx")
+    assert settings.parse("human_model", "tired.pomdpx") == str(tmp_path / "tired.pomdpx")
+    assert settings.parse("human_model", "tired") == "tired"
+    assert settings.parse("policy_file", "my models é/p.policy") == str(folder / "p.policy")
+    assert settings.parse("snapshot_dir", "shots") == str(tmp_path / "shots")
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert settings.parse("snapshot_dir", "~/shots") == str(tmp_path / "shots")
+    assert settings.parse("snapshot_dir", "") == ""
+    assert refusal("snapshot_dir", "my models é/p.policy").endswith("is not a directory")
+
+
 def test_a_policy_file_must_be_readable(tmp_path):
     policy = tmp_path / "p.policy"
     policy.write_bytes(b"x")
     assert settings.parse("policy_file", str(policy)) == str(policy)
-    assert refusal("policy_file", str(tmp_path / "none.policy")) == \
-        f"policy_file:={tmp_path / 'none.policy'}: no readable file there"
-    assert refusal("policy_file", str(tmp_path)).endswith("no readable file there")
+    missing = tmp_path / "none.policy"
+    assert refusal("policy_file", str(missing)) == \
+        f"policy_file:={missing}: no readable file there (looked for {missing})"
+    assert "no readable file there" in refusal("policy_file", str(tmp_path))
+    assert settings.parse("policy_file", "none") == ""   # the launch file's default
 
 
 def test_unknown_names_are_refused_naming_them():
@@ -220,6 +256,21 @@ def test_pause_when_idle_is_automatic_unless_given():
     assert settings.resolve({"real_time_factor": "0", "pause_when_idle": "false"})[
         "pause_when_idle"] is False
     assert settings.resolve({"pause_when_idle": "true"})["pause_when_idle"] is True
+    assert settings.resolve({"real_time_factor": "0", "pause_when_idle": "auto"})[
+        "pause_when_idle"] is True
+
+
+def test_manual_mode_pauses_the_world_while_a_state_is_typed_unless_told_otherwise():
+    """Before: the world ran on between steps in manual mode, so the seed's 5, 6, 6 (Figures
+    3.11-3.13) ended the episode before the third state was typed."""
+    assert settings.resolve({"mode": "manual"})["pause_when_idle"] is True
+    assert settings.resolve({"mode": "manual", "pause_when_idle": "auto"})[
+        "pause_when_idle"] is True
+    assert settings.resolve({"mode": "manual", "real_time_factor": "2"})[
+        "pause_when_idle"] is True
+    assert settings.resolve({"mode": "manual", "pause_when_idle": "false"})[
+        "pause_when_idle"] is False
+    assert settings.resolve({"mode": "auto"})["pause_when_idle"] is False
 
 
 def test_mdp_xterm_is_automatic_in_manual_mode_with_a_display():
