@@ -54,9 +54,10 @@ class StatusLog:
             self.statuses.clear()
 
 
-def start_stack(*args, name="hrc"):
+def start_stack(*args, name="hrc", cwd=None):
     """roslaunch hrc.launch headless with the given arguments, its stdin ours (to press
-    Enter), its output in a log file (rostest captures this process's stdout)."""
+    Enter), its output in a log file (rostest captures this process's stdout); run in the
+    directory ``cwd`` (this process's by default), as a user runs it from there."""
     cmd = ["roslaunch", "ros_hrc", "hrc.launch", "gui:=false", "real_time_factor:=0",
            "step_delay:=0", "time_per_step:=0.05", "max_trials:=200", "seed:=3"] + list(args)
     log_dir = os.environ.get("ROS_LOG_DIR") or tempfile.gettempdir()
@@ -66,7 +67,7 @@ def start_stack(*args, name="hrc"):
     print(f"hrc.launch output: {log.name}", file=sys.stderr, flush=True)
     with log:
         return subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=log, stderr=subprocess.STDOUT,
-                                env=dict(os.environ), start_new_session=True)
+                                env=dict(os.environ), start_new_session=True, cwd=cwd)
 
 
 stop_stack = stop_launched

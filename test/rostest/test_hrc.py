@@ -10,7 +10,9 @@ resets, killed processes.)
 """
 import json
 import os
+import shutil
 import sys
+import tempfile
 import threading
 import unittest
 from pathlib import Path
@@ -117,6 +119,23 @@ class TestWholeLoop(unittest.TestCase):
         self.assertIn("evaluating", answers[4].message)
 
 
+    def test_relative_model_paths_from_another_directory(self):
+        """Paths as a user types them, relative to where roslaunch runs, with a space and a
+        non-ASCII letter. Before: hrc_check took them, the solvers (which run in $ROS_HOME)
+        died on "no model file" and respawned about once a second; nothing stepped."""
+        with tempfile.TemporaryDirectory() as where:
+            folder = Path(where) / "my models é"
+            folder.mkdir()
+            shutil.copy(ROOT / "models" / "robot" / "robot.pomdp", folder / "r.pomdp")
+            shutil.copy(ROOT / "models" / "human" / "tired.pomdpx", Path(where) / "tired.pomdpx")
+            self.log.clear()
+            self.proc = start_stack("robot_model:=my models é/r.pomdp",
+                                    "human_model:=./tired.pomdpx", "on_episode_end:=continue",
+                                    cwd=where)
+            ok, statuses = self.log.wait_for(lambda s: len(s) >= 3)
+            self.assertTrue(ok, f"only {len(statuses)} steps came")
+            self.assertEqual([s.step for s in statuses[:3]], [0, 1, 2])
+
     def run_steps(self, count, *args):
         """Start the stack, take its first ``count`` steps, stop it."""
         self.log.clear()
@@ -156,6 +175,7 @@ class TestWholeLoop(unittest.TestCase):
             self.assertEqual(now, then, f"episode {then[0]} step {then[1]} differs from the record")
 
 
+ROOT = Path(__file__).resolve().parents[2]
 #: The seeded run of test_seeded_run_is_the_recorded_one.
 SEEDED_RUN = Path(__file__).resolve().parent / "data" / "seeded_run.json"
 SEEDED_RUN_STEPS = 36
