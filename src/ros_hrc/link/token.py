@@ -274,6 +274,42 @@ def prune_tokens(environ: Optional[Mapping[str, str]] = None) -> int:
     return removed
 
 
+def _parent_of(pid: int) -> Optional[int]:
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            text = f.read()
+        return int(text[text.rindex(b")") + 2:].split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def stop_launch(session: str, environ: Optional[Mapping[str, str]] = None) -> Optional[int]:
+    """Stop the launch of ``session`` as Ctrl-C would (SIGINT to its launcher, the roslaunch
+    named in the token file), for a process of it that cannot start on the launch's settings:
+    respawned, it would only fail again, about once a second, and nothing would step. Only a
+    launcher that is this process's ancestor is signalled. Its pid, or None if none was."""
+    import signal
+
+    try:
+        with open(session_token_file(session, environ), "rb") as f:
+            lines = f.read(1024).split(b"\n")
+    except (OSError, TokenError):
+        return None
+    words = lines[1].split() if len(lines) > 1 else []
+    if len(words) != 2 or words[0] != b"launcher" or not words[1].isdigit():
+        return None
+    launcher = int(words[1])
+    pid: Optional[int] = os.getpid()
+    for _ in range(8):          # roslaunch, or an xterm (launch-prefix) under it
+        pid = _parent_of(pid) if pid else None
+        if pid is None or pid <= 1:
+            return None
+        if pid == launcher:
+            os.kill(launcher, signal.SIGINT)
+            return launcher
+    return None
+
+
 def new_nonce() -> str:
     """A fresh hello nonce."""
     return secrets.token_hex(NONCE_BYTES)

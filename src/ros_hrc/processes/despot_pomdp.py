@@ -34,7 +34,7 @@ from ros_hrc.command_line import parse_launch_options
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, DispatchTable,
                                    Message, Observation, Reset, reply_error)
-from ros_hrc.link.token import add_token_arguments, launch_token
+from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import load_robot_model, positional_mapping_line
@@ -184,7 +184,11 @@ def main(argv: Optional[list] = None) -> int:
         planner = build_planner(model, args)
         token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
-        print(f"{NAME}: {exc}", file=sys.stderr)
+        print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
+        if args.link_session and stop_launch(args.link_session):
+            # Respawned, it would fail the same way about once a second: stop the launch.
+            print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
+                  file=sys.stderr, flush=True)
         return 2
     process = PomdpProcess(RobotAgent(model, planner))
     server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,

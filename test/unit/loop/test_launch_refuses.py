@@ -157,3 +157,33 @@ def test_ros_args_lists_every_argument_as_optional_with_its_doc(launch):
     for line in lines[1:]:
         assert not line.strip().startswith("_"), line
         assert "undocumented" not in line, line
+
+
+LAUNCHER = """
+import signal, subprocess, sys, time
+from ros_hrc.link.token import mint_token, write_session_settings
+from ros_hrc.loop import settings
+got = []
+signal.signal(signal.SIGINT, lambda *_: got.append(1))
+config = settings.resolve({})
+config["robot_model"] = sys.argv[1]          # checked, then gone before the solver starts
+mint_token("hrc_link_gone", launcher_pid=__import__("os").getpid())
+write_session_settings("hrc_link_gone", config)
+code = subprocess.call([sys.executable, "-m", "ros_hrc.processes.despot_pomdp",
+                        "--link-session=hrc_link_gone", "__name:=despot_pomdp"])
+time.sleep(0.5)
+print(code, bool(got))
+"""
+
+
+def test_a_solver_that_cannot_start_on_its_launch_s_settings_stops_the_launch(tmp_path):
+    """Respawned, it would fail the same way about once a second and nothing would step:
+    it asks its launcher (roslaunch, named in the session's token file) to stop, as Ctrl-C."""
+    import sys
+    env = dict(os.environ, ROS_HOME=str(tmp_path))
+    done = subprocess.run([sys.executable, "-c", LAUNCHER, str(tmp_path / "gone.pomdp")],
+                          capture_output=True, text=True, env=env, timeout=120)
+    assert done.stdout.split() == ["2", "True"], done.stderr
+    assert done.stderr.splitlines() == [
+        f"despot_pomdp: no model file {tmp_path / 'gone.pomdp'}",
+        "despot_pomdp: cannot start on this launch's settings: stopping the launch"]
