@@ -42,7 +42,7 @@ from ros_hrc.command_line import parse_launch_options, ranged_number
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, Ack, Error, Message, NextState, Reset, Step,
                                    is_reply_to, reply_error)
-from ros_hrc.link.token import add_token_arguments, launch_token
+from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import load_human_model, positional_mapping_line
@@ -359,7 +359,11 @@ def main(argv: Optional[list] = None) -> int:
                                                    manual_share=args.manual_share, seed=args.seed))
         token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
-        print(f"{NAME}: {exc}", file=sys.stderr)
+        print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
+        if args.link_session and stop_launch(args.link_session):
+            # Respawned, it would fail the same way about once a second: stop the launch.
+            print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
+                  file=sys.stderr, flush=True)
         return 2
     client = MessageClient(link_url(args.human_port, args.host), NAME, connect_timeout=3600.0,
                            send_timeout=args.reply_timeout, token=token)
