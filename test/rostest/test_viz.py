@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """What RViz shows, as a user would check it with rostopic, rosparam and tf: after a step of
 `roslaunch ros_hrc hrc.launch` (headless), /tf holds every link of both agents, the object and
-the belt; both agents' joint states and the step's markers are published; both descriptions
-are on the parameter server."""
+the belt; both agents' joint states and the step's markers are published, their text hrc_world's caption of the step being played
+(/hrc/caption); both descriptions are on the parameter server."""
 import sys
 import unittest
 import xml.etree.ElementTree as ElementTree
@@ -11,6 +11,7 @@ import rospy
 import rostest
 import tf2_ros
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from hrc_stack import WAIT, StatusLog, start_stack, stop_stack
@@ -63,6 +64,12 @@ class TestViz(unittest.TestCase):
         step_text = next(m for m in markers if m.ns == "step").text
         self.assertIn("step", step_text)
         self.assertIn("P(human needs help)", step_text)
+        # The text is the caption of the step being played, from the world (not the last
+        # report alone): "episode E, step N: playing" while it is played, ": done" after.
+        caption = rospy.wait_for_message("/hrc/caption", String, timeout=WAIT).data
+        self.assertRegex(caption.splitlines()[0],
+                         r"^episode \d+(, step \d+: (playing|done)|: the world was reset)")
+        self.assertRegex(step_text.splitlines()[0], r"^episode \d+, step \d+: (playing|done)")
 
 
 if __name__ == "__main__":

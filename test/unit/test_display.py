@@ -5,7 +5,7 @@ import xml.etree.ElementTree as ElementTree
 
 from ros_hrc.description import main as description_main
 from ros_hrc.description import prefixed_description
-from ros_hrc.loop.display import belief_bars, status_lines
+from ros_hrc.loop.display import StepCaption, belief_bars, status_lines
 
 STATES = ("S0", "S1", "S2", "S3", "S4", "S5", "S6")
 
@@ -29,6 +29,62 @@ def test_the_lines_say_the_step_both_agents_and_the_belief_in_help():
     assert lines[3] == "P(human needs help) = 0.95; nobody holds the object"
     over = status_lines(status(object_holder="robot", episode_over=True, end_reason="success"))
     assert over[3].endswith("the robot holds the object; episode over: success")
+
+
+def test_the_caption_names_the_step_being_played_then_its_outcome():
+    """Over the life of a step: the action under way, its outcome, the step's report; the
+    next step's action replaces the last report at once (the robot never reaches under the
+    last step's "does rIdle")."""
+    caption = StepCaption()
+    assert caption.reset() == ["episode 1: the world was reset; waiting for step 0"]
+    lines = caption.action_started("human", "attempt_grasp")
+    assert lines == ["episode 1, step 0: playing", "human: tries to grasp the object ...",
+                     "robot: waits for the human"]
+    lines = caption.action_finished("human", "attempt_grasp", False, "missed the object by 0.10 m")
+    assert lines[1:] == ["human: tries to grasp the object -> missed the object by 0.10 m",
+                         "robot: decides"]
+    assert caption.action_started("robot", "grasp")[2] == "robot: reaches for the object ..."
+    lines = caption.action_finished("robot", "grasp", False, "cannot grasp: out of reach")
+    assert lines[2] == "robot: reaches for the object -> cannot grasp: out of reach"
+    report = status(step=0, episode=1, robot_action="rGrasp_obj",
+                    robot_result="cannot grasp: out of reach")
+    done = caption.step_done(report)
+    assert done[0] == "episode 1, step 0: done" and "does rGrasp_obj" in done[2]
+    assert done[3] == "  -> cannot grasp: out of reach"
+    assert done[1:3] + done[4:] == status_lines(report)[1:]
+
+    # The next step: the robot idled in step 0, and now it points, under its own caption.
+    caption.step_done(status(step=0, episode=1, robot_action="rIdle"))
+    caption.action_started("human", "idle")
+    caption.action_finished("human", "idle", True, "idle at the belt")
+    lines = caption.action_started("robot", "point_to_obj")
+    assert lines == ["episode 1, step 1: playing", "human: stays idle -> idle at the belt",
+                     "robot: points at the object ...",
+                     "before this step: P(human needs help) = 0.95; nobody holds the object"]
+    assert not any("rIdle" in line for line in lines)
+
+
+def test_the_caption_clears_on_reset_and_follows_a_report_that_comes_late():
+    caption = StepCaption()
+    caption.reset()
+    over = caption.step_done(status(step=4, episode=1, object_holder="robot", episode_over=True,
+                                    end_reason="success"))
+    assert over[-1].endswith("episode over: success")
+    lines = caption.reset()
+    assert lines == ["episode 2: the world was reset; waiting for step 0"]
+    assert caption.reset() == lines   # a second reset (the loop's early one) names no new episode
+    # Step 0's report reaches the world after step 1's human action began: step 1 stays shown.
+    caption.action_started("human", "grasp")
+    caption.action_finished("human", "grasp", True, "grasped the object")
+    started = caption.action_started("human", "walk_away")
+    assert started[0] == "episode 2, step 1: playing"
+    late = caption.step_done(status(step=0, episode=2))
+    assert late[0] == "episode 2, step 1: playing" and late[1] == "human: walks away ..."
+    assert caption.action_finished("human", "walk_away", True, "walked")[1] == \
+        "human: walks away -> walked"
+    failed = caption.step_done(status(step=1, episode=2, fault="the robot's decision timed out"))
+    assert failed[0] == "episode 2, step 1: failed (the robot's decision timed out)"
+    assert caption.lines() == failed
 
 
 def test_the_bars_mark_the_true_state_and_the_states_of_need():
@@ -63,3 +119,17 @@ def test_snapshot_names_differ_across_runs_and_within_one():
     assert len(names) == 3
     assert snapshot_name("20261123-160436-4242", 3, 12.5) == \
         "world_20261123-160436-4242_0003_00012.500s.png"
+
+
+def test_rviz_shows_the_caption_and_a_reset_clears_the_last_episode():
+    from ros_hrc.loop.display import is_reset_caption
+    from ros_hrc.nodes.viz_node import status_markers
+
+    markers = status_markers(status(), "world", (0, 0, 0), 0.1, 0.5, (0, 0, 2),
+                             caption="episode 2, step 4: playing\nhuman: walks away ...")
+    assert next(m for m in markers.markers if m.ns == "step").text.startswith("episode 2, step 4: playing")
+    plain = status_markers(status(), "world", (0, 0, 0), 0.1, 0.5, (0, 0, 2))
+    assert next(m for m in plain.markers if m.ns == "step").text == "\n".join(status_lines(status()))
+    caption = StepCaption()
+    assert is_reset_caption("\n".join(caption.reset()))
+    assert not is_reset_caption("\n".join(caption.action_started("human", "grasp")))

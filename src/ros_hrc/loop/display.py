@@ -7,7 +7,7 @@ step (anything with the fields of ``ros_hrc/Status``) into a few short lines, an
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import List, Sequence
+from typing import Dict, List, Optional, Sequence
 
 from ros_hrc.loop import task
 
@@ -58,3 +58,132 @@ def belief_bars(status) -> List[BeliefBar]:
     return [BeliefBar(state=s, probability=float(p), true_state=(s == status.robot_state),
                       needs_help=s in task.NEEDS_HELP_STATES)
             for s, p in zip(status.belief_states, status.belief)]
+
+
+#: The world's services that make an agent act (``/human/<action>``, ``/robot/<action>``), in
+#: the words of the caption.
+_ACTION_WORDS = {"walk_away": "walks away", "look_around": "looks around",
+                 "warn_robot": "warns the robot", "attempt_grasp": "tries to grasp the object",
+                 "grasp": "reaches for the object", "idle": "stays idle", "reset": "resets",
+                 "point_to_obj": "points at the object", "cancel_action": "stops"}
+
+
+#: How a caption after a reset begins its only line (after the episode's number).
+RESET_WORDS = "the world was reset"
+
+
+def is_reset_caption(text: str) -> bool:
+    """True if ``text`` (a caption's lines, joined) is the caption of a reset."""
+    first = text.split("\n", 1)[0]
+    return "\n" not in text and RESET_WORDS in first
+
+
+class StepCaption:
+    """The lines over the scene while a step is played, for PyBullet's window and RViz.
+
+    The loop reports a step (``/hrc/status``) only once both agents have acted, so a caption
+    made of reports alone describes the step before the one on screen. This one also hears
+    the world's own news: an action starts (:meth:`action_started`), it ends
+    (:meth:`action_finished`), the world is reset (:meth:`reset`). The caption therefore reads,
+    over the life of a step::
+
+        episode 2, step 4: playing             (the step after the last one reported)
+        human: tries to grasp the object ...   (under way; then "-> <what the world said>")
+        robot: waits for the human             (then "decides", "reaches for the object ...")
+        before this step: P(human needs help) = 0.87; nobody holds the object
+
+    and, once the step is reported, :func:`status_lines` with ``: done`` on the first line and
+    what became of the robot's action under the robot's line (``  -> cannot grasp: ...``). A
+    reset clears it (``episode 3: the world was reset; waiting for step 0``). Not thread-safe:
+    one caller at a time.
+    """
+
+    def __init__(self) -> None:
+        self._last = None              # the last step reported (a Status), None after a reset
+        self._episode = 0              # the episode of the step under way (0: none yet)
+        self._step = 0                 # the step under way
+        self._human: Optional[str] = None   # its human line (None: the human has not acted)
+        self._robot: Optional[str] = None
+        self._under_way: Dict[str, str] = {}   # agent -> action running now
+        self._lines: List[str] = ["the scene is ready; waiting for the first step"]
+
+    def lines(self) -> List[str]:
+        """What the caption says now."""
+        return list(self._lines)
+
+    def step_done(self, status) -> List[str]:
+        """The loop reported a step (anything with ``ros_hrc/Status``'s fields): its outcome."""
+        self._last = status
+        self._episode = int(getattr(status, "episode", 0))
+        self._step = int(status.step) + 1
+        self._human = self._robot = None
+        if self._under_way:
+            # The next step's action started before this report came: keep showing it.
+            for agent, action in self._under_way.items():
+                self._set(agent, f"{_words(action)} ...")
+            return self._playing()
+        lines = status_lines(status)
+        fault = getattr(status, "fault", "")
+        lines[0] += f": failed ({fault})" if fault else ": done"
+        result = getattr(status, "robot_result", "")
+        if result and not fault:
+            lines.insert(3, f"  -> {result}")   # what became of the robot's action
+        self._lines = lines
+        return self.lines()
+
+    def action_started(self, agent: str, action: str) -> List[str]:
+        """The world started ``agent``'s ``action`` (the name of its service)."""
+        if agent not in ("human", "robot"):
+            return self.lines()
+        if agent == "human" and self._human is not None and agent not in self._under_way:
+            # A second human action without a report between: a new step (e.g. a hand-run one).
+            self._step += 1
+            self._robot = None
+        self._under_way[agent] = action
+        self._set(agent, f"{_words(action)} ...")
+        return self._playing()
+
+    def action_finished(self, agent: str, action: str, success: bool, message: str) -> List[str]:
+        """The world ended ``agent``'s ``action``: ``success`` and what the world said."""
+        if agent not in ("human", "robot"):
+            return self.lines()
+        self._under_way.pop(agent, None)
+        self._set(agent, f"{_words(action)} -> {message or ('done' if success else 'failed')}")
+        return self._playing()
+
+    def reset(self) -> List[str]:
+        """The world was reset: nothing of the last episode stays on screen."""
+        self._episode = (self._episode or 0) + 1 if self._last is not None else max(self._episode, 1)
+        self._last = None
+        self._step = 0
+        self._human = self._robot = None
+        self._under_way.clear()
+        self._lines = [f"episode {self._episode}: {RESET_WORDS}; waiting for step 0"]
+        return self.lines()
+
+    def _set(self, agent: str, text: str) -> None:
+        if agent == "human":
+            self._human = text
+        else:
+            self._robot = text
+
+    def _playing(self) -> List[str]:
+        episode = f"episode {self._episode}, " if self._episode else ""
+        lines = [f"{episode}step {self._step}: playing",
+                 f"human: {self._human or 'about to act'}"]
+        if self._robot is not None:
+            lines.append(f"robot: {self._robot}")
+        elif "human" in self._under_way or self._human is None:
+            lines.append("robot: waits for the human")
+        else:
+            lines.append("robot: decides")
+        if self._last is not None:
+            help_p = needs_help_probability(self._last.belief_states, self._last.belief)
+            holder = holder_text(getattr(self._last, "object_holder", "none"))
+            lines.append(f"before this step: P(human needs help) = {help_p:.2f}; {holder}")
+        self._lines = lines
+        return self.lines()
+
+
+def _words(action: str) -> str:
+    return _ACTION_WORDS.get(action, action.replace("_", " "))

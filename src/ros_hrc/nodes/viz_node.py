@@ -1,11 +1,16 @@
-"""hrc_viz: the step as RViz markers, from /hrc/status.
+"""hrc_viz: the step as RViz markers, from /hrc/status and hrc_world's /hrc/caption.
 
-Publishes ``/hrc/markers`` (``visualization_msgs/MarkerArray``, latched) on every step:
+Publishes ``/hrc/markers`` (``visualization_msgs/MarkerArray``, latched) on every step and
+every change of the caption:
 
 * ``belief``: one bar per state of the robot's model, its height the robot's belief in that
   state; the true state (which the robot never sees) in orange, the needs-help states S2..S5
   in blue, the others in grey; each with its name and probability underneath;
-* ``step``: the step's lines (:func:`ros_hrc.loop.display.status_lines`) above the scene;
+* ``step``: the step being played above the scene: ``/hrc/caption`` from hrc_world (the
+  action under way, then its outcome, then the step's report; cleared on reset:
+  :class:`ros_hrc.loop.display.StepCaption`), or without it the last step's lines
+  (:func:`ros_hrc.loop.display.status_lines`); a reset's caption clears the bars and the
+  holder too;
 * ``holder``: who holds the object, floating over it (frame ``object``);
 * ``scenery``: the belt (frame ``belt``) and the object (frame ``object``) as boxes, which no
   URDF describes (published once, latched, and with every step).
@@ -18,15 +23,20 @@ belief of 1), ``~text_position`` ([x, y, z], default [-1.1, -0.5, 2.15]), ``~bel
 """
 from __future__ import annotations
 
-from typing import List, Sequence
+import threading
+from typing import List, Optional, Sequence
 
 import rospy
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
-from std_msgs.msg import ColorRGBA
+from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_hrc.loop.display import belief_bars, holder_text, status_lines
+from ros_hrc.loop.display import belief_bars, holder_text, is_reset_caption, status_lines
 from ros_hrc.msg import Status
+from ros_hrc.world.object import ObjectConfig
+
+#: The object's colour in the world (PyBullet's window and snapshots).
+OBJECT_COLOUR = ObjectConfig().colour
 
 _TRUE = ColorRGBA(0.95, 0.55, 0.10, 1.0)
 _HELP = ColorRGBA(0.20, 0.45, 0.85, 0.9)
@@ -67,13 +77,21 @@ def scenery_markers(belt_size: Sequence[float], object_size: float, stamp=None) 
     thing = _marker("object", "scenery", 1, Marker.CUBE, stamp)
     thing.pose = _pose(0, 0, 0)
     thing.scale = Vector3(object_size, object_size, object_size)
-    thing.color = ColorRGBA(0.85, 0.15, 0.10, 1.0)
+    thing.color = ColorRGBA(*OBJECT_COLOUR)   # as in the world: a colour of its own
     return [belt, thing]
 
 
+def caption_marker(text: str, frame: str, text_at: Sequence[float], stamp=None) -> Marker:
+    """The step's text (``step``) above the scene."""
+    stamp = stamp if stamp is not None else rospy.Time(0)
+    return _text(frame, "step", 0, stamp, text, text_at, 0.075)
+
+
 def status_markers(status, frame: str, origin: Sequence[float], spacing: float,
-                   height: float, text_at: Sequence[float], stamp=None) -> MarkerArray:
-    """The markers of one step (module docstring)."""
+                   height: float, text_at: Sequence[float], stamp=None,
+                   caption: Optional[str] = None) -> MarkerArray:
+    """The markers of one step (module docstring); ``caption``: the step's text (default: the
+    step's report, :func:`status_lines`)."""
     stamp = stamp if stamp is not None else rospy.Time(0)
     markers: List[Marker] = []
     x0, y0, z0 = origin
@@ -90,8 +108,8 @@ def status_markers(status, frame: str, origin: Sequence[float], spacing: float,
     markers.append(_text(frame, "belief_title", 0, stamp,
                          "robot's belief (* true state, orange)",
                          (x0, y0 + spacing * 3, z0 + height + 0.12), 0.06))
-    markers.append(_text(frame, "step", 0, stamp, "\n".join(status_lines(status)), text_at,
-                         0.075))
+    text = caption if caption is not None else "\n".join(status_lines(status))
+    markers.append(caption_marker(text, frame, text_at, stamp))
     markers.append(_text("object", "holder", 0, stamp,
                          holder_text(getattr(status, "object_holder", "none")), (0, 0, 0.18),
                          0.045))
@@ -108,17 +126,38 @@ class VizNode:
         self.scenery = scenery_markers(
             [float(v) for v in rospy.get_param("~belt_size", [2.0, 0.4, 0.04])],
             float(rospy.get_param("~object_size", 0.06)))
+        self.caption: Optional[str] = None   # hrc_world's caption of the step being played
+        self.step: List[Marker] = []          # the last step's bars and labels
+        self.lock = threading.Lock()
         self.pub = rospy.Publisher("/hrc/markers", MarkerArray, queue_size=2, latch=True)
         self.pub.publish(MarkerArray(markers=self.scenery))
         rospy.Subscriber("/hrc/status", Status, self._on_status, queue_size=10)
+        rospy.Subscriber("/hrc/caption", String, self._on_caption, queue_size=10)
 
     def _on_status(self, status: Status) -> None:
         if status.fault:
-            return   # a failed step carries no decision to show; the next reset's steps will
-        markers = status_markers(status, self.frame, self.origin, self.spacing, self.height,
-                                 self.text_at, rospy.Time.now())
-        markers.markers.extend(self.scenery)   # latched: a late RViz gets everything at once
-        self.pub.publish(markers)
+            return   # a failed step carries no decision to show; the caption says it failed
+        with self.lock:
+            markers = status_markers(status, self.frame, self.origin, self.spacing, self.height,
+                                     self.text_at, rospy.Time.now(), self.caption)
+            self.step = [m for m in markers.markers if m.ns != "step"]
+            self._publish(markers.markers)
+
+    def _on_caption(self, caption: String) -> None:
+        with self.lock:
+            self.caption = caption.data
+            text = caption_marker(caption.data, self.frame, self.text_at, rospy.Time.now())
+            if is_reset_caption(caption.data):
+                # Nothing of the last episode stays: its bars, its holder, its text.
+                self.step = []
+                clear = Marker(action=Marker.DELETEALL)
+                clear.header.frame_id = self.frame
+                return self._publish([clear, text])
+            self._publish(list(self.step) + [text])
+
+    def _publish(self, markers: List[Marker]) -> None:
+        # Latched: a late RViz gets everything at once, the scenery included.
+        self.pub.publish(MarkerArray(markers=markers + self.scenery))
 
 
 def main() -> None:

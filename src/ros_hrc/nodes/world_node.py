@@ -32,8 +32,17 @@ Topics published:
                                          prefixed by its name (ros_hrc.description).
   /hrc/camera/image (sensor_msgs/Image)  the snapshot renderer's view, at ~camera_rate Hz
                                          (0: off, the default) while anyone subscribes
+  /hrc/caption (std_msgs/String, latched) with ~gui or ~viz: the caption of the step being
+                                         played (ros_hrc.loop.display.StepCaption: the action
+                                         under way, then its outcome, then the step's report;
+                                         cleared on reset), one message per change; the GUI
+                                         window's overlay shows the same lines
 
-Subscribed: /hrc/status (the loop's steps): the GUI window's overlay shows each step.
+Subscribed (with ~gui or ~viz): /hrc/status (the loop's steps), for the caption.
+
+Closing the window (Esc) logs one line and asks the roslaunch that started the node to stop,
+as Ctrl-C does (the node ends with status 0); calls that come in meanwhile get a service error
+without a traceback.
 
 Parameters (read once at start-up):
   ~gui (bool, false)              open PyBullet's window
@@ -56,10 +65,12 @@ from __future__ import annotations
 
 import itertools
 import os
+import signal
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Dict, Optional
+from pathlib import Path
+from typing import Any, Callable, Dict, List, Optional
 
 import rospkg
 import rospy
@@ -67,11 +78,12 @@ import tf2_ros
 from geometry_msgs.msg import TransformStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import String
 from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
 
 from ros_hrc.errors import HrcError, SimulationError
 from ros_hrc.loop import settings
-from ros_hrc.loop.display import status_lines
+from ros_hrc.loop.display import StepCaption
 from ros_hrc.msg import Status, WorldState
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
 from ros_hrc.world import (HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World,
@@ -133,6 +145,23 @@ class WorldNodeConfig:
         return config
 
 
+def stop_parent_launch(parent: Optional[int] = None) -> bool:
+    """Ask the roslaunch that started this process to stop, as Ctrl-C does (SIGINT). False,
+    and nothing sent, when the parent is not a roslaunch (a node run by hand, or by rostest)."""
+    parent = os.getppid() if parent is None else parent
+    try:
+        argv = Path(f"/proc/{parent}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return False
+    if not any(os.path.basename(word.decode("utf-8", "replace")) == "roslaunch" for word in argv[:2]):
+        return False
+    try:
+        os.kill(parent, signal.SIGINT)
+    except OSError:
+        return False
+    return True
+
+
 def snapshot_name(run: str, number: int, sim_time: float) -> str:
     """``world_<run>_<number>_<sim time>s.png``: the run's start (wall clock) and a counter make
     names unique across runs and within one; the simulated time says when in the run."""
@@ -143,13 +172,77 @@ def snapshot_name(run: str, number: int, sim_time: float) -> str:
 # answers the caller with a service *error*: a fault never reads as "false" (a predicate that
 # does not hold, an action the world refused).
 
-def action_handler(world: World, agent: str, action: str,
-                   timeout: float) -> Callable[[TriggerRequest], TriggerResponse]:
-    """Trigger handler running ``agent``'s ``action`` in the world and waiting for its outcome."""
-    def handle(_request: TriggerRequest) -> TriggerResponse:
-        outcome = world.run(agent, action, timeout)   # SimulationError: a service error
-        return TriggerResponse(outcome.success, outcome.message)
+def _quiet_when_closed(handler: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    """A call that comes in after the window was closed (the launch is stopping) is a service
+    error without rospy's traceback in the terminal: the closing was said once already."""
+    def handle(request: Any) -> Any:
+        try:
+            return handler(request)
+        except WindowClosed as error:
+            raise rospy.ServiceException(str(error)) from error
     return handle
+
+
+def action_handler(world: World, agent: str, action: str, timeout: float,
+                   board: Optional["CaptionBoard"] = None) -> Callable[[TriggerRequest], TriggerResponse]:
+    """Trigger handler running ``agent``'s ``action`` in the world and waiting for its outcome;
+    ``board`` (if any) is told when it starts and how it ended."""
+    def handle(_request: TriggerRequest) -> TriggerResponse:
+        if board is None:
+            outcome = world.run(agent, action, timeout)   # SimulationError: a service error
+            return TriggerResponse(outcome.success, outcome.message)
+        board.action_started(agent, action)
+        try:
+            outcome = world.run(agent, action, timeout)
+        except SimulationError as error:
+            board.action_finished(agent, action, False, str(error))
+            raise
+        board.action_finished(agent, action, outcome.success, outcome.message)
+        return TriggerResponse(outcome.success, outcome.message)
+    return _quiet_when_closed(handle)
+
+
+class CaptionBoard:
+    """The caption of the step being played (:class:`ros_hrc.loop.display.StepCaption`), fed
+    by the world's actions and /hrc/status, shown over PyBullet's window (``show``) and
+    published on ``/hrc/caption`` for RViz's text (``publish``; latched). Thread-safe: service
+    handlers and the status subscriber call it at once; one change is shown at a time, in order."""
+
+    def __init__(self, show: Optional[Callable[[List[str]], None]],
+                 publish: Optional[Callable[[str], None]]) -> None:
+        self._caption = StepCaption()
+        self._show, self._publish = show, publish
+        self._lock = threading.Lock()
+
+    def lines(self) -> List[str]:
+        with self._lock:
+            return self._caption.lines()
+
+    def action_started(self, agent: str, action: str) -> None:
+        self._change(lambda caption: caption.action_started(agent, action))
+
+    def action_finished(self, agent: str, action: str, success: bool, message: str) -> None:
+        if agent == "world" and action == "reset":
+            self._change(lambda caption: caption.reset())
+        else:
+            self._change(lambda caption: caption.action_finished(agent, action, success, message))
+
+    def step_done(self, status: Status) -> None:
+        self._change(lambda caption: caption.step_done(status))
+
+    def _change(self, change: Callable[[StepCaption], List[str]]) -> None:
+        with self._lock:
+            before = self._caption.lines()
+            lines = change(self._caption)
+            if lines == before:
+                return
+            if self._show is not None:
+                try:
+                    self._show(lines)
+                except SimulationError as error:   # the window went: the node is ending
+                    rospy.logdebug("hrc_world: no overlay: %s", error)
+            if self._publish is not None:
+                self._publish("\n".join(lines))
 
 
 def predicate_handler(world: World, predicate: str) -> Callable[[TriggerRequest], TriggerResponse]:
@@ -157,7 +250,7 @@ def predicate_handler(world: World, predicate: str) -> Callable[[TriggerRequest]
     def handle(_request: TriggerRequest) -> TriggerResponse:
         reading = world.query(predicate)   # SimulationError: a service error, never "false"
         return TriggerResponse(reading.value, reading.message)
-    return handle
+    return _quiet_when_closed(handle)
 
 
 def snapshot_handler(world: World, directory: str) -> Callable[[TriggerRequest], TriggerResponse]:
@@ -217,22 +310,35 @@ class WorldNode:
         self._state_pub = rospy.Publisher("/hrc/world_state", WorldState, queue_size=1)
         if self._clock_pub is not None:
             self.world.add_step_listener(self._publish_clock)
+        # The caption of the step being played (the window's overlay, RViz's text): only for
+        # someone watching. Experiments (no gui, no viz) skip it.
+        board = None
+        if c.gui or c.viz:
+            caption_pub = rospy.Publisher("/hrc/caption", String, queue_size=10, latch=True)
+            board = CaptionBoard(self.world.show_overlay if c.gui else None,
+                                 lambda text: caption_pub.publish(String(data=text)))
+        self.board = board
         for action in HUMAN_ACTIONS:
-            self._advertise(f"/human/{action}", action_handler(self.world, "human", action, c.action_timeout))
+            self._advertise(f"/human/{action}",
+                            action_handler(self.world, "human", action, c.action_timeout, board))
         for predicate in PREDICATES:
             self._advertise(f"/human/{predicate}", predicate_handler(self.world, predicate))
         for action in ROBOT_ACTIONS:
-            self._advertise(f"/robot/{action}", action_handler(self.world, "robot", action, c.action_timeout))
+            self._advertise(f"/robot/{action}",
+                            action_handler(self.world, "robot", action, c.action_timeout, board))
         self._advertise("/hrc/world/snapshot", snapshot_handler(self.world, c.snapshot_dir))
-        self._advertise("/hrc/world/reset", action_handler(self.world, "world", "reset", c.action_timeout))
-        self._services.append(rospy.Service("/hrc/world/state", GetWorldState, self._state_now))
+        self._advertise("/hrc/world/reset",
+                        action_handler(self.world, "world", "reset", c.action_timeout, board))
+        self._services.append(rospy.Service("/hrc/world/state", GetWorldState,
+                                            _quiet_when_closed(self._state_now)))
         # The physics runs in its own thread paced by the wall clock: under /use_sim_time this
         # node is the clock, so nothing here may wait on rospy time.
         if c.viz:
             self._start_frames()
         if c.gui:
             self.world.add_window_closed_listener(self._on_window_closed)
-            rospy.Subscriber("/hrc/status", Status, self._show_step, queue_size=1)
+        if board is not None:
+            rospy.Subscriber("/hrc/status", Status, board.step_done, queue_size=10)
         if c.camera_rate > 0:
             self._image_pub = rospy.Publisher("/hrc/camera/image", Image, queue_size=1)
             threading.Thread(target=self._publish_images, name="world-camera", daemon=True).start()
@@ -286,18 +392,15 @@ class WorldNode:
 
     # -- the GUI's overlay and the camera image --------------------------------------------------
     def _on_window_closed(self) -> None:
-        # The world has stopped for good: end the node, so that roslaunch's required="true"
-        # ends the whole launch, instead of refusing every later step.
+        # Esc is how a user ends a run with a window: one line, then roslaunch stops everything
+        # as Ctrl-C does. A required node that ended by itself would make roslaunch print a
+        # red "REQUIRED process has died" banner, so the node asks roslaunch, its parent, to
+        # stop, and lets roslaunch end it. Run by hand (rosrun), it just ends. (Called on the
+        # world's thread with its lock held: quick things only.)
         self.window_closed = True
-        rospy.signal_shutdown("the PyBullet window was closed")
-
-    def _show_step(self, status: Status) -> None:
-        if status.fault:
-            return
-        try:
-            self.world.show_overlay(status_lines(status))
-        except SimulationError as error:
-            rospy.logdebug("hrc_world: no overlay: %s", error)
+        rospy.loginfo("hrc_world: the PyBullet window was closed: the launch stops")
+        if not stop_parent_launch():
+            rospy.signal_shutdown("the PyBullet window was closed")
 
     def _publish_images(self) -> None:
         period = 1.0 / self.config.camera_rate
@@ -365,7 +468,4 @@ def main() -> None:
     except (HrcError, ValueError) as error:
         rospy.logfatal("hrc_world cannot start: %s", error)
         raise SystemExit(1) from error
-    rospy.spin()
-    if node.window_closed:
-        rospy.logfatal("hrc_world: the PyBullet window was closed: the launch stops")
-        raise SystemExit(1)
+    rospy.spin()   # a closed window ends here with status 0: the user's end, not a fault

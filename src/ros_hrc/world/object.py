@@ -38,7 +38,9 @@ class ObjectConfig:
     size: float = 0.06                                  # edge of the cube, m
     mass: float = 0.2                                   # kg
     start: Tuple[float, float] = (-0.70, 0.0)           # x, y on the belt after a reset, m
-    colour: Tuple[float, float, float, float] = (0.85, 0.10, 0.10, 1.0)
+    #: Green: a colour of its own, far from every body's (the robot's gripper is red, the
+    #: belt's stop yellow, the human's shirt blue), so the object shows in any hand.
+    colour: Tuple[float, float, float, float] = (0.10, 0.78, 0.25, 1.0)
 
 
 class WorkObject:

@@ -2,8 +2,9 @@
 
 The right arm is solved in closed form (shoulder pan, then a planar shoulder-lift / elbow /
 wrist chain with the roll joints at 0), with link lengths measured from the URDF at load time.
-The robot plans before it moves: a grasp of an object out of reach fails at once with the
-distance, unlike the human, who tries.
+The robot plans before it moves: a grasp of an object out of reach fails with the distance,
+after a reach that stops short (the arm stretched towards the object, then back), so that a
+watcher sees the attempt; it never closes the gripper on nothing, unlike the human, who tries.
 """
 from __future__ import annotations
 
@@ -52,6 +53,7 @@ class RobotConfig:
     close_time: float = 0.4                       # s
     lift_time: float = 0.8                        # s
     lift_height: float = 0.20                     # m
+    short_hold_time: float = 0.3                  # s a reach for an object out of reach is held
 
 
 class Robot(ArticulatedBody):
@@ -153,15 +155,17 @@ class Robot(ArticulatedBody):
         return {"head_pan_joint": math.atan2(local[1], local[0]),
                 "head_tilt_joint": math.atan2(-local[2], math.hypot(local[0], local[1]))}
 
-    def point_pose(self, target: Sequence[float]) -> Dict[str, float]:
-        """Arm (and head) targets that point the gripper at ``target`` from a little short of it."""
+    def point_pose(self, target: Sequence[float], gap: Optional[float] = None) -> Dict[str, float]:
+        """Arm (and head) targets that point the gripper at ``target`` from ``gap`` short of it
+        (default ``point_gap``), or from as near as the arm reaches."""
         lift_origin, _ = self.link_frame("r_shoulder_lift_link")
         offset = np.asarray(target, float) - lift_origin
         distance = float(np.linalg.norm(offset))
         direction = offset / max(distance, 1e-6)
         pitch = math.asin(max(-1.0, min(1.0, direction[2])))
-        # Stretch as far as the arm allows, stopping point_gap short of the object.
-        reach = min(distance - self.config.point_gap, 0.95 * self.reach)
+        gap = self.config.point_gap if gap is None else gap
+        # Stretch as far as the arm allows, stopping `gap` short of the object.
+        reach = min(distance - gap, 0.95 * self.reach)
         pose = None
         while pose is None and reach > self.gripper + 0.1:
             pose = self.solve_tool(lift_origin + direction * reach, pitch)
@@ -189,8 +193,16 @@ class Robot(ArticulatedBody):
             return Outcome(False, "cannot grasp: the human holds the object")
         pitch = self.plan_grasp(self.object.position())
         if pitch is None:
+            # A reach that stops short, and back: a watcher sees the robot try and fail (a
+            # refusal that moved only the head looked like nothing happened).
             distance = self.shoulder_distance(self.object.position())
-            yield from self.move(self.look_at(self.object.position()), 0.5)
+            opened = {f: 0.045 for f in _FINGERS}
+            self.command(opened)
+            yield from self.track(lambda: self.point_pose(self.object.position(), gap=0.0),
+                                  c.reach_time)
+            yield from self.pause(c.short_hold_time)
+            yield from self.move({**{n: v for n, v in _REST.items() if n.startswith("r_")},
+                                  **self.look_at(self.object.position())}, c.reach_time)
             return Outcome(False, f"cannot grasp: the object is out of reach, {distance:.2f} m from "
                                   f"the right shoulder (the arm reaches {self.reach:.2f} m)")
         last: Dict[str, Dict[str, float]] = {}

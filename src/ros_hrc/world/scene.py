@@ -97,13 +97,13 @@ def default_model_dir() -> Path:
 class CameraConfig:
     """The fixed camera of snapshots (:meth:`World.render`, ``/hrc/camera/image``).
 
-    It looks down the belt from its upstream end, a little to the human's side: the belt, both
-    agents and both working arms (the human's left, the robot's right: the hands that reach
-    for the object upstream) are in view.
+    It looks as the window does (:class:`WindowConfig`), from further back through its
+    narrower lens: the belt, both agents and both working arms are in view, and the human
+    stays in it all the way through a walk-away.
     """
 
-    eye: Tuple[float, float, float] = (-2.65, -0.35, 2.2)
-    target: Tuple[float, float, float] = (-0.1, 0.1, 0.95)
+    eye: Tuple[float, float, float] = (-3.31, 1.30, 3.12)
+    target: Tuple[float, float, float] = (-0.5, -0.6, 1.0)
     fov_deg: float = 50.0
     width: int = 800
     height: int = 600
@@ -115,18 +115,19 @@ class WindowConfig:
 
     The view is PyBullet's camera (distance, yaw, pitch in degrees, target): PyBullet's window
     sees 90 deg vertically, much wider than the snapshots' 50, so it has a view of its own. It
-    looks, like the snapshots, down the belt from its upstream end, a little to the human's
-    side and from higher up: the belt, both agents and their working arms (the human's left
-    hand, the robot's right gripper, on the upstream side) fill the window, with little sky.
+    looks from above the belt's upstream end, behind the robot's shoulder, across the belt
+    towards the human: the robot on the left, the human on the right, the belt between them,
+    and room on the right for where the human's walk-away ends (1.5 m from the belt), so
+    both agents stay in frame whatever they do (test_world_window checks every link).
     """
 
     width: int = 1024
     height: int = 768
     background: Tuple[float, float, float] = (0.86, 0.88, 0.91)
-    distance: float = 1.8
-    yaw_deg: float = -76.0
-    pitch_deg: float = -36.0
-    target: Tuple[float, float, float] = (-0.1, 0.12, 0.9)
+    distance: float = 1.85
+    yaw_deg: float = -124.0
+    pitch_deg: float = -35.0
+    target: Tuple[float, float, float] = (-0.5, -0.6, 1.0)
 
 
 @dataclass(frozen=True)
@@ -373,7 +374,7 @@ class World:
         if self._window_closed:
             return
         self._window_closed = True
-        LOG.error("the PyBullet window was closed: the world stops")
+        LOG.info("the PyBullet window was closed: the world stops")
         error = WindowClosed("the PyBullet window was closed: the scene is gone, the world stops")
         for ticket in self._pending():
             ticket.fail(error, self.sim_time)

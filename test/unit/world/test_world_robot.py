@@ -67,3 +67,25 @@ def test_robot_reset_returns_a_held_object_to_the_belt_start(near_robot):
     assert np.allclose(near_robot.object.position(), near_robot.object.start_position, atol=2e-3)
     rest = near_robot.robot.positions(["r_shoulder_lift_joint", "torso_lift_joint"])
     assert rest["torso_lift_joint"] == pytest.approx(0.30, abs=1e-6)
+
+
+def test_a_refused_grasp_reaches_towards_the_object_and_stops_short(world):
+    """A watcher sees the robot try: the gripper moves towards the object, stops short of it
+    (it never closes on it), and the arm goes back to rest."""
+    start = world.robot.tool_position()
+    target = world.object.position()
+    ticket = world.submit("robot", "grasp")
+    nearest, path = np.linalg.norm(start - target), []
+    while not ticket.done():
+        world.step()
+        tool = world.robot.tool_position()
+        path.append(float(np.linalg.norm(tool - start)))
+        nearest = min(nearest, float(np.linalg.norm(tool - world.object.position())))
+    outcome = ticket.outcome
+    assert not outcome.success and "out of reach" in outcome.message
+    initial = float(np.linalg.norm(start - target))
+    assert nearest < initial - 0.2, f"the gripper came no nearer than {nearest:.2f} m (from {initial:.2f} m)"
+    assert nearest > world.robot.config.grasp_tolerance
+    assert max(path) > 0.2   # a reach a person sees, not a twitch
+    assert np.linalg.norm(world.robot.tool_position() - start) < 0.01   # back at rest
+    assert world.object.holder == "none"
