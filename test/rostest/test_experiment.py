@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """`hrc_experiment` on a tiny grid, as a researcher runs it: two robot policies against one
-kind of human, through the real stack; then the same command again resumes and adds nothing."""
+kind of human, through the real stack; then the same command again resumes and adds nothing.
+And one cell whose model files are typed relative to the directory the command runs in."""
 import csv
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -16,11 +18,14 @@ GRID = ["--human-models", "expert", "--policies", "pomdp,no_robot", "--seeds", "
         "--episodes", "2", "--step-limit", "8", "--jobs", "2"]
 
 
-def run_experiment(out):
+MODELS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "models")
+
+
+def run_experiment(out, grid=GRID, cwd=None):
     # The devel-space command, as `rosrun ros_hrc hrc_experiment` would start it.
-    cmd = [sys.executable, "-m", "ros_hrc.experiment.cli"] + GRID + ["--out", out]
+    cmd = [sys.executable, "-m", "ros_hrc.experiment.cli"] + grid + ["--out", out]
     return subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True,
-                          timeout=800)
+                          timeout=800, cwd=cwd)
 
 
 def read_csv(path):
@@ -71,6 +76,23 @@ class TestExperiment(unittest.TestCase):
         self.assertEqual(again.returncode, 0, again.stderr[-3000:])
         self.assertIn("0 to run", again.stdout)
         self.assertEqual(len(read_csv(os.path.join(out, "episodes.csv"))[1]), 4)
+
+    def test_relative_model_paths_run_their_cell(self):
+        """Before: the robot process, started by roslaunch in $ROS_HOME, found no
+        `mine/robot.pomdp`, respawned every second, and the cell failed after 600 s."""
+        work = tempfile.mkdtemp(prefix="hrc_experiment_relative_")
+        os.makedirs(os.path.join(work, "mine"))
+        shutil.copy(os.path.join(MODELS, "robot", "robot.pomdp"), os.path.join(work, "mine"))
+        shutil.copy(os.path.join(MODELS, "human", "expert.pomdpx"), os.path.join(work, "mine"))
+        grid = ["--robot-model", "mine/robot.pomdp", "--human-models", "mine/expert.pomdpx",
+                "--policies", "pomdp", "--seeds", "0", "--episodes", "1", "--step-limit", "3",
+                "--jobs", "1", "--no-plots"]
+        done = run_experiment("results", grid, cwd=work)
+        self.assertEqual(done.returncode, 0, done.stdout[-3000:] + done.stderr[-3000:])
+        _, episodes = read_csv(os.path.join(work, "results", "episodes.csv"))
+        self.assertEqual([(e["human_model"], e["robot_policy"], e["episode"]) for e in episodes],
+                         [("mine/expert.pomdpx", "pomdp", "0")])
+        self.assertTrue(1 <= int(episodes[0]["steps"]) <= 3, episodes[0])
 
 
 if __name__ == "__main__":

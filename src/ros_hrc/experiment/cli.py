@@ -87,9 +87,11 @@ def _seeds(text: str) -> List[int]:
     for part in names_argument(text):
         try:
             seeds.append(settings.parse("seed", part))
-        except SettingError as exc:
-            raise argparse.ArgumentTypeError(f"seeds are integers >= 0, comma-separated, "
-                                             f"got {part!r}") from exc
+        except SettingError as exc:     # the range is hrc.launch's (an int32 parameter)
+            requirement = getattr(exc, "requirement", "must be an integer >= 0")
+            shown = part if len(part) <= 60 else f"{part[:40]}... ({len(part)} characters)"
+            raise argparse.ArgumentTypeError(f"seeds are comma-separated; each "
+                                             f"{requirement}, got {shown!r}") from None
     return seeds
 
 
@@ -336,6 +338,14 @@ def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None,
                     on_all_delivered()
         proc.wait()
         reader.join(5.0)
+    except BaseException:
+        # An episode could not be recorded (a full disk): the worker must not run on, nor
+        # its stack: SIGTERM makes it stop the stack; the reason goes up.
+        Stopper._terminate(proc)
+        for _ in proc.stdout:       # drained, so that its last lines never block it
+            pass
+        proc.wait()
+        raise
     finally:
         if stopper is not None:
             stopper.discard(proc)

@@ -107,8 +107,8 @@ def test_a_human_model_file_that_does_not_fit_is_refused(tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--time-per-step", "-1"], "argument --time-per-step: must be a number > 0 and <= 60 (s), "
                                 "got '-1'"),
-    (["--seeds", "0,-1"], "argument --seeds: seeds are integers >= 0, comma-separated, "
-                          "got '-1'"),
+    (["--seeds", "0,-1"], "argument --seeds: seeds are comma-separated; each must be an "
+                          "integer from 0 to 2147483647, got '-1'"),
     (["--episodes", "0"], "argument --episodes: must be an integer >= 1, got '0'"),
     (["--step-limit", "x"], "argument --step-limit: must be an integer >= 1, got 'x'"),
     (["--scenarios", "0"], "argument --scenarios: must be an integer from 1 to 100000, got '0'"),
@@ -182,6 +182,8 @@ def test_the_grid_is_planned_lazily(tmp_path):
                                    "2147483647, got '2147483648'"),
     (["--jobs", "1000000"], "argument --jobs: must be an integer from 0 to 1000, "
                             "got '1000000'"),
+    (["--seeds", "0,2147483648"], "argument --seeds: seeds are comma-separated; each must be "
+                                  "an integer from 0 to 2147483647, got '2147483648'"),
 ])
 def test_numbers_past_what_their_consumers_take_are_one_line(args, message, capsys):
     """Before: accepted, and a 5000-digit --episodes was a traceback."""

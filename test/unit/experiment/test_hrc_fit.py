@@ -85,3 +85,38 @@ def test_runs_of_another_configuration_are_refused(tmp_path, capsys):
     assert fit.main(["--runs", str(tmp_path), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "holds the episodes of another configuration" in err and not out.exists()
+
+
+def test_file_arguments_are_made_absolute_for_the_stacks(tmp_path, monkeypatch):
+    """Before: a relative --prior or --human-models reached the stack's processes, which run in
+    $ROS_HOME, as typed, and each cell waited 600 s."""
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[3] / "models"
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "prior.pomdp").write_text((root / "robot" / "robot.pomdp").read_text())
+    (tmp_path / "mine" / "h.pomdpx").write_text((root / "human" / "tired.pomdpx").read_text())
+    monkeypatch.chdir(tmp_path)
+    args = fit.build_parser().parse_args(["--prior", "mine/prior.pomdp", "--human-models",
+                                          "mine/h.pomdpx,expert", "--runs", "runs", "--out",
+                                          "out/fitted.pomdp", "--episodes", str(10**9)])
+    (tmp_path / "out").mkdir()
+    fit.check_arguments(args)
+    assert (args.prior, args.runs, args.out) == (str(tmp_path / "mine" / "prior.pomdp"),
+                                                 str(tmp_path / "runs"),
+                                                 str(tmp_path / "out" / "fitted.pomdp"))
+    cells = fit.plan_cells(args, {("expert", "explore", 0, 3)})
+    assert [c.human_model for c in cells] == ["mine/h.pomdpx", "expert"]
+    assert cells[0].human_model_file == str(tmp_path / "mine" / "h.pomdpx")
+    assert cells[1].episodes.spans == ((0, 3), (4, 10**9))          # planned lazily
+    assert all(Path(c.robot_model).is_absolute() and Path(c.log_dir).is_absolute()
+               for c in cells)
+
+
+def test_an_out_that_is_a_fifo_is_refused_before_any_stack(tmp_path, capsys):
+    import os
+    fifo = tmp_path / "fitted.pomdp"
+    os.mkfifo(fifo)
+    assert fit.main(["--runs", str(tmp_path / "runs"), "--out", str(fifo)]) == 2
+    assert capsys.readouterr().err == (f"hrc_fit: --out {fifo}: is a FIFO, not a regular file; "
+                                       "it is never replaced (write to a file)\n")
+    assert not (tmp_path / "runs").exists()
