@@ -35,8 +35,7 @@ def resolve_model(name_or_path: str, kind: str) -> Path:
     if names_a_file(name_or_path):
         if candidate.is_file():
             return candidate
-        looked = "" if str(candidate) == str(name_or_path) else f" (looked for {candidate})"
-        raise FileNotFoundError(f"no model file {name_or_path}{looked}")
+        raise FileNotFoundError(f"no model file {name_or_path} (looked for {candidate})")
     folder = MODELS_DIR / kind
     for suffix in (".pomdpx", ".pomdp"):
         path = folder / f"{name_or_path}{suffix}"

@@ -96,7 +96,9 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
     loaded = {}
     for name, load in (("human_model", load_human_model), ("robot_model", load_robot_model)):
         try:
-            loaded[name] = load(str(config[name]))
+            # As typed: this runs where it was typed, so it names the same file as the
+            # resolved path, and a refusal shows both.
+            loaded[name] = load(typed(name))
         except ModelNotFound as exc:
             raise CheckError(f"{name}:={typed(name)}: {exc}") from None
         line = positional_mapping_line(loaded[name])

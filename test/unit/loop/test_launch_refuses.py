@@ -109,7 +109,7 @@ def test_a_missing_relative_model_stops_the_launch_naming_it_as_typed(tmp_path):
     done, master_up = roslaunch("human_model:=./tired.pomdpx", cwd=tmp_path)
     line = refused_in_one_line(done, master_up)
     assert line == (f"hrc.launch: human_model:=./tired.pomdpx: no model file "
-                    f"{tmp_path / 'tired.pomdpx'}")
+                    f"./tired.pomdpx (looked for {tmp_path / 'tired.pomdpx'})")
 
 
 def test_a_missing_relative_policy_file_stops_the_launch(tmp_path):
@@ -185,5 +185,5 @@ def test_a_solver_that_cannot_start_on_its_launch_s_settings_stops_the_launch(tm
                           capture_output=True, text=True, env=env, timeout=120)
     assert done.stdout.split() == ["2", "True"], done.stderr
     assert done.stderr.splitlines() == [
-        f"despot_pomdp: no model file {tmp_path / 'gone.pomdp'}",
+        f"despot_pomdp: no model file {tmp_path / 'gone.pomdp'} (looked for {tmp_path / 'gone.pomdp'})",
         "despot_pomdp: cannot start on this launch's settings: stopping the launch"]
