@@ -6,13 +6,16 @@
   MDP keeps stepping.
 * Frames without the launch's token, on the human and the robot port (an order to grasp),
   are refused and closed; nothing acts.
-* 50 concurrent /hrc/reset calls all succeed, and afterwards the steps run 0, 1, 2 ... in one
-  new epoch, every status consistent.
+* A holder of the token who is not the coordinator sends orders to the robot port: refused.
+* 50 concurrent /hrc/reset calls all succeed and are one reset (every answer names the same
+  episode), and afterwards the steps run 0, 1, 2 ... in one new epoch, every status
+  consistent.
 * kill -9 of hrc_robot, hrc_obs, despot_pomdp, despot_mdp and hrc_human: each respawns and the
   run goes on from a reset. kill -9 of hrc_world (required): the whole launch stops.
 """
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -24,6 +27,10 @@ import rospy
 import websocket
 import rostest
 from std_srvs.srv import Trigger
+
+from ros_hrc.link.protocol import Action, Error, Reset
+from ros_hrc.link.token import read_token
+from ros_hrc.link.transport import MessageClient, link_url
 
 from hrc_stack import (WAIT, StatusLog, check_epochs, check_step, fresh_run, node_pids,
                        start_stack, stop_stack, wait_for_pids)
@@ -109,6 +116,27 @@ class TestLoopFaults(unittest.TestCase):
         self.assertFalse(any(s.fault for s in statuses))
         check_epochs(self, statuses)
 
+    def test_1c_the_robot_port_takes_orders_from_the_coordinator_only(self):
+        """Issue #20: any holder of the token could send an action to the robot port, with no
+        epoch, and the robot moved. Only the coordinator's connection gives orders."""
+        token_file = rospy.get_param("/hrc/config/token_file")
+        client = MessageClient(link_url(8080), "intruder", token=read_token(token_file),
+                               backoff=(0.05, 0.5)).connect(WAIT)
+        try:
+            for order in (Action(step=0, action="rGrasp_obj", epoch=1),
+                          Action(step=0, action="rPoint_obj"),
+                          Reset(reason="intruder")):
+                reply = client.request(order, WAIT)
+                self.assertIsInstance(reply, Error, reply)
+                self.assertEqual(reply.code, "refused", reply)
+                self.assertIn("only from the coordinator", reply.message)
+        finally:
+            client.close()
+        self.log.clear()
+        ok, statuses = self.log.wait_for(lambda s: len(s) >= 5)
+        self.assertTrue(ok, "the loop stopped stepping after the refused orders")
+        self.assertFalse(any(s.fault for s in statuses), [s.fault for s in statuses])
+
     def test_2_fifty_concurrent_resets_then_steps_from_zero(self):
         answers = []
         rospy.wait_for_service("/hrc/reset", WAIT)
@@ -123,6 +151,13 @@ class TestLoopFaults(unittest.TestCase):
             t.join(WAIT)
         self.assertEqual(len(answers), 50)
         self.assertTrue(all(a.success for a in answers), {a.message for a in answers})
+        # Issue #20: they made 5 to 10 resets, the episode number jumping. One reset: every
+        # answer names the same episode.
+        episodes = {re.search(r"episode (\d+)", a.message).group(1) for a in answers
+                    if re.search(r"episode (\d+)", a.message)}
+        self.assertEqual(len(episodes), 1, {a.message for a in answers})
+        self.assertEqual(len([a for a in answers if "joined" not in a.message]), 1,
+                         {a.message for a in answers})
         self.log.clear()   # everything from now on comes after every reset was answered
         ok, statuses = self.log.wait_for(lambda s: fresh_run(s, 4))
         self.assertTrue(ok, f"no run 0, 1, 2, 3 after the resets: "

@@ -131,12 +131,14 @@ _ERROR_TYPE = re.compile(r'"type"\s*:\s*"error"')
 class MessageError(ProtocolError):
     """A frame was rejected. ``reason`` says why and ``code`` how (:data:`ERR_INVALID`, or
     :data:`ERR_UNKNOWN_TYPE` for a type this protocol does not have); ``msg_type``, ``step``,
-    ``msg_id`` and ``epoch`` say which message it was, when they could be read (else
-    ``None``)."""
+    ``msg_id``, ``epoch`` and ``reply_to`` say which message it was, when they could be read
+    (else ``None``): a rejected reply's ``reply_to`` lets a client fail the request it was
+    meant to answer at once, rather than wait for an answer that will not come."""
 
     def __init__(self, reason: str, msg_type: Optional[str] = None,
                  step: Optional[int] = None, msg_id: Optional[int] = None,
-                 epoch: Optional[int] = None, code: str = ERR_INVALID) -> None:
+                 epoch: Optional[int] = None, code: str = ERR_INVALID,
+                 reply_to: Optional[int] = None) -> None:
         super().__init__(reason)
         self.reason = reason
         self.msg_type = msg_type
@@ -144,6 +146,7 @@ class MessageError(ProtocolError):
         self.msg_id = msg_id
         self.epoch = epoch
         self.code = code
+        self.reply_to = reply_to
 
 
 def _kind(value: Any) -> str:
@@ -647,36 +650,47 @@ def from_dict(obj: Any) -> Message:
     if not isinstance(obj, dict):
         raise MessageError(f"a message must be a JSON object, got {_kind(obj)}")
     # What the rejection can name, read before anything else can fail.
-    step = obj.get("step")
-    step = step if _is_count(step, MAX_UINT32) else None
-    msg_id = obj.get("id")
-    msg_id = msg_id if _is_count(msg_id, MAX_ENVELOPE_INT) else None
-    epoch = obj.get("epoch")
-    epoch = epoch if _is_count(epoch, MAX_UINT32) else None
+    step, msg_id, epoch, reply_to = _envelope(obj)
     if "type" not in obj:
-        raise MessageError('missing field "type"', None, step, msg_id, epoch)
+        raise MessageError('missing field "type"', None, step, msg_id, epoch,
+                           reply_to=reply_to)
     msg_type = obj["type"]
     if not isinstance(msg_type, str):
         raise MessageError(f'field "type" must be a string, got {_kind(msg_type)} '
-                           f"{_preview(msg_type)}", None, step, msg_id, epoch)
+                           f"{_preview(msg_type)}", None, step, msg_id, epoch,
+                           reply_to=reply_to)
     cls = MESSAGE_TYPES.get(msg_type)
     if cls is None:
         raise MessageError(f"unknown message type {_preview(msg_type)} (known: "
                            f"{', '.join(sorted(MESSAGE_TYPES))})", msg_type, step, msg_id, epoch,
-                           code=ERR_UNKNOWN_TYPE)
+                           code=ERR_UNKNOWN_TYPE, reply_to=reply_to)
     kwargs: Dict[str, Any] = {}
     for name, required in _wire_fields(cls):
         if name in obj:
             kwargs[name] = obj[name]
         elif required:
             raise MessageError(f'{msg_type} message: missing field "{name}"', msg_type, step,
-                               msg_id, epoch)
+                               msg_id, epoch, reply_to=reply_to)
     extra = {k: v for k, v in obj.items() if k != "type" and k not in kwargs}
     try:
         return cls(**kwargs, extra=extra)
     except MessageError as exc:
-        exc.step, exc.msg_id, exc.epoch = step, msg_id, epoch
+        exc.step, exc.msg_id, exc.epoch, exc.reply_to = step, msg_id, epoch, reply_to
         raise
+
+
+def _envelope(obj: Dict[str, Any]) -> Tuple[Optional[int], Optional[int], Optional[int],
+                                            Optional[int]]:
+    """``step``, ``id``, ``epoch`` and ``reply_to`` of a JSON object, each ``None`` when it is
+    missing or not a valid value: what a rejection can name."""
+    step = obj.get("step")
+    msg_id = obj.get("id")
+    epoch = obj.get("epoch")
+    reply_to = obj.get("reply_to")
+    return (step if _is_count(step, MAX_UINT32) else None,
+            msg_id if _is_count(msg_id, MAX_ENVELOPE_INT) else None,
+            epoch if _is_count(epoch, MAX_UINT32) else None,
+            reply_to if _is_count(reply_to, MAX_ENVELOPE_INT) else None)
 
 
 def _no_constants(name: str) -> Any:
@@ -709,6 +723,28 @@ def decode(frame: Union[str, bytes, bytearray, memoryview]) -> Message:
                            Error.TYPE if _looks_like_error(frame) else None) from None
 
 
+def _too_large(frame: str, size: int) -> MessageError:
+    """The rejection of a frame over :data:`MAX_MESSAGE_BYTES`, naming its type and envelope
+    when they can be read cheaply (a frame of at most :data:`_ENVELOPE_READ_BYTES`): so that a
+    too-large reply still fails the request it answers at once."""
+    error = MessageError(f"message too large: {size} bytes, the limit is {MAX_MESSAGE_BYTES}")
+    if size <= _ENVELOPE_READ_BYTES:
+        try:
+            obj = json.loads(frame, parse_constant=_no_constants)
+        except (ValueError, RecursionError, MessageError):
+            obj = None
+        if isinstance(obj, dict):
+            error.step, error.msg_id, error.epoch, error.reply_to = _envelope(obj)
+            msg_type = obj.get("type")
+            if isinstance(msg_type, str) and msg_type in MESSAGE_TYPES:
+                error.msg_type = msg_type
+    return error
+
+
+#: Largest too-large frame whose envelope is still read (the transport reads no larger frame).
+_ENVELOPE_READ_BYTES = 4 * MAX_MESSAGE_BYTES
+
+
 def _looks_like_error(frame: Any) -> bool:
     """Whether a rejected frame says ``"type": "error"`` anywhere: then it is never answered,
     even when it could not be parsed (answering might start two peers answering each other)."""
@@ -730,7 +766,7 @@ def _decode(frame: Any) -> Message:
         raise MessageError(f"the frame is not valid Unicode text: a lone surrogate at "
                            f"character {exc.start}") from None
     if size > MAX_MESSAGE_BYTES:
-        raise MessageError(f"message too large: {size} bytes, the limit is {MAX_MESSAGE_BYTES}")
+        raise _too_large(frame, size)
     try:
         obj = json.loads(frame, parse_constant=_no_constants, object_pairs_hook=_no_duplicates)
     except json.JSONDecodeError as exc:

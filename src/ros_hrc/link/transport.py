@@ -31,6 +31,8 @@ Exception tree (the first two live in :mod:`ros_hrc.errors`)::
     │   └── MessageError       (protocol) a message was rejected; .reason, .code, .msg_type
     ├── LinkTimeout            nothing came before the deadline (also a TimeoutError)
     ├── LinkDropped            the connection a reply was awaited on broke: it cannot come
+    ├── ReplyRejected          the request's answer came but was rejected (malformed, too
+    │                          large, of another epoch, without reply_to): it fails at once
     └── LinkClosed             the client was closed (or the server stopped) meanwhile
 
 Threads: every public method of both classes is thread-safe. The server's handler and its
@@ -78,6 +80,8 @@ OUTBOX_FRAMES = 1024
 SEND_TIMEOUT = 5.0
 #: Close code of :meth:`Peer.close` by default: policy violation (e.g. "this seat is taken").
 CLOSE_REFUSED = 1008
+#: Close code of a server that stops (websockets sends it): the client reconnects quietly.
+CLOSE_GOING_AWAY = 1001
 #: Seconds a client of a server with a token has to say its hello (with its proof) before it
 #: is refused: a connection that never speaks holds no thread for long.
 HELLO_TIMEOUT = 10.0
@@ -109,6 +113,25 @@ class LinkClosed(LinkError):
 class LinkDropped(LinkError):
     """The connection a reply was awaited on broke. The server that would have answered has
     lost its state (it died, or restarted), so the reply will never come."""
+
+
+class ReplyRejected(LinkError):
+    """The answer to a request came and was rejected: a malformed or too large frame naming
+    the request in its ``reply_to``, a reply of another epoch than the request's, or a reply
+    that answers it by the version 1 rules but without the ``reply_to`` version 2 requires.
+    The request fails at once with the reason (no other answer will come)."""
+
+
+def connect_failure(exc: BaseException) -> str:
+    """Why a connection attempt failed, in a few plain words: a refused handshake names its
+    HTTP status only (websocket-client's own text carries every header), 503 says the server
+    is stopping."""
+    status = getattr(exc, "status_code", None)
+    if isinstance(exc, websocket.WebSocketBadStatusException) and status is not None:
+        return "the server is stopping (HTTP 503)" if status == 503 else \
+            f"the server refused the handshake (HTTP {status})"
+    text = " ".join(str(exc).split())
+    return text[:200] or type(exc).__name__
 
 
 def free_port(host: str = DEFAULT_HOST) -> int:
@@ -754,6 +777,8 @@ class MessageClient:
         self._inbox: List[Message] = []
         self._next_id = itertools.count(1)
         self._pending: Dict[int, int] = {}  # id of a request in flight -> how many wait on it
+        self._requests: Dict[int, Message] = {}   # id of a request in flight -> the request
+        self._rejected: Dict[int, str] = {}   # id of a request in flight -> why its answer failed
         self._abandoned: "collections.OrderedDict[int, None]" = collections.OrderedDict()
         self._closed = threading.Event()
         self._thread: Optional[threading.Thread] = None
@@ -870,8 +895,11 @@ class MessageClient:
         that id (:func:`~ros_hrc.link.protocol.is_reply_to`). Other messages stay in the
         inbox; several threads may request at once, each gets its own answer. Returns the
         answer; raises :class:`LinkTimeout`, :class:`LinkClosed`, or :class:`LinkDropped` at
-        once when the connection breaks before the answer comes. A late answer to a request
-        that failed is dropped when it arrives."""
+        once when the connection breaks before the answer comes, :class:`ReplyRejected` at
+        once when the answer came but is rejected (malformed or too large with this
+        ``reply_to``; of another epoch than the request's, when the request has one; or
+        answering it without a ``reply_to``). A late answer to a request that failed is
+        dropped when it arrives."""
         if not isinstance(msg, Message):
             encode(msg)  # raises MessageError, as send() would
         deadline = _deadline(self.send_timeout if timeout is None else timeout)
@@ -879,6 +907,7 @@ class MessageClient:
             if msg.id is None:
                 msg = replace(msg, id=next(self._next_id))
             self._pending[msg.id] = self._pending.get(msg.id, 0) + 1
+            self._requests[msg.id] = msg
         answered = False
         try:
             number = self.send(msg, _remaining(deadline))
@@ -891,7 +920,10 @@ class MessageClient:
                 left = self._pending.pop(msg.id) - 1
                 if left:
                     self._pending[msg.id] = left
-                elif not answered:
+                else:
+                    self._requests.pop(msg.id, None)
+                    self._rejected.pop(msg.id, None)
+                if not left and not answered:
                     self._abandoned[msg.id] = None
                     while len(self._abandoned) > _ABANDONED_IDS:
                         self._abandoned.popitem(last=False)
@@ -914,6 +946,8 @@ class MessageClient:
         deadline = _deadline(timeout)
         with self._cond:
             while True:
+                if own_id is not None and own_id in self._rejected:
+                    raise ReplyRejected(f"{self.name}: {self._rejected[own_id]}")
                 for i, msg in enumerate(self._inbox):
                     if (msg.reply_to is not None and msg.reply_to in self._pending
                             and msg.reply_to != own_id):
@@ -981,10 +1015,16 @@ class MessageClient:
                               "%s: %s refused the connection (%s); retrying", self.name,
                               self.url, self.last_close[1] if self.last_close else "")
                 failures += 1
+            elif close_code == CLOSE_GOING_AWAY:
+                # The server is stopping (shutdown, or a respawn): one plain line, and the
+                # attempts to reconnect while it is gone say nothing more.
+                self._log.info("%s: %s is going away (it stops); reconnecting when it is back",
+                               self.name, self.url)
+                pause, failures = self._backoff[0], 1
             else:
                 self._log.warning("%s: lost the connection to %s; reconnecting", self.name,
                                   self.url)
-                pause, failures = self._backoff[0], 0
+                pause, failures = self._backoff[0], 1
             self._call(self._on_disconnect, "on_disconnect")
             if close_code == CLOSE_REFUSED:
                 self._closed.wait(pause)
@@ -1010,9 +1050,10 @@ class MessageClient:
             # Blocking from now on: the reader waits for frames; close() cuts the socket.
             ws.settimeout(None)
         except (websocket.WebSocketException, OSError) as exc:
-            # Say it once per outage, not once per retry.
+            # Say it once per outage, not once per retry, in one plain line.
             self._log.log(logging.DEBUG if quiet else logging.INFO,
-                          "%s: cannot connect to %s yet (%s); retrying", self.name, self.url, exc)
+                          "%s: cannot connect to %s yet (%s); retrying", self.name, self.url,
+                          connect_failure(exc))
             return None
         with self._cond:
             if self._closed.is_set():
@@ -1083,6 +1124,9 @@ class MessageClient:
                 msg = decode(data)
             except MessageError as exc:
                 self._log.warning("%s: rejected a frame from %s: %s", self.name, self.url, exc)
+                if exc.reply_to is not None:
+                    self._reject_answer(exc.reply_to, f"the answer to request {exc.reply_to} "
+                                        f"was rejected: {exc.reason}")
                 if exc.msg_type == Error.TYPE:
                     continue  # an error is never answered, even a malformed one
                 try:
@@ -1104,5 +1148,41 @@ class MessageClient:
                     self._log.debug("%s: dropped a late %s answering request %d", self.name,
                                     msg.type, msg.reply_to)
                     continue
+                why = self._wrong_answer(msg)
+                if why is not None:
+                    request_id, text = why
+                    self._log.warning("%s: %s", self.name, text)
+                    self._rejected[request_id] = text
+                    self._cond.notify_all()
+                    continue
                 self._inbox.append(msg)
+                self._cond.notify_all()
+
+    def _wrong_answer(self, msg: Message) -> Optional[Tuple[int, str]]:
+        """(request id, why) when ``msg`` answers a request in flight but may not be taken
+        as its answer: of another epoch than the request's, or (a reply without ``reply_to``)
+        answering it only by the version 1 rules. Called with ``_cond`` held."""
+        if not isinstance(msg, REPLY_TYPES):
+            return None
+        if msg.reply_to is not None:
+            request = self._requests.get(msg.reply_to)
+            if request is None or request.epoch is None or msg.epoch == request.epoch:
+                return None
+            return msg.reply_to, (
+                f"the {msg.type} answering {request.type} {msg.reply_to} is of epoch "
+                f"{msg.epoch}, the request of epoch {request.epoch}: a reply carries its "
+                "request's epoch, so it was dropped")
+        for request_id, request in self._requests.items():
+            if is_reply_to(msg, replace(request, id=None)):
+                return request_id, (
+                    f"a {msg.type} answered {request.type} {request_id} without reply_to "
+                    f"(version 2 replies carry their request's id): dropped"
+                    + (f" ({msg.message})" if isinstance(msg, Error) else ""))
+        return None
+
+    def _reject_answer(self, request_id: int, why: str) -> None:
+        """Fail the request in flight ``request_id`` at once with ``why``."""
+        with self._cond:
+            if request_id in self._requests:
+                self._rejected[request_id] = why
                 self._cond.notify_all()

@@ -268,6 +268,18 @@ STALE, BUSY, SEAT_TAKEN, INVALID, EPISODE_IS_OVER, FAILED, NOT_READY = (
     "stale", "busy", "seat_taken", "invalid", "episode_over", "failed", "not_ready")
 
 
+#: Seconds before the first retry of a failed reset; each retry doubles it up to
+#: :data:`MAX_RETRY_DELAY`.
+RETRY_DELAY = 1.0
+MAX_RETRY_DELAY = 10.0
+#: Seconds after a reset finished during which a reset asked for from outside is that reset.
+RESET_JOIN_WINDOW = 1.0
+#: Seconds between the lines that say what a step waits for.
+WAIT_NOTE_EVERY = 5.0
+#: Seconds a step waits for one call to the world before it fails.
+WORLD_CALL_TIMEOUT = 30.0
+
+
 @dataclass(frozen=True)
 class CoordinatorConfig:
     """How episodes end and how the loop recovers.
@@ -276,16 +288,26 @@ class CoordinatorConfig:
     end it when the human MDP reaches ``goal_state`` (the seed's end), besides the world's
     ends (someone holds the object, or it left the belt). ``on_episode_end``: ``wait`` for a
     reset, ``reset`` at once, or ``continue`` stepping. ``retry_delay``: seconds between
-    attempts to recover by a reset. ``first_epoch``: the first epoch minted (adapters give a
-    random one, so a restarted coordinator never reuses an epoch of its predecessor)."""
+    attempts to recover by a reset (doubling up to ``max_retry_delay``). ``first_epoch``: the
+    first epoch minted (adapters give a random one, so a restarted coordinator never reuses
+    an epoch of its predecessor). ``reset_join_window``: a reset asked for from outside
+    (``reset_requested``) the same way as the reset that finished, less than this many
+    seconds after it or after the latest request that joined it, while the loop steps, is that
+    reset (a burst of calls is one reset, however long it is spread). ``wait_note_every``: while a
+    step's call is out, say every this many seconds what the step waits for.
+    ``world_call_timeout``: a step whose call to the world (the human's action, a snapshot)
+    has not come back after this many seconds fails, naming the call."""
 
     max_steps: int = 0
     end_on_goal: bool = True
     goal_state: str = "success"
     on_episode_end: str = "wait"
-    retry_delay: float = 1.0
-    max_retry_delay: float = 10.0
+    retry_delay: float = RETRY_DELAY
+    max_retry_delay: float = MAX_RETRY_DELAY
     first_epoch: int = 1
+    reset_join_window: float = RESET_JOIN_WINDOW
+    wait_note_every: float = WAIT_NOTE_EVERY
+    world_call_timeout: float = WORLD_CALL_TIMEOUT
 
     def __post_init__(self) -> None:
         if self.on_episode_end not in EPISODE_END_POLICIES:
@@ -293,6 +315,10 @@ class CoordinatorConfig:
                              f"not {self.on_episode_end!r}")
         if self.max_steps < 0 or self.retry_delay <= 0 or self.first_epoch < 0:
             raise ValueError("max_steps >= 0, retry_delay > 0 and first_epoch >= 0 are required")
+        if (self.reset_join_window < 0 or self.wait_note_every <= 0
+                or self.world_call_timeout <= 0):
+            raise ValueError("reset_join_window >= 0, wait_note_every > 0 and "
+                             "world_call_timeout > 0 are required")
 
 
 @dataclass
@@ -327,8 +353,14 @@ class Coordinator:
         self._reset_stage = ""          # draining -> resetting -> starting
         self._reset_calls: Dict[int, str] = {}
         self._reset_problems: List[str] = []
+        self._reset_parts_done: List[str] = []
         self._retry_timer: Optional[int] = None
         self._retry_delay = self.config.retry_delay
+        self._join_timer: Optional[int] = None   # runs while a finished reset can be joined
+        self._join_reason = ""          # how that reset was asked for
+        self._reset_asked = ""          # how the reset under way was asked for from outside
+        self._last_reset_text = ""
+        self._wait_timers: Dict[int, Tuple[int, float]] = {}   # timer -> (call id, waited s)
         self.dropped = 0                # results of an older epoch, dropped
 
     # -- output -------------------------------------------------------------------------------
@@ -349,7 +381,20 @@ class Coordinator:
         call = kind(id=next(self._ids), epoch=self.epoch, step=step, **fields)
         self._outstanding[call.id] = call
         self._emit(call)
+        if step is not None:
+            self._arm_wait_timer(call.id, 0.0)
         return call
+
+    def _arm_wait_timer(self, call_id: int, waited: float) -> None:
+        """Look at a step's call again after the next ``wait_note_every`` seconds (or at the
+        world's timeout, if that comes first)."""
+        call = self._outstanding[call_id]
+        every = self.config.wait_note_every
+        if isinstance(call, (ActHuman, ObserveWorld)):
+            every = min(every, self.config.world_call_timeout - waited)
+        timer = next(self._ids)
+        self._wait_timers[timer] = (call_id, waited + every)
+        self._emit(Timer(timer, every))
 
     def _note(self, level: str, text: str) -> None:
         self._emit(Note(level, text))
@@ -384,8 +429,18 @@ class Coordinator:
         the seated MDP, in the current epoch, with the expected number, while the loop is
         ready; otherwise the step starts with the human's action."""
         def refuse(code: str, message: str) -> None:
+            # The protocol's word: after a refused step the MDP waits for the next reset. A
+            # reset under way (not_ready, failed) or the episode's end (episode_over: the
+            # reset comes when asked for) brings one; for the others this one does.
+            resets = (peer == self.seat and code in (STALE, BUSY, INVALID)
+                      and self.phase in (READY, STEPPING))
+            if resets:
+                message += "; the loop resets: wait for the reset message"
             self._emit(MdpRefused(peer, request.reply, request.epoch, request.step, code,
                                   message))
+            if resets:
+                self._begin_reset(f"the MDP's step {request.step} was refused ({code}: "
+                                  f"{message.split(';')[0]})", None)
 
         if peer != self.seat:
             return refuse(SEAT_TAKEN, "another MDP process is being served")
@@ -538,16 +593,54 @@ class Coordinator:
 
     # -- resets ----------------------------------------------------------------------------------
     def reset_requested(self, reason: str, token: Any = None) -> None:
-        """Someone asks for a reset (``token`` is answered by :class:`ResetDone`)."""
+        """Someone asks for a reset (``token`` is answered by :class:`ResetDone`). One asked
+        for while a reset is under way joins it; one asked for within ``reset_join_window``
+        seconds after a reset finished, while the episode that reset started goes on, is
+        that reset (answered at once) when it was asked for the same way (the same
+        ``reason``: fifty /hrc/reset calls, not an Enter after an MDP connected) and its
+        episode is not over: a burst of calls is one reset."""
+        if (self._join_timer is not None and self.phase in (READY, STEPPING)
+                and reason == self._join_reason):
+            if token is not None:
+                self._emit(ResetDone((token,), True, f"{self._last_reset_text} (this request "
+                                                     "joined it: it came as it finished)"))
+            # The burst goes on: the window runs from its latest request.
+            self._join_timer = next(self._ids)
+            self._emit(Timer(self._join_timer, self.config.reset_join_window))
+            return
+        if self.phase != RESETTING:
+            self._reset_asked = reason
         self._begin_reset(reason, token)
 
     def timer_fired(self, timer_id: int) -> None:
-        """A :class:`Timer` ran out: retry the reset that failed."""
+        """A :class:`Timer` ran out: retry the reset that failed, say what a step waits for
+        (or fail it when the world has not answered in time), or close a reset to joiners."""
+        if timer_id in self._wait_timers:
+            return self._step_waits(*self._wait_timers.pop(timer_id))
+        if timer_id == self._join_timer:
+            self._join_timer = None
+            return
         if timer_id != self._retry_timer:
             return
         self._retry_timer = None
         if self.phase == BROKEN:
             self._begin_reset(self._reset_reason, None)   # the same reason, not nested
+
+    def _step_waits(self, call_id: int, waited: float) -> None:
+        """A step's call has been out for ``waited`` seconds: say so, or fail the step when
+        it is a call to the world and the world's timeout has passed."""
+        call = self._outstanding.get(call_id)
+        ctx = self._step
+        if call is None or ctx is None or call.epoch != self.epoch or \
+                call.step != ctx.request.step:
+            return
+        world = isinstance(call, (ActHuman, ObserveWorld))
+        if world and waited >= self.config.world_call_timeout:
+            return self._fail_step(
+                f"{_what(call)} has not answered in {waited:g} s (world_call_timeout): the "
+                "world may be serving other callers of its services first")
+        self._note("warn", f"step {call.step} waits for {_what(call)}: {waited:g} s so far")
+        self._arm_wait_timer(call_id, waited)
 
     def _begin_reset(self, reason: str, token: Any) -> None:
         if self.phase == RESETTING:
@@ -562,6 +655,7 @@ class Coordinator:
         self._reset_reason = reason
         self._reset_tokens = [token] if token is not None else []
         self._reset_problems = []
+        self._reset_parts_done: List[str] = []
         self._reset_calls = {}
         self._reset_stage = "draining"
         self._episode_ended = False
@@ -600,10 +694,14 @@ class Coordinator:
             self._reset_problems.append(f"{what}: {result.message}")
         elif isinstance(result, Outcome) and not result.success:
             self._reset_problems.append(f"{what}: {result.message}")
+        else:
+            self._reset_parts_done.append(what)
         if self._reset_calls:
             return
         if self._reset_problems:
-            return self._reset_failed("; ".join(self._reset_problems))
+            done = ", ".join(self._reset_parts_done) or "nothing"
+            return self._reset_failed(f"not reset: {'; '.join(self._reset_problems)}; reset: "
+                                      f"{done}; the human MDP is told when all are")
         self._reset_stage = "starting"
         self._call(ObserveWorld, None, purpose="episode_start")
 
@@ -618,7 +716,16 @@ class Coordinator:
         self.phase = READY
         self._retry_delay = self.config.retry_delay
         tokens, self._reset_tokens = tuple(self._reset_tokens), []
-        text = f"world, robot belief and human MDP reset ({self._reset_reason})"
+        text = (f"world, robot belief and human MDP reset ({self._reset_reason}): episode "
+                f"{self.episode}")
+        if self._reset_asked and self.config.reset_join_window > 0:
+            # Asked for from outside: for a while, more requests asked the same way are it
+            # (resets the loop makes itself in between, e.g. at an episode's end, do not
+            # close the window).
+            self._last_reset_text = text
+            self._join_reason, self._reset_asked = self._reset_asked, ""
+            self._join_timer = next(self._ids)
+            self._emit(Timer(self._join_timer, self.config.reset_join_window))
         self._note("info", f"RESET ({self._reset_reason}): episode {self.episode}, "
                            f"epoch {self.epoch}")
         if self.seat is not None:
@@ -631,7 +738,10 @@ class Coordinator:
         tokens, self._reset_tokens = tuple(self._reset_tokens), []
         self._note("error", f"reset failed: {why}; retrying in {self._retry_delay:g} s")
         if tokens:
-            self._emit(ResetDone(tokens, False, f"reset failed: {why}"))
+            self._emit(ResetDone(tokens, False, f"reset failed: {why}; retried in "
+                                                f"{self._retry_delay:g} s (then every up to "
+                                                f"{self.config.max_retry_delay:g} s) until it "
+                                                "works"))
         self._retry_timer = next(self._ids)
         self._emit(Timer(self._retry_timer, self._retry_delay))
         self._retry_delay = min(self._retry_delay * 2, self.config.max_retry_delay)

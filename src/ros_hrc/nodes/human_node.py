@@ -38,7 +38,10 @@ Parameters: ~host, ~port, ~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episo
 ~service_timeout (s to wait for a service that went away during the run, e.g. a respawning
 hrc_obs; at start-up the node waits however long it takes), ~wait_report_every (s between
 the lines saying what the start-up still waits for), ~action_timeout (s a world or robot
-action may take), ~decide_timeout (s to wait for a decision), ~reset_timeout,
+action may take), ~decide_timeout (s to wait for a decision), ~reset_timeout (s /hrc/reset
+waits for the reset), ~reply_timeout (s to wait for the MDP's answer to a next state),
+~reset_join_window, ~wait_note_every, ~world_call_timeout (see CoordinatorConfig; the values
+of all of them are in docs/loop.md, "Timeouts"),
 ~link_session (hrc.launch's session: the link token's file) or ~token_file (by hand).
 """
 from __future__ import annotations
@@ -60,9 +63,11 @@ from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, Action,
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc.loop import task
-from ros_hrc.loop.coordinator import (Coordinator, CoordinatorConfig, Decision, MdpRefused,
-                                      MdpReset, MdpStepDone, Outcome, SeatRefused, Snapshot,
-                                      STEP_TIMINGS, StepReport, StepRequest)
+from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
+                                      WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig,
+                                      Decision, MdpRefused, MdpReset, MdpStepDone, Outcome,
+                                      SeatRefused, Snapshot, STEP_TIMINGS, StepReport,
+                                      StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.msg import Status
@@ -89,6 +94,9 @@ class HumanNodeConfig:
     decide_timeout: float = 120.0
     reset_timeout: float = 120.0
     reply_timeout: float = 10.0
+    reset_join_window: float = RESET_JOIN_WINDOW
+    wait_note_every: float = WAIT_NOTE_EVERY
+    world_call_timeout: float = WORLD_CALL_TIMEOUT
     link_session: str = ""      # hrc.launch's session: where the link token is
     token_file: str = ""        # or the token's file, for a node started by hand
 
@@ -326,7 +334,10 @@ class HumanNode:
         first_epoch = int.from_bytes(os.urandom(3), "big") << 4
         coordinator = Coordinator(CoordinatorConfig(
             max_steps=config.max_steps, end_on_goal=config.end_on_goal,
-            on_episode_end=config.on_episode_end, first_epoch=first_epoch))
+            on_episode_end=config.on_episode_end, first_epoch=first_epoch,
+            reset_join_window=config.reset_join_window,
+            wait_note_every=config.wait_note_every,
+            world_call_timeout=config.world_call_timeout))
         token = launch_token(config)
         self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
                                    send_timeout=config.action_timeout, token=token)
@@ -396,9 +407,16 @@ class HumanNode:
     def send_next_state(self, state: Optional[int]) -> Tuple[bool, str]:
         """Give the served MDP its next state (None: the model chooses): (success, what the
         MDP answered)."""
-        seat = self.runner.coordinator.seat
+        coordinator = self.runner.coordinator
+        seat = coordinator.seat
         if seat is None:
             return False, "no MDP process is connected"
+        if coordinator.phase == EPISODE_OVER:
+            # The MDP takes no step before the next reset, and a reset starts its episode
+            # afresh: a state given now would be acknowledged and then dropped.
+            return False, (f"episode {coordinator.episode} is over: no next state until the "
+                           "next episode; reset first (Enter in the roslaunch terminal or "
+                           "`rosservice call /hrc/reset`), then give the state")
         request_id = next(self._next_state_ids)
         try:
             message = NextState(state=state, id=request_id)

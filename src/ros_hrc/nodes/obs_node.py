@@ -10,11 +10,19 @@ and the coordinator then resets the loop.
 
 Services offered: /hrc/obs/decide (ros_hrc/Decide), /hrc/obs/reset_planner
 (ros_hrc/ResetPlanner: the planner's belief back to its initial belief, in a new epoch).
-Parameters: ~host (127.0.0.1), ~pomdp_port (7070), ~decide_timeout (s, 120), ~link_session
-(hrc.launch's session: the link token's file) or ~token_file (by hand).
+Parameters: ~host (127.0.0.1), ~pomdp_port (7070), ~decide_timeout (s, 120: the longest a
+decision may take), ~reset_timeout (s, 10: the POMDP's answer to a reset, which takes no
+planning), ~link_session (hrc.launch's session: the link token's file) or ~token_file (by hand).
+
+When the POMDP process is not connected (it died, or has not started yet), both services
+answer at once that it is not (``success`` false): a reset then says what it could not reset
+instead of waiting out a timeout, and is retried by the coordinator. A decision whose frame
+is rejected (malformed, too large, of another epoch, without ``reply_to``) fails at once with
+the reason (:class:`~ros_hrc.link.transport.ReplyRejected`).
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import rospy
@@ -32,6 +40,7 @@ class ObsNodeConfig:
     host: str = "127.0.0.1"
     pomdp_port: int = 7070
     decide_timeout: float = 120.0
+    reset_timeout: float = 10.0
     link_session: str = ""
     token_file: str = ""
 
@@ -44,7 +53,17 @@ class ObsNode:
         self.pomdp = MessageClient(link_url(config.pomdp_port, config.host), "hrc_obs",
                                    send_timeout=config.decide_timeout, token=launch_token(config))
 
+    def _not_connected(self) -> str:
+        """Why nothing can be asked of the POMDP process now ("" when it is connected)."""
+        if self.pomdp.connected:
+            return ""
+        return (f"the POMDP process is not connected ({self.pomdp.url}): it is down or "
+                "(re)starting")
+
     def decide(self, req) -> DecideResponse:
+        down = self._not_connected()
+        if down:
+            return DecideResponse(success=False, message=f"no decision: {down}")
         try:
             reply = self.pomdp.request(Observation(
                 step=req.step, observation=req.observation, bits=req.bits, state=req.state,
@@ -64,9 +83,12 @@ class ObsNode:
                               surprise=bool(reply.surprise), rule=reply.rule or "")
 
     def reset_planner(self, req) -> ResetPlannerResponse:
+        down = self._not_connected()
+        if down:
+            return ResetPlannerResponse(success=False, message=down)
         try:
             reply = self.pomdp.request(Reset(reason="reset", episode=req.episode,
-                                             epoch=req.epoch), self.config.decide_timeout)
+                                             epoch=req.epoch), self.config.reset_timeout)
         except LinkError as exc:
             return ResetPlannerResponse(success=False, message=f"POMDP process not reset: {exc}")
         if isinstance(reply, Ack):
@@ -83,8 +105,21 @@ def main() -> None:
         rospy.logfatal("hrc_obs cannot start: %s", exc)
         raise SystemExit(2) from None
     node.pomdp.start()
+    rospy.on_shutdown(node.pomdp.close)
+    # The services are offered once the POMDP process is first connected: hrc_human waits
+    # for them before its first reset, so a planner that takes a while to load is waited
+    # for there, and "not connected" later means down (answered at once).
+    started = time.monotonic()
+    next_line = started + 10.0
+    while not node.pomdp.connected and not rospy.is_shutdown():
+        time.sleep(0.1)   # wall clock: /clock may not be published yet
+        if time.monotonic() >= next_line:
+            next_line += 10.0
+            rospy.loginfo("hrc_obs: waiting for the POMDP process on %s (%.0f s)",
+                          node.pomdp.url, time.monotonic() - started)
+    if rospy.is_shutdown():
+        return
     rospy.Service("/hrc/obs/decide", Decide, node.decide)
     rospy.Service("/hrc/obs/reset_planner", ResetPlanner, node.reset_planner)
-    rospy.on_shutdown(node.pomdp.close)
     rospy.loginfo("hrc_obs: observing for the POMDP process on %s", node.pomdp.url)
     rospy.spin()

@@ -8,6 +8,15 @@ this node carries it out through the world's /robot/* services (``rIdle`` moves 
 world refused, e.g. out of reach). When the world cannot be reached the answer is an
 ``error``: a fault, which fails the step. A ``reset`` calls /robot/reset. No loop state here.
 
+**Orders from the coordinator only.** The port has one seat: the coordinator's connection
+(a client whose hello says ``hrc_human``, with the launch's link token). Any other client
+(a planner written for protocol version 1, which drove the robot itself, or any other
+holder of the token) is refused with ``error`` code ``refused``; a second ``hrc_human``
+connection while one is served gets ``seat_taken`` and is closed. An ``action`` must carry
+``epoch`` and ``id`` (the coordinator stamps both; it sends an action only in its current
+epoch, checked in the one place stale things are dropped): one without is refused
+``invalid``. So no token holder can move the robot but the coordinator.
+
 Parameters: ~host (127.0.0.1), ~robot_port (8080), ~service_timeout (30 s to wait for the world),
 ~link_session (hrc.launch's session: the link token's file) or ~token_file (by hand).
 Services used: /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset.
@@ -15,18 +24,22 @@ Services used: /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/r
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, Tuple
 
 import rospy
 
 from ros_hrc.errors import HrcError
-from ros_hrc.link.protocol import (ERR_FAILED, ERR_INVALID, Ack, Action, DispatchTable,
-                                   Message, Reset, reply_error)
+from ros_hrc.link.protocol import (ERR_FAILED, ERR_INVALID, ERR_REFUSED, ERR_SEAT_TAKEN, Ack,
+                                   Action, DispatchTable, Message, Reset, reply_error)
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import task
 from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
                                   route_python_logging)
+
+
+#: Who may give the robot orders: the name the coordinator's client says in its hello.
+COORDINATOR = "hrc_human"
 
 
 @dataclass
@@ -47,10 +60,41 @@ class RobotNode:
         table = DispatchTable("hrc_robot")
         table.on(Action, self.on_action)
         table.on(Reset, self.on_reset)
+        self.seat: Optional[Peer] = None   # the coordinator's connection
         self.server = MessageServer(config.robot_port, table, host=config.host,
-                                    name="hrc_robot", token=launch_token(config))
+                                    name="hrc_robot", token=launch_token(config),
+                                    on_disconnect=self._left)
 
-    def on_action(self, msg: Action, peer: Peer) -> Message:
+    def _left(self, peer: Peer) -> None:
+        if peer is self.seat:
+            self.seat = None
+
+    def _refusal(self, msg: Message, peer: Peer) -> Tuple[bool, Optional[Message]]:
+        """(refused, the reply refusing it) for an order that is not the coordinator's:
+        (False, None) for one that is. Runs on the server's threads one call at a time (the
+        server serialises handlers), so the seat needs no lock."""
+        if peer.who != COORDINATOR:
+            rospy.logwarn("hrc_robot: refused a %s from %r: only the coordinator (%s) gives "
+                          "the robot orders", msg.type, peer, COORDINATOR)
+            return True, reply_error(msg, f"hrc_robot takes orders only from the coordinator "
+                                          f"({COORDINATOR}), not from {peer.who!r}: the "
+                                          "planner answers observations with decisions, and "
+                                          "the coordinator has the robot act", ERR_REFUSED)
+        if self.seat is not None and self.seat is not peer and self.seat.connected:
+            peer.send(reply_error(msg, "another coordinator connection is served on this "
+                                       "port; one at a time", ERR_SEAT_TAKEN))
+            peer.close(reason="the coordinator is already served")
+            return True, None
+        self.seat = peer
+        if isinstance(msg, Action) and (msg.epoch is None or msg.id is None):
+            return True, reply_error(msg, "an action must carry the epoch and id the "
+                                          "coordinator stamps on it", ERR_INVALID)
+        return False, None
+
+    def on_action(self, msg: Action, peer: Peer) -> Optional[Message]:
+        refused, reply = self._refusal(msg, peer)
+        if refused:
+            return reply
         if msg.action not in task.ROBOT_ACTION_SERVICES:
             return reply_error(msg, f"unknown robot action {msg.action!r}; known: "
                                     f"{', '.join(task.ROBOT_ACTION_SERVICES)}", ERR_INVALID)
@@ -67,6 +111,9 @@ class RobotNode:
                    epoch=msg.epoch, reply_to=msg.id)
 
     def on_reset(self, msg: Reset, peer: Peer) -> Optional[Message]:
+        refused, reply = self._refusal(msg, peer)
+        if refused:
+            return reply
         try:
             ok, result = self.call("/robot/reset")
         except ServiceUnavailable as exc:

@@ -40,7 +40,7 @@ from typing import Optional, TextIO, Tuple
 
 from ros_hrc.command_line import parse_launch_options, ranged_number
 from ros_hrc.errors import HrcError, LinkError
-from ros_hrc.link.protocol import (ERR_INVALID, Ack, Error, Message, NextState, Reset, Step,
+from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Error, Message, NextState, Reset, Step,
                                    is_reply_to, reply_error)
 from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
@@ -88,6 +88,10 @@ class MdpProcess:
         #: auto or manual; manual becomes auto when the terminal's input ends (Ctrl-D).
         self.mode = args.mode
         self.reads_terminal = False
+        #: Why no state is taken now (the episode is over, or a refused step waits for its
+        #: reset): a state given meanwhile would be dropped by the reset, so it is refused.
+        self._no_states = ""
+        self._states_lock = threading.Lock()   # _no_states vs. the states queued
 
     # -- input: the link and the terminal ------------------------------------------------------
     def start_threads(self, read_stdin: bool, stdin: Optional[TextIO] = None) -> None:
@@ -131,7 +135,13 @@ class MdpProcess:
             self._send(reply_error(msg, f"the MDP runs in auto mode ({why} chooses every next "
                                         "state itself)", ERR_INVALID))
             return
-        self._next_states.put((msg.state, "message"))
+        with self._states_lock:
+            refused = self._no_states
+            if not refused:
+                self._next_states.put((msg.state, "message"))
+        if refused:
+            self._send(reply_error(msg, refused, ERR_REFUSED))
+            return
         self._events.put(("next_state", None))
         name = "autogen" if msg.state is None else self.agent.model.states[msg.state]
         self._send(Ack(step=self.agent.step, of=msg.type, result=f"next state: {name}",
@@ -139,7 +149,13 @@ class MdpProcess:
 
     def _read_terminal(self, stream: TextIO) -> None:
         for line in stream:
-            self._next_states.put((self._parse_typed(line.strip()), "terminal"))
+            with self._states_lock:
+                refused = self._no_states
+                if not refused:
+                    self._next_states.put((self._parse_typed(line.strip()), "terminal"))
+            if refused:
+                self.print(f"{NAME}: {line.strip()!r} is not used: {refused}")
+                continue
             self._events.put(("next_state", None))
         if self._stop.is_set():
             return
@@ -221,11 +237,13 @@ class MdpProcess:
     # -- the loop ---------------------------------------------------------------------------
     def start_episode(self, reset: Reset) -> None:
         """A new episode, as the coordinator's reset says: its epoch and number."""
-        if self.epoch is not None:
-            # States typed for the episode that ended are not for this one (before the first
-            # episode, they are).
-            while not self._next_states.empty():
-                self._next_states.get_nowait()
+        with self._states_lock:
+            if self.epoch is not None:
+                # States typed for the episode that ended are not for this one (before the
+                # first episode, they are).
+                while not self._next_states.empty():
+                    self._next_states.get_nowait()
+            self._no_states = ""
         self.epoch = reset.epoch
         self.episode = reset.episode or self.episode + 1
         self.agent.reset(seed=self.args.seed + self.episode - 1)
@@ -288,6 +306,8 @@ class MdpProcess:
             return True
         if isinstance(reply, Error):
             self.print(f"- World: step refused: {reply.message}; waiting for a reset")
+            self._refuse_states("the step was refused and the loop resets; give the state "
+                                "when the next episode asks for it")
             return True
         self.print(f"- Robot answered: {reply.action or '?'} ({reply.result or ''})")
         if reply.end_reason:
@@ -297,8 +317,16 @@ class MdpProcess:
         if reply.episode_over:
             self.print("The next episode starts with the next reset (with on_episode_end:=wait: "
                        "press Enter in the ROS terminal or call /hrc/reset).")
+            self._refuse_states(f"episode {self.episode} is over ({reply.end_reason or 'ended'})"
+                                ": no next state until the next episode; reset first (Enter "
+                                "in the roslaunch terminal or `rosservice call /hrc/reset`)")
             return True
         return False
+
+    def _refuse_states(self, why: str) -> None:
+        """From now until the next reset, states given are refused with ``why``."""
+        with self._states_lock:
+            self._no_states = why
 
     def stop(self) -> None:
         self._stop.set()

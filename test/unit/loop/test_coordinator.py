@@ -188,9 +188,9 @@ def test_a_fault_from_each_interface_fails_the_step_and_the_loop_recovers(where,
     assert (new.epoch, new.episode) == (reset.epoch + 1, 2)
     again = d.play_step()
     assert (again.report.epoch, again.report.step, again.report.fault) == (new.epoch, 0, "")
-    # the MDP's old epoch is over
+    # the MDP's old epoch is over: refused, and the reset the MDP then waits for comes
     late = d.start_step(epoch=reset.epoch, step=2)
-    assert one(late, MdpRefused).code == "stale" and not calls(late)
+    _refused_then_reset(d, late, "stale", 2, reset.epoch)
 
 
 NONSENSE = [
@@ -313,6 +313,99 @@ def test_a_burst_of_50_resets_while_one_is_under_way_is_one_reset():
     assert d.c.episode == 2 and d.c.phase == "ready"
 
 
+def test_resets_asked_for_just_after_one_finished_are_that_reset():
+    """Issue #20: fifty /hrc/reset calls sent within 19 ms reach the coordinator spread
+    out; those that came after the first reset finished each started another (5 to 10
+    resets, the episode number jumping). Within reset_join_window they are that reset."""
+    d = Driver(CoordinatorConfig(reset_join_window=1.0))
+    d.let_time_pass = False
+    d.ready()
+    d.close_join_window()
+    out = d.finish_reset(d.reset(token="first"))
+    assert one(out, ResetDone).tokens == ("first",) and d.c.episode == 2
+    epoch = d.c.epoch
+    started = d.play_step(until="observe")          # step 0 of the new episode is under way
+    out = []
+    for token in range(49):
+        out += d.reset(token=token)
+    assert not calls(out) and not of(out, MdpRefused) and not of(out, MdpReset)
+    assert [done.tokens for done in of(out, ResetDone)] == [(t,) for t in range(49)]
+    assert all(done.success and "episode 2" in done.message for done in of(out, ResetDone))
+    assert (d.c.epoch, d.c.episode) == (epoch, 2)
+    out = d.answer(started.calls[-1], snap())      # step 0 goes on in the same epoch
+    while calls(out):
+        call = calls(out)[0]
+        out = d.answer(call, answer_for(stage_of(call)))
+    assert one(out, PublishStep).report.epoch == epoch and not one(out, PublishStep).report.fault
+    # a reset asked for another way (Enter, after fifty /hrc/reset calls) is a new one
+    out = d.finish_reset(d.reset(token="enter", reason="Enter pressed"))
+    assert one(out, ResetDone).tokens == ("enter",) and d.c.episode == 3
+    # and so is one asked for once the window has passed
+    d.close_join_window()
+    out = d.finish_reset(d.reset(token="later", reason="Enter pressed"))
+    assert one(out, ResetDone).tokens == ("later",) and d.c.episode == 4
+
+
+def test_a_reset_asked_for_after_the_episode_ended_is_a_new_one_even_at_once():
+    d = Driver(CoordinatorConfig(reset_join_window=1.0, max_steps=1))
+    d.let_time_pass = False
+    d.ready()
+    assert d.play_step().done.episode_over and d.c.phase == "episode_over"
+    out = d.finish_reset(d.reset(token="t"))
+    assert one(out, ResetDone).tokens == ("t",) and d.c.episode == 2
+
+
+def test_a_step_that_waits_says_what_for_and_fails_when_the_world_does_not_answer():
+    """Issue #20: world-service storms starved the loop for 40 s with nothing said. A step
+    whose call is out says every wait_note_every seconds what it waits for, and a world
+    call that has not come back in world_call_timeout fails the step, naming it."""
+    d, reset = ready_driver(CoordinatorConfig(wait_note_every=5.0, world_call_timeout=12.0))
+    played = d.play_step(action="walkAway", state="no_attention", until="human")
+    timer = one(played.effects, Timer)
+    assert timer.seconds == 5.0
+    d.c.timer_fired(timer.id)
+    out = d.take()
+    note = one(out, Note, level="warn")
+    assert "/human/walk_away" in note.text and "5 s" in note.text
+    d.c.timer_fired(one(out, Timer).id)               # 10 s
+    out = d.take()
+    assert "10 s" in one(out, Note, level="warn").text
+    last = one(out, Timer)
+    assert last.seconds == 2.0                        # up to the world's timeout
+    d.c.timer_fired(last.id)
+    out = d.take()
+    report = one(out, PublishStep).report
+    assert "/human/walk_away" in report.fault and "12 s" in report.fault
+    assert one(out, MdpRefused).code == "failed"
+    assert d.c.phase == "resetting"
+
+
+def test_a_step_waiting_for_the_planner_is_noted_but_not_failed_by_the_world_timeout():
+    d, reset = ready_driver(CoordinatorConfig(wait_note_every=5.0, world_call_timeout=6.0))
+    played = d.play_step(until="decide")
+    timer = [t for t in of(played.effects, Timer)][-1]
+    for waited in (5, 10, 15):
+        d.c.timer_fired(timer.id)
+        out = d.take()
+        assert f"{waited} s" in one(out, Note, level="warn").text
+        assert not of(out, PublishStep)
+        timer = one(out, Timer)
+    out = d.answer(played.calls[-1], Decision("rIdle"))
+    d.c.timer_fired(timer.id)                          # answered meanwhile: nothing
+    assert not of(d.take(), Note)
+
+
+def test_a_reset_that_fails_says_what_was_reset_and_what_was_not():
+    """Issue #20: with the POMDP down, /hrc/reset answers what it could and could not reset."""
+    d, reset = ready_driver()
+    out = d.finish_reset(d.reset(token="t"), planner=Fault("the POMDP process is not "
+                                                            "connected"))
+    done = one(out, ResetDone)
+    assert not done.success
+    assert "not reset: robot planner: the POMDP process is not connected" in done.message
+    assert "reset: world" in done.message and "retried" in done.message
+
+
 def test_a_reset_with_no_mdp_seated_answers_its_requester_only():
     d = Driver()
     out = d.finish_reset(d.reset(token="t"))
@@ -330,33 +423,48 @@ def _refused_without_calls(d, out, code, step, epoch, peer="mdp"):
     return refused
 
 
-def test_a_step_of_an_older_epoch_is_refused_stale():
+def _refused_then_reset(d, out, code, step, epoch, peer="mdp"):
+    """The step was refused with ``code``, and (the protocol's word: after a refused step
+    the MDP waits for the next reset) a reset into a new epoch began, which tells the MDP."""
+    refused = one(out, MdpRefused, code=code)
+    assert (refused.step, refused.epoch, refused.peer) == (step, epoch, peer)
+    assert "wait for the reset" in refused.message
+    before = d.c.episode
+    new = one(d.finish_reset(out), MdpReset)
+    assert new.peer == peer and new.epoch == d.c.epoch and new.episode == before + 1
+    return refused
+
+
+def test_a_step_of_an_older_epoch_is_refused_stale_and_the_loop_resets():
     d, reset = ready_driver()
     d.play_step()
     d.finish_reset(d.reset())
     out = d.start_step(epoch=reset.epoch, step=1)
-    _refused_without_calls(d, out, "stale", 1, reset.epoch)
+    _refused_then_reset(d, out, "stale", 1, reset.epoch)
     out = d.start_step(epoch=None, step=0)
-    _refused_without_calls(d, out, "stale", 0, None)
+    _refused_then_reset(d, out, "stale", 0, None)
+    assert d.play_step().report.step == 0             # the new epoch steps
 
 
 @pytest.mark.parametrize("step", [0, 2, 7, -1])
-def test_a_step_with_the_wrong_number_is_refused_invalid(step):
+def test_a_step_with_the_wrong_number_is_refused_invalid_and_the_loop_resets(step):
     d, reset = ready_driver()
     d.play_step()                                     # expected now: 1
     out = d.start_step(step=step)
-    _refused_without_calls(d, out, "invalid", step, reset.epoch)
-    assert d.play_step().report.step == 1             # the expected step still works
+    _refused_then_reset(d, out, "invalid", step, reset.epoch)
+    assert d.play_step().report.step == 0             # step 0 of the new epoch
 
 
-def test_a_step_while_one_is_under_way_is_refused_busy_and_the_first_goes_on():
+def test_a_step_while_one_is_under_way_is_refused_busy_and_the_loop_resets():
     d, reset = ready_driver()
     first = d.play_step(until="decide")
     out = d.start_step(step=0)
-    _refused_without_calls(d, out, "busy", 0, reset.epoch)
-    out = d.answer(first.calls[-1], Decision("rIdle"))
-    out = d.answer(one(out, ObserveWorld, purpose="outcome"), snap())
-    assert one(out, PublishStep).report.step == 0
+    # the first step is cut short by the reset (stale), the second refused busy
+    assert one(out, MdpRefused, code="stale").reply == first.request.reply
+    assert not calls(out)          # the reset waits for the decision under way (drain)
+    out += d.answer(first.calls[-1], Decision("rIdle"))   # the old decision: dropped
+    _refused_then_reset(d, out, "busy", 0, reset.epoch)
+    assert d.c.dropped == 1
 
 
 def test_a_step_while_the_loop_resets_is_refused():
@@ -372,10 +480,10 @@ def test_a_step_while_the_loop_resets_is_refused():
 
 @pytest.mark.parametrize("action, state", [("dance", "evaluating"), ("lookAround", "happy"),
                                            ("", "")])
-def test_an_invalid_human_action_or_state_is_refused_invalid(action, state):
+def test_an_invalid_human_action_or_state_is_refused_invalid_and_the_loop_resets(action, state):
     d, reset = ready_driver()
     out = d.start_step(action=action, state=state)
-    _refused_without_calls(d, out, "invalid", 0, reset.epoch)
+    _refused_then_reset(d, out, "invalid", 0, reset.epoch)
     assert d.c.phase == "ready"
     assert d.play_step().report.step == 0
 

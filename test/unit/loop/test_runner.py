@@ -18,6 +18,9 @@ def make_loop():
     loops = []
 
     def make(**config):
+        # A reset asked for right after another is meant as a new one in these tests, unless
+        # a test is about joining (reset_join_window).
+        config.setdefault("reset_join_window", 0.0)
         loop = Loop(CoordinatorConfig(first_epoch=FIRST, **config))
         loops.append(loop)
         return loop
@@ -216,3 +219,31 @@ def test_a_dead_planner_is_retried_by_the_timer_until_it_comes_back(make_loop):
     assert [r.epoch for r in loop.log.of("mdp_reset")] == [FIRST, new]
     assert_epochs_never_mix(loop)
     assert_steps_count_from_zero(loop)
+
+
+def test_fifty_resets_spread_over_a_tenth_of_a_second_are_one_reset(make_loop):
+    """Issue #20: 50 concurrent /hrc/reset calls made 5 to 10 resets, since they reach the
+    loop spread out and a reset here finishes in no time. They are one reset: one new
+    epoch, the episode number up by one, every call answered with success."""
+    loop = make_loop(reset_join_window=1.0)
+    loop.runner.mdp_connected("mdp")
+    reports_after(loop, FIRST, 3)
+    answers = []
+
+    def ask(delay):
+        threading.Event().wait(delay)
+        answers.append(loop.runner.reset("fifty, spread", timeout=10))
+
+    loop.mdp.stepping = False            # no step after the reset (a step ends the window)
+    threading.Event().wait(1.2)          # past the join window of the first reset
+    resets_before = len(loop.log.of("mdp_reset"))
+    episode_before = loop.coordinator.episode
+    threads = [threading.Thread(target=ask, args=(i * 0.002,)) for i in range(50)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(15)
+    assert len(answers) == 50 and all(ok for ok, _ in answers), answers
+    assert len(loop.log.of("mdp_reset")) == resets_before + 1
+    assert loop.coordinator.episode == episode_before + 1
+    assert_epochs_never_mix(loop)
