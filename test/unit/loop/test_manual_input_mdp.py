@@ -237,3 +237,29 @@ def test_without_a_terminal_the_mdp_says_where_to_type_and_takes_sent_states(hum
         assert term.text.count(no_terminal_line(False)) == 1
     finally:
         term.close()
+
+
+def test_a_state_given_after_the_episode_ended_is_refused_with_the_reason():
+    """Issue #20: a state typed (or sent as next_state) after the episode ended was
+    acknowledged, then silently dropped by the reset. It is refused, saying why."""
+    proc, out = process()
+    sent = []
+    proc._send = sent.append
+    proc._refuse_states("episode 1 is over (success): no next state until the next episode; "
+                        "reset first")
+    proc._take_next_state(NextState(state=5, id=9))
+    refused = sent[-1]
+    assert refused.type == "error" and refused.code == "refused" and refused.reply_to == 9
+    assert "episode 1 is over" in refused.message
+    assert proc._next_states.empty()
+    proc._read_terminal(io.StringIO("6\n"))
+    assert "'6' is not used: episode 1 is over" in out.getvalue()
+    assert proc._next_states.empty()
+    # the next episode takes states again (the input above ended: back to a terminal)
+    proc.mode = "manual"
+    proc.epoch = 7
+    proc.agent.reset = lambda seed: None
+    proc.agent.state_name = "task_assigned"
+    proc.start_episode(Reset(reason="test", epoch=8, episode=2))
+    proc._take_next_state(NextState(state=5, id=10))
+    assert sent[-1].type == "ack" and not proc._next_states.empty()
