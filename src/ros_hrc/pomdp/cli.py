@@ -7,6 +7,8 @@
     hrc_pomdp solve MODEL [--timeout S] [--precision E] [-o POLICY] [--json]
     hrc_pomdp simulate MODEL (--policy POLICY | --planner despot|mdp [--time-per-step S])
                        --sim-len N --sim-num M [--seed K] [--json]
+    hrc_pomdp policy ROBOT_MODEL [--trials N] [--seed K] [--json]
+                                       the robot's DESPOT actions after typical observations
 
 Every subcommand takes ``--memory-limit SIZE`` (default 4G): reading, solving or simulating a
 model that would need more, estimated before it is allocated, is refused in one line naming the
@@ -509,11 +511,51 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return emit(facts, args.json, print_text)
 
 
+def _register_policy(subparsers) -> None:
+    from ros_hrc.pomdp.policy_table import DEFAULT_TRIALS, SEQUENCES
+    p = subparsers.add_parser(
+        "policy", help="the robot planner's actions after typical observation sequences",
+        description="Step the robot's online planner (DESPOT, the robot's K, D and lambda) "
+                    "through named observation sequences, each from the initial belief as the "
+                    "robot process does, and print the action it takes after each observation "
+                    "and its belief that the human needs help (S2..S5) and warned (S6). Each "
+                    "decision is bounded by N trials, not by time, from seed K: the table is the "
+                    "same on every machine. Sequences: " + "; ".join(
+                        f"{q.name} ({' '.join(q.observations)}: {q.what})" for q in SEQUENCES))
+    p.add_argument("model", help="a robot model: a name in models/robot/ or a .pomdp/.pomdpx "
+                                 "file with the task's states, actions and observations")
+    p.add_argument("--trials", type=ranged_number(int, 1, MAX_TRIALS), default=DEFAULT_TRIALS,
+                   metavar="N", help=f"DESPOT trials per decision (default {DEFAULT_TRIALS})")
+    p.add_argument("--seed", type=_seed, default=0, metavar="K",
+                   help="the planner's seed, 0 to 2**64-1 (default 0)")
+    p.add_argument("--json", action="store_true", help="print one JSON object (rows)")
+    p.set_defaults(func=cmd_policy)
+
+
+@_solver_errors_exit_2
+def cmd_policy(args: argparse.Namespace) -> int:
+    """``hrc_pomdp policy MODEL``: the planner's actions after the typical sequences."""
+    from ros_hrc.loop.models import load_robot_model
+    from ros_hrc.pomdp.policy_table import despot_config, format_table, policy_table
+
+    model = load_robot_model(args.model)
+    rows = policy_table(model, config=despot_config(args.trials), seed=args.seed)
+    facts = {"model": args.model, "trials": args.trials, "seed": args.seed,
+             "rows": [row.as_dict() for row in rows]}
+
+    def print_text(facts: dict) -> None:
+        print(f"{args.model}: DESPOT, {args.trials} trials per decision, seed {args.seed}")
+        print(format_table(rows))
+
+    return emit(facts, args.json, print_text)
+
+
 #: Every subcommand's register function, in the order ``--help`` lists them.
 SUBCOMMANDS: List[Callable[[argparse._SubParsersAction], None]] = [_register_info,
                                                                   _register_convert,
                                                                   _register_solve,
-                                                                  _register_simulate]
+                                                                  _register_simulate,
+                                                                  _register_policy]
 
 
 def build_parser() -> argparse.ArgumentParser:

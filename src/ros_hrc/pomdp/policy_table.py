@@ -1,0 +1,167 @@
+"""What the robot's planner does after typical observation sequences (``hrc_pomdp policy``).
+
+A robot model's totals (success rates, rewards) do not say whether its planner behaves: the
+authors' model answers a failed grasp with ``rStop_all`` and grasps on a warning, which no
+total shows. This module replays named observation sequences through the planner the robot
+runs online (DESPOT, :mod:`ros_hrc.pomdp.despot`) exactly as the robot process steps it
+(:class:`ros_hrc.processes.despot_pomdp.RobotAgent`): reset to the initial belief, then for
+each observation the belief update with (the robot's previous action, the observation),
+``rIdle`` before the first, and a decision. Each row gives the actions it took after each
+observation, the last one, and the belief that the human needs help (S2..S5) and that he
+warned (S6) after the last observation.
+
+The search is bounded by a number of trials, not by time (the budget is set so large that it
+never binds), from a fixed seed, each sequence from a fresh planner: the table is the same on
+every machine and under any load.
+
+The sequences name observations of the robot model (``O<bits>``, :mod:`ros_hrc.loop.task`):
+1 object visible, 2 in range, 4 grasp attempt, 8 has object, 16 warning, 32 idle. No ROS.
+"""
+from __future__ import annotations
+
+import logging
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ros_hrc.loop import task
+from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
+from ros_hrc.pomdp.model import Model
+
+#: Trials per decision (the robot's online default K, D, lambda otherwise): enough for the
+#: decisions on the robot models to settle (the same actions at 2x and 4x the trials).
+DEFAULT_TRIALS = 300
+#: A time budget that never binds: the trials alone bound the search.
+UNBOUNDED_SECONDS = 1e6
+FIRST_ACTION = "rIdle"
+
+
+@dataclass(frozen=True)
+class ObservationSequence:
+    """A named sequence of observations and what it shows of the human."""
+
+    name: str
+    observations: Tuple[str, ...]
+    what: str
+
+
+#: The typical sequences: the first few are what a considerate robot must get right.
+SEQUENCES: Tuple[ObservationSequence, ...] = (
+    ObservationSequence("warning", ("O19",),
+                        "the human warns the robot off (object visible and in range)"),
+    ObservationSequence("warning_unseen", ("O16",),
+                        "a warning while the object is neither visible nor in range"),
+    ObservationSequence("failed_then_warning", ("O7", "O7", "O19"),
+                        "two failed grasps, then a warning"),
+    ObservationSequence("failed_grasp", ("O7",), "one failed grasp (object in view and range)"),
+    ObservationSequence("failed_grasps", ("O7", "O7", "O7", "O7"),
+                        "four failed grasps in a row"),
+    ObservationSequence("idle_once", ("O35",), "the human idles once, object in view and range"),
+    ObservationSequence("idle_streak", ("O35",) * 6, "six idle steps in a row"),
+    ObservationSequence("looks_away", ("O2", "O2", "O2"),
+                        "object in range but not seen, three steps (attention lost)"),
+    ObservationSequence("human_away", ("O0", "O0", "O0"),
+                        "nothing seen, nothing in range, three steps (walked away)"),
+    ObservationSequence("holds_object", ("O7", "O11"),
+                        "a failed grasp, then the human holds the object"),
+)
+
+
+@dataclass
+class PolicyRow:
+    """What the planner did on one sequence."""
+
+    sequence: ObservationSequence
+    actions: List[str]
+    needs_help: float            # belief mass on S2..S5 after the last observation
+    warned: float                # belief mass on S6 after the last observation
+    zero_probability: List[str] = field(default_factory=list)  # observations it called impossible
+
+    @property
+    def last_action(self) -> str:
+        return self.actions[-1]
+
+    def as_dict(self) -> dict:
+        return {"name": self.sequence.name, "observations": list(self.sequence.observations),
+                "what": self.sequence.what, "actions": self.actions,
+                "last_action": self.last_action, "needs_help": self.needs_help,
+                "warned": self.warned, "zero_probability": self.zero_probability}
+
+
+def despot_config(trials: int = DEFAULT_TRIALS, scenarios: int = 500, depth: int = 90,
+                  pruning: float = 0.1) -> DespotConfig:
+    """The robot's online DESPOT settings, bounded by ``trials`` per decision instead of time."""
+    return DespotConfig(scenarios=scenarios, depth=depth, pruning=pruning,
+                        time_per_step=UNBOUNDED_SECONDS, max_trials=trials)
+
+
+def _mass(model: Model, belief: np.ndarray, states) -> float:
+    return float(sum(belief[model.index("state", s)] for s in states if s in model.states))
+
+
+def run_sequence(model: Model, sequence: ObservationSequence, config: DespotConfig,
+                 seed: int = 0, tables: Optional[DespotTables] = None) -> PolicyRow:
+    """Step a fresh planner through ``sequence`` as the robot process does."""
+    planner = DespotPlanner(model, config, seed=seed, tables=tables)
+    planner.reset()
+    last = model.index("action", FIRST_ACTION) if FIRST_ACTION in model.actions else 0
+    actions: List[str] = []
+    impossible: List[str] = []
+    for name in sequence.observations:
+        planner.update(last, model.index("observation", name))
+        if planner.last_update_zero_probability:
+            impossible.append(name)
+        last = planner.act()
+        actions.append(model.actions[last])
+    belief = np.clip(np.asarray(planner.belief, dtype=float), 0.0, None)
+    belief = belief / belief.sum()
+    return PolicyRow(sequence, actions,
+                     needs_help=_mass(model, belief, sorted(task.NEEDS_HELP_STATES)),
+                     warned=_mass(model, belief, ["S6"]), zero_probability=impossible)
+
+
+@contextmanager
+def _quiet_planner_log():
+    """The planner logs each observation of probability 0; the table names them instead."""
+    logger = logging.getLogger("ros_hrc.pomdp")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+def check_sequences(model: Model, sequences: Sequence[ObservationSequence]) -> None:
+    """ValueError naming the first observation a sequence uses that the model lacks."""
+    for seq in sequences:
+        for name in seq.observations:
+            if name not in model.observations:
+                raise ValueError(f"sequence {seq.name}: observation {name} is not one of the "
+                                 f"model's ({', '.join(model.observations)})")
+
+
+def policy_table(model: Model, sequences: Sequence[ObservationSequence] = SEQUENCES,
+                 config: Optional[DespotConfig] = None, seed: int = 0) -> List[PolicyRow]:
+    """One row per sequence, each from a fresh planner with the same seed."""
+    config = config if config is not None else despot_config()
+    config.validate()
+    check_sequences(model, sequences)
+    tables = DespotTables(model, config.upper, config.lower)
+    with _quiet_planner_log():
+        return [run_sequence(model, seq, config, seed, tables) for seq in sequences]
+
+
+def format_table(rows: Sequence[PolicyRow]) -> str:
+    """The rows as a Markdown table: sequence, observations, actions, P(needs help), P(S6)."""
+    lines = ["| sequence | observations | planner's actions (after each) | P(needs help) | "
+             "P(warned) |", "|---|---|---|---|---|"]
+    for row in rows:
+        note = (f" (impossible: {' '.join(row.zero_probability)})" if row.zero_probability
+                else "")
+        lines.append(f"| {row.sequence.name} | {' '.join(row.sequence.observations)} | "
+                     f"{' '.join(row.actions)}{note} | {row.needs_help:.2f} | "
+                     f"{row.warned:.2f} |")
+    return "\n".join(lines)
