@@ -338,8 +338,8 @@ def no_terminal_line(display: bool) -> str:
     return (f"{NAME}: manual mode without a terminal of its own ({why}): type each state in "
             "the roslaunch terminal (a number, or a letter for autogen, then Enter; Enter "
             "alone resets everything) or `rosservice call /hrc/set_human_state N`; or set "
-            "DISPLAY, or use start_mdp:=false and `rosrun ros_hrc despot_mdp --mode manual` "
-            "in another terminal")
+            "DISPLAY, or use start_mdp:=false and run the command the launch then prints in "
+            "another terminal")
 
 
 def input_ended_line(tty: bool) -> str:
