@@ -47,8 +47,8 @@ def test_the_lines():
         "despot_mdp: manual mode without a terminal of its own (no display for its xterm): "
         "type each state in the roslaunch terminal (a number, or a letter for autogen, then "
         "Enter; Enter alone resets everything) or `rosservice call /hrc/set_human_state N`; "
-        "or set DISPLAY, or use start_mdp:=false and `rosrun ros_hrc despot_mdp --mode "
-        "manual` in another terminal")
+        "or set DISPLAY, or use start_mdp:=false and run the command the launch then prints "
+        "in another terminal")
     assert "(started without one)" in no_terminal_line(True)
 
 
