@@ -354,3 +354,123 @@ def test_fitted_robot_says_how_it_was_made_and_keeps_the_authors_rewards():
     assert np.array_equal(fitted.initial_belief, authors.initial_belief)
     # The world, not the authors' guess: a grasp in S3 gets the object far less often than 0.6.
     assert fitted.dense_T[2][3, 1] < 0.5
+
+
+# -- the human zoo (models/README.md, "The human zoo") ---------------------------------------------
+#: Each zoo human's action in each state (states in STATES order) and its probability of
+#: succeeding alone within 15 steps (hrc_experiment's default step limit), as README states.
+ZOO_POLICIES = {
+    "deliberator": ("idle", "idle", "graspAttempt", "graspAttempt", "graspAttempt", "walkAway",
+                    "idle", "warnRobot"),
+    "persistent_failer": ("graspAttempt", "idle", "graspAttempt", "graspAttempt", "graspAttempt",
+                          "walkAway", "idle", "warnRobot"),
+    "looks_away_first": ("lookAround", "idle", "graspAttempt", "lookAround", "graspAttempt",
+                         "walkAway", "idle", "warnRobot"),
+    "tires_late": ("graspAttempt", "idle", "graspAttempt", "graspAttempt", "graspAttempt",
+                   "walkAway", "idle", "warnRobot"),
+    "confident_novice": ("graspAttempt", "idle", "graspAttempt", "graspAttempt", "graspAttempt",
+                         "walkAway", "idle", "warnRobot"),
+    "early_warner": ("warnRobot", "idle", "graspAttempt", "graspAttempt", "graspAttempt",
+                     "walkAway", "idle", "warnRobot"),
+    "drops_and_waits": ("graspAttempt", "idle", "idle", "graspAttempt", "idle", "walkAway",
+                        "idle", "warnRobot"),
+    "walker": ("walkAway", "idle", "graspAttempt", "graspAttempt", "graspAttempt", "walkAway",
+               "idle", "warnRobot"),
+    "slow_steady": ("idle", "idle", "idle", "graspAttempt", "graspAttempt", "walkAway", "idle",
+                    "warnRobot"),
+}
+ZOO_ALONE_15 = {"deliberator": 0.999, "persistent_failer": 0.458, "looks_away_first": 1.000,
+                "tires_late": 0.881, "confident_novice": 0.794, "early_warner": 0.998,
+                "drops_and_waits": 0.800, "walker": 1.000, "slow_steady": 0.992,
+                "humanModel": 1.000, "evaluating": 0.0, "beginner": 0.0, "tired": 0.0,
+                "distracted": 0.998, "expert": 1.000}
+
+
+def success_within(model, policy, steps: int = 15) -> float:
+    idx = np.arange(model.n_states)
+    P = model.dense_T[policy, idx]
+    b = model.initial_belief.copy()
+    for _ in range(steps):
+        b = b @ P
+    return float(b[model.states.index("success")])
+
+
+@pytest.mark.parametrize("name", sorted(ZOO_POLICIES))
+def test_each_zoo_human_takes_its_one_action_in_each_state(name):
+    """Rewards R(action, state_0): 1 for idling in success, 0.01 for the story's action in
+    every other state; every other action leaves the state where it is."""
+    m = human(name)
+    m.validate()
+    assert m.states == STATES and m.actions == ACTIONS and m.fully_observable
+    policy, _ = optimal_policy(m)
+    assert tuple(m.actions[a] for a in policy) == ZOO_POLICIES[name]
+    for s, state in enumerate(STATES):
+        for a, action in enumerate(ACTIONS):
+            if action != ZOO_POLICIES[name][s]:
+                assert prob(m, action, state, state) == 1.0
+                assert step_reward(m, action, state, state) == 0.0
+        expected = 1.0 if state == "success" else 0.01
+        assert m.R_sa[ACTIONS.index(ZOO_POLICIES[name][s]), s] == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("name", sorted(ZOO_ALONE_15))
+def test_each_zoo_human_succeeds_alone_as_the_readme_says(name):
+    m = human(name)
+    policy, _ = optimal_policy(m)
+    assert success_within(m, policy) == pytest.approx(ZOO_ALONE_15[name], abs=5e-4)
+
+
+def test_the_zoo_stories_rows():
+    """A few rows the README's zoo table names."""
+    assert prob(human("deliberator"), "idle", "task_assigned", "evaluating") == 0.4
+    assert prob(human("persistent_failer"), "graspAttempt", "failed_to_grasp",
+                "warningTheRobot") == 0.3
+    assert prob(human("drops_and_waits"), "idle", "evaluating", "evaluating") == 1.0
+    assert prob(human("walker"), "walkAway", "task_assigned", "recovery") == 1.0
+    assert prob(human("early_warner"), "warnRobot", "task_assigned", "warningTheRobot") == 1.0
+    assert prob(human("tires_late"), "graspAttempt", "failed_to_grasp", "tired") == 0.25
+
+
+# -- the considerate robot (docs/robot_model.md, "The considerate model") ---------------------------
+def test_considerate_robot_keeps_the_authors_names_observations_and_start():
+    c, a = robot("robot_considerate"), robot()
+    assert (c.states, c.actions, c.observations) == (a.states, a.actions, a.observations)
+    assert c.discount == a.discount and np.allclose(c.initial_belief, a.initial_belief)
+    for k in range(len(a.actions)):
+        assert np.allclose(c.O[k].toarray(), a.O[k].toarray())
+
+
+def test_considerate_robot_transitions_are_the_authors_with_a_warning_column():
+    c, a = robot("robot_considerate"), robot()
+    warn = {(act, s): 0.05 for act in a.actions for s in ("S0", "S2", "S3", "S4", "S5")}
+    warn.update({("rGrasp_obj", "S0"): 0.3, ("rGrasp_obj", "S2"): 0.2,
+                 ("rGrasp_obj", "S4"): 0.2, ("rPoint_obj", "S0"): 0.1})
+    s6 = a.states.index("S6")
+    for k, act in enumerate(a.actions):
+        ct, at = c.T[k].toarray(), a.T[k].toarray()
+        for i, s in enumerate(a.states):
+            if (act, s) in warn:
+                w = warn[act, s]
+                expected = at[i] * (1 - w)
+                expected[s6] += w
+                assert np.allclose(ct[i], expected), (act, s)
+            elif (act, s) == ("rIdle", "S6"):
+                assert np.allclose(ct[i], [0, 0.3, 0.1, 0, 0.1, 0, 0.5])
+            else:
+                assert np.allclose(ct[i], at[i]), (act, s)
+
+
+def test_considerate_robot_rewards_say_what_the_task_wants():
+    c = robot("robot_considerate")
+    r = lambda act, s, s2="S0": step_reward(c, act, s, s2)
+    # success once: +20 on the step into S1, never again while S1 stays S1
+    assert r("rIdle", "S0", "S1") == 20 and r("rIdle", "S1", "S1") == 0
+    assert r("rStop_all", "S6", "S1") == 25 and r("rGrasp_obj", "S3", "S1") == 19
+    # acting against a warning costs; obeying it pays
+    assert r("rGrasp_obj", "S6") == -30 and r("rPoint_obj", "S6") == -30
+    assert r("rStop_all", "S6") == 5 and r("rIdle", "S6") == 0
+    # taking the object from a human who needs no help costs
+    assert r("rGrasp_obj", "S0") == -20 and r("rGrasp_obj", "S4") == -10
+    # fetching for a human who needs it is worth only the success it brings
+    assert r("rGrasp_obj", "S3", "S3") == -1
+    assert r("rIdle", "S3", "S3") == -2 and r("rIdle", "S5", "S5") == -2
