@@ -82,3 +82,19 @@ def test_a_successful_grasp_attempt_uses_the_grasp_service():
     assert task.human_service_for("walkAway", "recovery") == "walk_away"
     with pytest.raises(ValueError):
         task.human_service_for("dance", "success")
+
+
+def test_a_warning_is_labelled_only_when_the_human_warned():
+    # warnRobot shows the warning (bit 16): the robot has been warned.
+    tracker = task.RobotStateTracker()
+    assert tracker.update("warningTheRobot", "warnRobot") == "S6"
+    # A grasp attempt that lands in warningTheRobot shows a failed grasp (O7), not a warning.
+    tracker.reset()
+    assert tracker.update("warningTheRobot", "graspAttempt") == "S2"
+    assert tracker.update("warningTheRobot", "graspAttempt") == "S3"
+    assert tracker.update("warningTheRobot", "warnRobot") == "S6"
+    # Any other way in keeps the label the human had.
+    tracker.reset()
+    assert tracker.update("no_attention", "lookAround") == "S4"
+    assert tracker.update("warningTheRobot", "lookAround") == "S4"
+    assert tracker.update("task_assigned", "idle") == "S0"

@@ -506,7 +506,7 @@ class Coordinator:
                 report.human_observation = task.predicates_text(result.predicates)
                 report.observation_bits = bits
                 report.robot_observation = task.observation_name(bits)
-                report.robot_state = self.tracker.update(report.human_state)
+                report.robot_state = self.tracker.update(report.human_state, report.human_action)
                 ctx.stage = "decide"
                 self._call(Decide, call.step, observation=report.robot_observation, bits=raw,
                            state=report.robot_state)

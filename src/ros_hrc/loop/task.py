@@ -130,22 +130,39 @@ class RobotStateTracker:
        evaluating for :data:`EVALUATING_NEEDS_HELP` steps in a row without ever grasping;
     S4 may need help grasping or finding: attention lost once;
     S5 needs help finding: attention lost twice or more in a row;
-    S6 the human warned the robot.
+    S6 the human warned the robot: he is in ``warningTheRobot`` and his action was
+       ``warnRobot`` (the world shows the warning). A human who reaches ``warningTheRobot``
+       by another action means to warn but has not: a grasp attempt that brought him there
+       counts as a failed grasp, any other action keeps the previous step's label (labelling
+       S6 there taught a fitted robot that a failed grasp, O7, may be a warning).
     """
 
     failures: int = 0
     inattention_streak: int = 0
     evaluating_streak: int = 0
+    label: str = "S0"
 
     def reset(self) -> None:
         self.failures = 0
         self.inattention_streak = 0
         self.evaluating_streak = 0
+        self.label = "S0"
 
-    def update(self, human_state: str) -> str:
-        """Account for the human's new state and return the robot's true state."""
+    def update(self, human_state: str, human_action: Optional[str] = None) -> str:
+        """Account for the human's new state, reached by ``human_action`` (None: not known,
+        the state alone decides), and return the robot's true state."""
+        self.label = self._label(human_state, human_action)
+        return self.label
+
+    def _label(self, human_state: str, human_action: Optional[str]) -> str:
         if human_state not in HUMAN_STATES:
             raise ValueError(f"unknown human state {human_state!r}")
+        if human_state == "warningTheRobot" and human_action not in (None, "warnRobot"):
+            self.inattention_streak = self.evaluating_streak = 0
+            if human_action == "graspAttempt":
+                self.failures += 1
+                return "S2" if self.failures == 1 else "S3"
+            return self.label
         self.inattention_streak = self.inattention_streak + 1 if human_state == "no_attention" else 0
         self.evaluating_streak = self.evaluating_streak + 1 if human_state == "evaluating" else 0
         if human_state == "failed_to_grasp":
