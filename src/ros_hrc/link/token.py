@@ -89,6 +89,26 @@ def session_settings_file(session: str, environ: Optional[Mapping[str, str]] = N
     return token.with_name(token.name[:-len(_TOKEN_SUFFIX)] + _SETTINGS_SUFFIX)
 
 
+def _write_private_file(path: Path, text: str, existing: str, what: str) -> None:
+    """Create ``path`` exclusively (never overwritten, never through a symbolic link), mode
+    0600, holding ``text``; a write that fails (a full disk) leaves no half-written file.
+    Raises :class:`TokenError` naming ``existing`` (it exists) or ``what`` (cannot write)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
+    try:
+        fd = os.open(path, flags, 0o600)
+    except FileExistsError:
+        raise TokenError(f"{path}: {existing} exists already; a session name is used by one "
+                         "launch only") from None
+    except OSError as exc:
+        raise TokenError(f"{path}: cannot write {what}: {exc.strerror or exc}") from None
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as exc:
+        remove_token(path)
+        raise TokenError(f"{path}: cannot write {what}: {exc.strerror or exc}") from None
+
+
 def write_session_settings(session: str, config: Mapping[str, Any],
                            environ: Optional[Mapping[str, str]] = None) -> Path:
     """Write the launch's resolved settings (JSON values: text, numbers, booleans, null) for
@@ -97,22 +117,7 @@ def write_session_settings(session: str, config: Mapping[str, Any],
     path = session_settings_file(session, environ)
     _private_dir(path.parent)
     text = json.dumps(dict(config), ensure_ascii=False, indent=1) + "\n"
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
-    try:
-        fd = os.open(path, flags, 0o600)
-    except FileExistsError:
-        raise TokenError(f"{path}: the settings of this session exist already; a session "
-                         "name is used by one launch only") from None
-    except OSError as exc:
-        raise TokenError(f"{path}: cannot write the launch's settings: "
-                         f"{exc.strerror or exc}") from None
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-    except OSError as exc:     # a full disk: no half-written file left behind
-        remove_token(path)
-        raise TokenError(f"{path}: cannot write the launch's settings: "
-                         f"{exc.strerror or exc}") from None
+    _write_private_file(path, text, "the settings of this session", "the launch's settings")
     return path
 
 
@@ -167,16 +172,7 @@ def mint_token(session: str, launcher_pid: Optional[int] = None,
     text = secrets.token_hex(TOKEN_BYTES) + "\n"
     if launcher_pid is not None:
         text += f"launcher {int(launcher_pid)}\n"
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
-    try:
-        fd = os.open(path, flags, 0o600)
-    except FileExistsError:
-        raise TokenError(f"{path}: a token of this session exists already; a session name is "
-                         "used by one launch only") from None
-    except OSError as exc:
-        raise TokenError(f"{path}: cannot write the token: {exc.strerror or exc}") from None
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
+    _write_private_file(path, text, "a token of this session", "the token")
     return path
 
 
