@@ -6,8 +6,18 @@ parallel, one per core by default), writes one CSV row per episode and per step 
 episode ends, and at the end a summary with 95 % confidence intervals and PNG plots.
 Running the same command again resumes: recorded episodes are kept and skipped.
 
-    hrc_experiment --human-models beginner,tired --policies pomdp,reactive,no_robot \\
-                   --seeds 0,1 --episodes 5 --out results/experiment
+    hrc_experiment --human-models beginner,tired --policies pomdp,no_robot \\
+                   --reactive-budgets 1..10 --seeds 1 --episodes 92 --out results/experiment
+
+Every robot episode is set against the human alone on the same (human model, seed, episode)
+stream: the ``no_robot`` episode, which hrc_experiment runs itself, once per human stream (the
+grid's own ``no_robot`` episodes when it has that policy; otherwise into ``<out>/alone/``),
+before the robot policies' episodes of that stream, and reuses across policies and resumed
+runs. ``--reactive-budgets`` sweeps the reactive robot's budget (policies ``reactive@N``);
+the summary names the best budget and compares every robot with it and with the human alone
+(paired tests, ``ros_hrc.experiment.statistics``). A robot model fitted by hrc_fit says
+which streams it was fitted on; evaluating it on them is refused unless
+``--allow-in-sample`` (the rows are then marked ``in_sample``).
 
 Every file argument (``--robot-model``, a ``--human-models`` file, ``--out``) is taken
 against the directory the command runs in, once, here: the cells get absolute paths only.
@@ -22,6 +32,7 @@ refused. SIGINT or SIGTERM stops every cell's stack, keeps what was recorded and
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import shlex
@@ -38,16 +49,19 @@ from typing import Callable, Dict, List, Optional, Sequence, Set, Tuple
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import DEFAULT_POLICIES as POLICIES_BY_DEFAULT
-from ros_hrc.experiment.episode import ROBOT_POLICIES
-from ros_hrc.experiment.plots import plot_belief, plot_outcomes
+from ros_hrc.experiment.episode import (ALONE_POLICY, ROBOT_POLICIES, pair, pair_alone,
+                                        reactive_policy_name, robot_policy, stream_of)
+from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_time_gain
+from ros_hrc.experiment.provenance import file_sha256, ranges_text, read_fitted_on
 from ros_hrc.experiment.stack import (MAX_EPISODES, CellSpec, EpisodeRanges, cell_name,
                                       check_launch_settings, decode_episode, worker_command,
                                       write_spec)
 from ros_hrc.experiment.statistics import summarize, write_summary
-from ros_hrc.experiment.store import DirectoryLocked, ResultsStore, lock_directory
+from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
+                                      lock_directory)
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
-                                 positional_mapping_line)
+                                 positional_mapping_line, shown_path)
 from ros_hrc.loop.settings import SettingError
 from ros_hrc.model_files import user_path
 from ros_hrc.pomdp.output import write_text_atomically
@@ -55,6 +69,16 @@ from ros_hrc.pomdp.output import write_text_atomically
 NAME = "hrc_experiment"
 DEFAULT_HUMANS = "beginner,tired,distracted,humanModel"
 DEFAULT_POLICIES = ",".join(POLICIES_BY_DEFAULT)
+#: Episodes per cell by default: the fewest paired episodes at which McNemar's exact test
+#: detects a 15-point difference in success with 80 % power at alpha 0.05 when the weaker
+#: policy still wins 5 % of the pairs (``paired.episodes_to_detect(0.15, 0.05)``; a unit test
+#: keeps the two equal; docs/experiments.md says how).
+DEFAULT_EPISODES = 92
+#: The default seed of the grid: not hrc_fit's (0), so a fitted model is evaluated on other
+#: streams than it was fitted on.
+DEFAULT_SEEDS = "1"
+#: Where the human-alone episodes go when ``no_robot`` is not one of the grid's policies.
+ALONE_DIRECTORY = "alone"
 
 
 class GridError(HrcError):
@@ -129,6 +153,30 @@ def at_least(minimum: int, maximum: Optional[int] = None) -> Callable[[str], int
     return parse
 
 
+#: Budgets a sweep may list: each one is a cell per human model and seed.
+MAX_BUDGETS = 100
+
+
+def budgets_argument(text: str) -> List[int]:
+    """Reactive budgets: ``A..B`` (inclusive) or a comma-separated list, each >= 1."""
+    words = text.strip()
+    try:
+        if ".." in words:
+            low, _, high = words.partition("..")
+            budgets = list(range(int(low), int(high) + 1))
+        else:
+            budgets = [int(part) for part in names_argument(words)]
+    except (ValueError, argparse.ArgumentTypeError):
+        raise argparse.ArgumentTypeError(f"expected A..B or a comma-separated list of "
+                                         f"integers >= 1, got {text[:60]!r}") from None
+    if not budgets or min(budgets) < 1 or max(budgets) > settings.INT32_MAX:
+        raise argparse.ArgumentTypeError(f"budgets must be integers from 1 to "
+                                         f"{settings.INT32_MAX}, got {text[:60]!r}")
+    if len(budgets) > MAX_BUDGETS:
+        raise argparse.ArgumentTypeError(f"at most {MAX_BUDGETS} budgets, got {len(budgets)}")
+    return list(dict.fromkeys(budgets))
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=NAME, description=__doc__.split("\n\n")[0],
                       formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -136,9 +184,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"human scenarios or .pomdpx files, comma-separated ({DEFAULT_HUMANS})")
     p.add_argument("--policies", type=names_argument, default=names_argument(DEFAULT_POLICIES),
                    help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)}")
-    p.add_argument("--seeds", type=_seeds, default=[0, 1], help="seeds, comma-separated (0,1)")
-    p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=10,
-                   help=f"episodes per cell, 1 to {MAX_EPISODES} (10)")
+    p.add_argument("--reactive-budgets", type=budgets_argument, default=[],
+                   help="also run the reactive robot with each of these budgets (policies "
+                        "reactive@N), e.g. 1..10 or 2,4,8; the summary names the best")
+    p.add_argument("--seeds", type=_seeds, default=_seeds(DEFAULT_SEEDS),
+                   help=f"seeds, comma-separated ({DEFAULT_SEEDS})")
+    p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=DEFAULT_EPISODES,
+                   help=f"episodes per cell, 1 to {MAX_EPISODES} ({DEFAULT_EPISODES}: a "
+                        "15-point difference in success detectable, see docs/experiments.md)")
+    p.add_argument("--allow-in-sample", action="store_true",
+                   help="evaluate a fitted robot model on streams it was fitted on too "
+                        "(marked in_sample); refused otherwise")
     p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=15,
                    help="steps before an episode ends (15)")
     p.add_argument("--jobs", type=at_least(0, MAX_JOBS), default=0,
@@ -163,10 +219,11 @@ def validate_grid(args: argparse.Namespace) -> None:
     robot model against the task's tables, every cell's launch settings. Raises HrcError with
     one line naming the argument or the file and the offending names. Once all is good, each
     model file named by position gets its mapping printed, one line per file."""
-    unknown = [p for p in args.policies if p not in ROBOT_POLICIES]
+    expand_policies(args)
+    unknown = [p for p in args.policies if not _known(p)]
     if unknown:
         raise GridError(f"--policies: unknown robot policies {', '.join(unknown)}; known: "
-                        f"{', '.join(ROBOT_POLICIES)}")
+                        f"{', '.join(ROBOT_POLICIES)}, reactive@N")
     resolve_files(args)
     loaded = []
     try:
@@ -174,7 +231,7 @@ def validate_grid(args: argparse.Namespace) -> None:
     except ModelNotFound as exc:
         raise GridError(f"--robot-model: {exc}") from None
     for policy in dict.fromkeys(args.policies):
-        own = ROBOT_POLICIES[policy].robot_model
+        own = robot_policy(policy).robot_model
         if own is not None:
             try:
                 loaded.append(load_robot_model(own))
@@ -190,9 +247,70 @@ def validate_grid(args: argparse.Namespace) -> None:
     for spec in plan_cells(args, set()):
         if spec.seed == args.seeds[0]:   # the settings do not depend on the seed otherwise
             check_launch_settings(spec)
+    check_held_out(args)
     mappings = (positional_mapping_line(model) for model in loaded)
     for line in dict.fromkeys(m for m in mappings if m):   # once per file, by its line
         print(f"{NAME}: {line}", flush=True)
+
+
+def _known(policy: str) -> bool:
+    try:
+        robot_policy(policy)
+    except KeyError:
+        return False
+    return True
+
+
+def expand_policies(args: argparse.Namespace) -> None:
+    """Add ``reactive@N`` for every ``--reactive-budgets`` N to ``args.policies`` (once)."""
+    if getattr(args, "policies_expanded", False):
+        return
+    extra = [reactive_policy_name(b) for b in getattr(args, "reactive_budgets", [])]
+    args.policies = list(dict.fromkeys(list(args.policies) + extra))
+    args.policies_expanded = True
+
+
+#: Planners whose decisions depend on the robot model (the held-out rule applies to them).
+MODEL_PLANNERS = ("despot", "policy")
+
+
+def in_sample_streams(args: argparse.Namespace) -> Dict[Tuple[str, str, int], Set[int]]:
+    """(policy, human model, seed) -> the grid's episodes on which that policy's robot model
+    was fitted (:mod:`ros_hrc.experiment.provenance`); only pairs that overlap appear."""
+    resolve_files(args)
+    found: Dict[Tuple[str, str, int], Set[int]] = {}
+    digests = {human: file_sha256(path) for human, path in args.human_files.items()}
+    for policy in dict.fromkeys(args.policies):
+        if robot_policy(policy).planner not in MODEL_PLANNERS:
+            continue
+        model_file = robot_model_of(policy, args.robot_model)
+        try:
+            fitted = read_fitted_on(model_file)
+        except OSError:
+            continue       # validate_grid has refused a model that cannot be read
+        except ValueError as exc:
+            raise GridError(f"--policies {policy}: {exc}") from None
+        for streams in fitted:
+            for human, digest in digests.items():
+                for seed in args.seeds:
+                    start, stop = streams.episodes
+                    overlap = range(max(start, 0), min(stop, args.episodes))
+                    if len(overlap) and (digest, seed) == (streams.sha256, streams.seed):
+                        found.setdefault((policy, human, seed), set()).update(overlap)
+    return found
+
+
+def check_held_out(args: argparse.Namespace) -> None:
+    """Refuse (GridError, one line) to evaluate a fitted robot model on the streams it was
+    fitted on, unless ``--allow-in-sample``; sets ``args.in_sample`` for marking rows."""
+    args.in_sample = in_sample_streams(args)
+    if args.in_sample and not getattr(args, "allow_in_sample", False):
+        (policy, human, seed), episodes = next(iter(args.in_sample.items()))
+        model = shown_path(robot_model_of(policy, args.robot_model))
+        raise GridError(f"--policies {policy}: its robot model {model} was fitted on human "
+                        f"model {human}, seed {seed}, episodes {ranges_text(episodes)}, which "
+                        "this grid would evaluate it on; choose other --seeds (or human "
+                        "models), or give --allow-in-sample to run them marked in_sample")
 
 
 def resolve_files(args: argparse.Namespace) -> None:
@@ -219,7 +337,7 @@ def resolve_files(args: argparse.Namespace) -> None:
 def robot_model_of(policy: str, grid_model: str) -> str:
     """The robot model a policy runs with, as an absolute file: its own (pomdp_fitted:
     robot_fitted) or the grid's."""
-    own = ROBOT_POLICIES[policy].robot_model
+    own = robot_policy(policy).robot_model
     if own is None:
         return grid_model
     try:
@@ -228,11 +346,27 @@ def robot_model_of(policy: str, grid_model: str) -> str:
         return own      # validate_grid refuses it, naming the policy
 
 
+def _cell(args: argparse.Namespace, human: str, policy: str, seed: int,
+          episodes: EpisodeRanges, log_dir: str) -> CellSpec:
+    budget = robot_policy(policy).reactive_budget
+    return CellSpec(
+        human_model=human, robot_policy=policy, seed=seed, episodes=episodes,
+        step_limit=args.step_limit, log_dir=log_dir,
+        human_model_file=args.human_files[human],
+        robot_model=robot_model_of(policy, args.robot_model),
+        human_choice=args.human_choice,
+        time_per_step=args.time_per_step, max_trials=args.max_trials,
+        reactive_budget=args.reactive_budget if budget is None else budget,
+        scenarios=args.scenarios, depth=args.depth, lambda_=args.lambda_, record_bag=args.bag)
+
+
 def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
-    """The cells with episodes still to record, in grid order. Each cell's episodes are
-    ranges (:class:`EpisodeRanges`): memory in proportion to what is recorded, not to
+    """The cells with episodes still to record, in grid order (``no_robot``, the human
+    alone, first: the robots' episodes are set against it). Each cell's episodes are ranges
+    (:class:`EpisodeRanges`): memory in proportion to what is recorded, not to
     ``--episodes``."""
     resolve_files(args)
+    expand_policies(args)
     recorded: Dict[Tuple[str, str, int], Set[int]] = defaultdict(set)
     for human, policy, seed, episode in done:
         recorded[(human, policy, seed)].add(episode)
@@ -244,16 +378,121 @@ def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
                 missing = EpisodeRanges.missing(args.episodes,
                                                 recorded.get((human, policy, seed), ()))
                 if missing:
-                    cells.append(CellSpec(
-                        human_model=human, robot_policy=policy, seed=seed, episodes=missing,
-                        step_limit=args.step_limit, log_dir=log_dir,
-                        human_model_file=args.human_files[human],
-                        robot_model=robot_model_of(policy, args.robot_model),
-                        human_choice=args.human_choice,
-                        time_per_step=args.time_per_step, max_trials=args.max_trials,
-                        reactive_budget=args.reactive_budget, scenarios=args.scenarios,
-                        depth=args.depth, lambda_=args.lambda_, record_bag=args.bag))
+                    cells.append(_cell(args, human, policy, seed, missing, log_dir))
+    return sorted(cells, key=lambda cell: cell.robot_policy != ALONE_POLICY)
+
+
+def plan_alone_cells(args: argparse.Namespace, alone: "AloneEpisodes") -> List[CellSpec]:
+    """The ``no_robot`` cells the grid needs for its counterfactual and does not have yet
+    (none when ``no_robot`` is one of the grid's policies: its own cells are the alone
+    episodes). One cell per (human model, seed), whatever the number of robot policies."""
+    resolve_files(args)
+    expand_policies(args)
+    if ALONE_POLICY in args.policies:
+        return []
+    cells = []
+    log_dir = str(Path(args.out) / ALONE_DIRECTORY / "logs")
+    for human in args.human_models:
+        for seed in args.seeds:
+            have = alone.episodes_of(human, seed)
+            missing = EpisodeRanges.missing(args.episodes, have)
+            if missing:
+                cells.append(_cell(args, human, ALONE_POLICY, seed, missing, log_dir))
     return cells
+
+
+class AloneEpisodes:
+    """The human alone on each stream: ``no_robot`` rows by (human model, seed, episode),
+    from the grid's own ``no_robot`` rows and from ``<out>/alone/`` (episodes run only for
+    the counterfactual). Recorded once per stream, reused by every policy and resumed run."""
+
+    def __init__(self, store: ResultsStore, out: Path, grid_has_alone: bool) -> None:
+        self.store = store
+        self.grid_has_alone = grid_has_alone
+        self.directory = out / ALONE_DIRECTORY
+        self._own: Optional[ResultsStore] = None
+        self.rows: Dict[Tuple[str, int, int], EpisodeRow] = {}
+        if self.directory.exists():
+            self._own = ResultsStore(self.directory)
+            for row in self._own.episodes():
+                self.rows[stream_of(row)] = row
+        for row in store.episodes():
+            if row.robot_policy == ALONE_POLICY:
+                self.rows[stream_of(row)] = row
+
+    @property
+    def own_store(self) -> ResultsStore:
+        if self._own is None:
+            self._own = ResultsStore(self.directory)
+        return self._own
+
+    def episodes_of(self, human: str, seed: int) -> Set[int]:
+        return {e for (h, s, e) in self.rows if (h, s) == (human, seed)}
+
+    def adopt_into_grid(self, args: argparse.Namespace) -> int:
+        """With ``no_robot`` in the grid: its episodes already run for the counterfactual
+        (``<out>/alone/``) become the grid's rows, steps included, instead of running again.
+        Returns how many were adopted."""
+        if not self.grid_has_alone or self._own is None:
+            return 0
+        done = self.store.done()
+        wanted = [row for row in self._own.episodes()
+                  if row.human_model in args.human_models and row.seed in args.seeds
+                  and row.episode < args.episodes and row.key not in done]
+        if not wanted:
+            return 0
+        steps: Dict[tuple, List[StepRow]] = defaultdict(list)
+        keys = {row.key for row in wanted}
+        for step in self._own.steps():
+            if step.key in keys:
+                steps[step.key].append(step)
+        for row in wanted:
+            self.store.add(row, steps[row.key])
+        return len(wanted)
+
+    def add(self, row: EpisodeRow, steps: Sequence[StepRow]) -> EpisodeRow:
+        """Record a ``no_robot`` episode (paired with itself) where it belongs."""
+        row = pair_alone(row)
+        (self.store if self.grid_has_alone else self.own_store).add(row, steps)
+        self.rows[stream_of(row)] = row
+        return row
+
+
+class PairedRecorder:
+    """What the cells' episodes go through: a ``no_robot`` episode is the human alone
+    (:class:`AloneEpisodes`); any other is set against it (:func:`episode.pair`), marked
+    ``in_sample`` when its robot model was fitted on that stream, and stored."""
+
+    def __init__(self, store: ResultsStore, alone: AloneEpisodes,
+                 in_sample: Optional[Dict[Tuple[str, str, int], Set[int]]] = None) -> None:
+        self.store = store
+        self.alone = alone
+        self.in_sample = in_sample or {}
+
+    def add(self, row: EpisodeRow, steps: Sequence[StepRow]) -> None:
+        if row.robot_policy == ALONE_POLICY:
+            self.alone.add(row, steps)
+            return
+        alone = self.alone.rows.get(stream_of(row))
+        if alone is None:   # the gate runs only streams whose alone episode is in
+            raise RuntimeError(f"episode {row.key}: no human-alone episode on its stream")
+        marked = row.episode in self.in_sample.get((row.robot_policy, row.human_model,
+                                                    row.seed), ())
+        self.store.add(pair(row, alone, in_sample=marked), steps)
+
+    def done(self) -> Set[Tuple[str, str, int, int]]:
+        return self.store.done()
+
+    def gate(self, cell: CellSpec) -> Optional[CellSpec]:
+        """A robot cell's episodes restricted to the streams whose alone episode is in (an
+        alone cell that failed leaves its streams for the next run); None if none is."""
+        if cell.robot_policy == ALONE_POLICY:
+            return cell
+        have = self.alone.episodes_of(cell.human_model, cell.seed)
+        kept = EpisodeRanges.of(e for e in cell.episodes if e in have)
+        if not kept:
+            return None
+        return dataclasses.replace(cell, episodes=kept)
 
 
 class Stopper:
@@ -356,10 +595,14 @@ def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None,
         raise RuntimeError(last)
 
 
-def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int,
-             stopper: Optional[Stopper] = None, program: str = NAME) -> dict:
-    """Run the cells side by side; record episodes as they come. Returns run figures.
-    ``program`` names the progress bar and the messages (hrc_fit runs grids too)."""
+def run_grid(cells: List[CellSpec], store, jobs: int,
+             stopper: Optional[Stopper] = None, program: str = NAME,
+             gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None) -> dict:
+    """Run the cells side by side; record episodes as they come (``store.add(row, steps)``).
+    Returns run figures. ``program`` names the progress bar and the messages (hrc_fit runs
+    grids too). A robot cell starts once the ``no_robot`` cells of its (human model, seed) in
+    ``cells`` are over (the human alone comes first); ``gate(cell)`` then gives the cell to
+    run (fewer episodes, or None: nothing to run)."""
     from tqdm import tqdm
 
     stopper = stopper or Stopper()
@@ -385,8 +628,46 @@ def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int,
         # `jobs` cells step at a time. A cell whose episodes are all in gives its place to the
         # next one while its stack shuts down, so that start-up and shut-down overlap.
         stepping = threading.BoundedSemaphore(max(1, jobs))
+        # The human alone first: a robot cell waits for the no_robot cells of its stream.
+        alone_over: Dict[Tuple[str, int], threading.Event] = {}
+        alone_left: Dict[Tuple[str, int], int] = defaultdict(int)
+        for cell in cells:
+            if cell.robot_policy == ALONE_POLICY:
+                alone_over.setdefault((cell.human_model, cell.seed), threading.Event())
+                alone_left[(cell.human_model, cell.seed)] += 1
+
+        def alone_cell_over(cell: CellSpec, counted: List[bool]) -> None:
+            key = (cell.human_model, cell.seed)
+            with lock:
+                if counted:
+                    return
+                counted.append(True)
+                alone_left[key] -= 1
+                if alone_left[key] == 0:
+                    alone_over[key].set()
 
         def run(cell: CellSpec) -> None:
+            if cell.robot_policy == ALONE_POLICY:
+                counted: List[bool] = []
+                try:
+                    # Its robots may start once its episodes are in, while its stack stops.
+                    run_cell(cell, lambda: alone_cell_over(cell, counted))
+                finally:
+                    alone_cell_over(cell, counted)
+                return
+            over = alone_over.get((cell.human_model, cell.seed))
+            while over is not None and not over.wait(0.5):
+                if stopper.stopping:
+                    return
+            if gate is not None:
+                with lock:
+                    gated = gate(cell)
+                if gated is None:
+                    return
+                cell = gated
+            run_cell(cell)
+
+        def run_cell(cell: CellSpec, all_delivered: Callable[[], None] = lambda: None) -> None:
             stepping.acquire()
             released = threading.Event()
 
@@ -394,11 +675,14 @@ def run_grid(cells: List[CellSpec], store: ResultsStore, jobs: int,
                 if not released.is_set():
                     released.set()
                     stepping.release()
+                    all_delivered()
             try:
                 if stopper.stopping:
                     return
                 name = cell_name(cell)
-                with open(logs / f"{name}.worker.log", "a") as log:
+                cell_logs = Path(cell.log_dir)
+                cell_logs.mkdir(parents=True, exist_ok=True)
+                with open(cell_logs / f"{name}.worker.log", "a") as log:
                     try:
                         _run_worker(cell, deliver, log, stopper, on_all_delivered=release)
                     except (RuntimeError, OSError) as exc:
@@ -430,6 +714,7 @@ def report(store: ResultsStore, out: Path, plots: bool) -> None:
     written = [str(store.episodes_path), str(store.steps_path), str(csv_path), str(md_path)]
     if plots:
         written.append(plot_outcomes(summary, out / "outcomes.png"))
+        written.append(plot_time_gain(rows, out / "time_gain.png"))
         written.append(plot_belief(store.steps(), out / "belief.png"))
     print(f"{NAME}: written " + ", ".join(str(p) for p in written))
 
@@ -445,15 +730,17 @@ def open_results(directory: Path, argument: str):
         raise GridError(f"{argument} {directory}: {exc.strerror or exc}") from None
 
 
-def run_stoppable(cells: List[CellSpec], store: ResultsStore, jobs: int, words: Sequence[str],
-                  out: Path, program: str = NAME) -> Tuple[Optional[dict], Optional[int]]:
+def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
+                  out: Path, program: str = NAME,
+                  gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None
+                  ) -> Tuple[Optional[dict], Optional[int]]:
     """:func:`run_grid` under SIGINT and SIGTERM: ``(figures, None)``, or, when a signal
     stopped it, ``(None, 128 + signal)`` after saying what is kept and how to resume."""
     stopper = Stopper()
     stopper.install()
     figures = None
     try:
-        figures = run_grid(cells, store, jobs, stopper, program=program)
+        figures = run_grid(cells, store, jobs, stopper, program=program, gate=gate)
     except KeyboardInterrupt:   # a signal before the handlers were in place
         stopper.stop(signal.SIGINT)
     finally:
@@ -503,23 +790,31 @@ def main(argv: Optional[list] = None) -> int:
 def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
     try:
         store = ResultsStore(out)
+        alone = AloneEpisodes(store, out, grid_has_alone=ALONE_POLICY in args.policies)
     except (OSError, ValueError) as exc:
         return _error(exc)
-    cells = plan_cells(args, store.done())
-    total = sum(len(c.episodes) for c in cells)
+    adopted = alone.adopt_into_grid(args)
+    cells = plan_alone_cells(args, alone) + plan_cells(args, store.done())
+    counterfactual = sum(len(c.episodes) for c in cells if c.log_dir != str(out / "logs"))
+    total = sum(len(c.episodes) for c in cells) - counterfactual
     grid = len(args.human_models) * len(args.policies) * len(args.seeds) * args.episodes
     print(f"{NAME}: {len(args.human_models)} human models x {len(args.policies)} robot policies "
           f"x {len(args.seeds)} seeds x {args.episodes} episodes = {grid} episodes; "
-          f"{grid - total} already in {out}, {total} to run on {min(args.jobs, len(cells) or 1)} "
-          "stacks side by side", flush=True)
+          f"{grid - total} already in {out}, {total} to run"
+          + (f" ({adopted} taken from {alone.directory})" if adopted else "")
+          + (f", and {counterfactual} of the human alone ({ALONE_POLICY}, for the "
+             f"counterfactual, into {alone.directory})" if counterfactual else "")
+          + f", on {min(args.jobs, len(cells) or 1)} stacks side by side", flush=True)
     figures = None
     if cells:
-        figures, stopped = run_stoppable(cells, store, args.jobs, words, out)
+        recorder = PairedRecorder(store, alone, args.in_sample)
+        figures, stopped = run_stoppable(cells, recorder, args.jobs, words, out,
+                                         gate=recorder.gate)
         if stopped is not None:
             return stopped
-        print(f"{NAME}: {figures['episodes']} episodes in {figures['wall_seconds']:.1f} s: "
-              f"{figures['episodes_per_minute']:.1f} episodes/min, "
-              f"{figures['simulated_seconds']:.1f} simulated s, "
+        print(f"{NAME}: {figures['episodes']} episodes in {figures['wall_seconds']:.1f} s "
+              f"(the human-alone ones included): {figures['episodes_per_minute']:.1f} "
+              f"episodes/min, {figures['simulated_seconds']:.1f} simulated s, "
               f"speed-up over real time x{figures['speedup_over_real_time']:.1f}")
         write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
     report(store, out, plots=not args.no_plots)

@@ -7,31 +7,42 @@ object_left_belt, surprise``. No ROS here: the experiment's ROS side hands these
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+import re
+from dataclasses import dataclass, replace
 from typing import Dict, Optional, Sequence
 
 import numpy as np
 
 from ros_hrc.loop import task
-from ros_hrc.experiment.store import EpisodeKey, EpisodeRow, StepRow
+from ros_hrc.experiment.paired import counterfactual_outcome
+from ros_hrc.experiment.store import UNPAIRED, EpisodeKey, EpisodeRow, StepRow
 from ros_hrc.pomdp.model import Model
+
 
 @dataclass(frozen=True)
 class RobotPolicy:
-    """A robot policy of a grid: the robot process's ``--planner`` and the robot model it
-    runs with (None: the grid's ``--robot-model``)."""
+    """A robot policy of a grid: the robot process's ``--planner``, the robot model it runs
+    with (None: the grid's ``--robot-model``) and, for ``reactive@N``, its budget (None: the
+    grid's ``--reactive-budget``)."""
     planner: str
     robot_model: Optional[str] = None
     doc: str = ""
+    reactive_budget: Optional[int] = None
 
 
-#: Robot policies of a grid, by name.
+#: Robot policies of a grid, by name. ``reactive@N`` (N >= 1) is the reactive robot with
+#: budget N (:func:`robot_policy`); a sweep of them is how the baseline is tuned.
 ROBOT_POLICIES: Dict[str, RobotPolicy] = {
     "pomdp": RobotPolicy("despot", None, "anticipates the human's state of mind: the robot POMDP "
                                          "(the authors' model by default), planned online with "
                                          "DESPOT"),
     "pomdp_fitted": RobotPolicy("despot", "robot_fitted", "the same planner on the robot model "
                                                           "fitted to the world (hrc_fit)"),
+    "pomdp_considerate": RobotPolicy("despot", "robot_considerate",
+                                     "the same planner on the considerate robot model (success "
+                                     "valued once; acting against a warning and pre-empting "
+                                     "costly)"),
     "reactive": RobotPolicy("reactive", None, "treats the need for help as observable "
                                               "(robot_policies.py)"),
     "no_robot": RobotPolicy("none", None, "never acts"),
@@ -40,9 +51,45 @@ ROBOT_POLICIES: Dict[str, RobotPolicy] = {
 }
 #: The policies of ``make experiment``'s default grid.
 DEFAULT_POLICIES = ("pomdp", "pomdp_fitted", "reactive", "no_robot")
+#: The human alone: the counterfactual every robot's episode is set against.
+ALONE_POLICY = "no_robot"
+REACTIVE = "reactive"
+#: Budgets a ``reactive@N`` may name (hrc.launch's reactive_budget is an int32).
+MAX_REACTIVE_BUDGET = 2**31 - 1
+_REACTIVE_AT = re.compile(r"reactive@([0-9]{1,10})")
+
+
+def robot_policy(name: str) -> RobotPolicy:
+    """The policy a grid names: one of :data:`ROBOT_POLICIES` or ``reactive@N``. KeyError
+    for any other name."""
+    if name in ROBOT_POLICIES:
+        return ROBOT_POLICIES[name]
+    match = _REACTIVE_AT.fullmatch(name)
+    if match and 1 <= int(match.group(1)) <= MAX_REACTIVE_BUDGET:
+        base = ROBOT_POLICIES[REACTIVE]
+        return replace(base, reactive_budget=int(match.group(1)),
+                       doc=f"the reactive robot with budget {int(match.group(1))}")
+    raise KeyError(name)
+
+
+def is_reactive(name: str) -> bool:
+    """Whether the policy is the reactive robot (``reactive`` or ``reactive@N``)."""
+    try:
+        return robot_policy(name).planner == "reactive"
+    except KeyError:
+        return False
+
+
+def reactive_policy_name(budget: int) -> str:
+    """``reactive@N``: the name of the reactive robot with budget N in a grid."""
+    return f"{REACTIVE}@{budget}"
+
 
 #: Robot actions that intrude when the human does not need help.
 HELPING_ACTIONS = frozenset({"rGrasp_obj", "rPoint_obj"})
+#: The human's world services that leave the belt, and those that come back to it first.
+_LEAVES = frozenset({"walk_away"})
+_RETURNS = frozenset({"attempt_grasp", "grasp"})
 
 
 def needs_help_mass(step) -> float:
@@ -63,12 +110,66 @@ def discounted_robot_reward(steps: Sequence, model: Model) -> float:
     return total
 
 
+def time_to_success(steps: Sequence, reason: str, start_sim_time: float) -> float:
+    """Simulated seconds from the episode's start to the end of the step that succeeded;
+    NaN when the episode did not succeed."""
+    if reason != "success" or not steps:
+        return math.nan
+    return max(0.0, float(steps[-1].sim_time) - float(start_sim_time))
+
+
+def wasted_actions(steps: Sequence) -> int:
+    """Robot actions the world answered with nothing:
+
+    * ``rGrasp_obj`` after which the robot does not hold the object (the world refused it:
+      out of reach, the human holds it; or the gripper missed);
+    * ``rPoint_obj`` at a human who is away from the belt: he left with ``walkAway`` (the
+      world's ``/human/walk_away``) and has not come back, which only a grasp attempt does
+      (``/human/attempt_grasp`` and ``/human/grasp`` walk back first).
+    """
+    wasted, away = 0, False
+    for step in steps:
+        service = task.HUMAN_ACTION_SERVICES.get(step.human_action)
+        if service in _LEAVES:
+            away = True
+        elif service in _RETURNS:
+            away = False
+        if step.robot_action == "rGrasp_obj" and step.object_holder != "robot":
+            wasted += 1
+        elif step.robot_action == "rPoint_obj" and away:
+            wasted += 1
+    return wasted
+
+
+def against_warning(steps: Sequence) -> int:
+    """Grasps and points while a warning is in force.
+
+    A warning is in force from the step whose observation carries the warning bit (16) (the
+    robot decides after that observation, so its action at that step counts) until the robot
+    observes the human act on the object again: a grasp attempt (bit 4) or the human holding
+    it (bit 8). Idling, looking round or walking away after a warning do not lift it: the
+    human said "stop" and has not taken the task back. A reset (a new episode) lifts it.
+    """
+    count, in_force = 0, False
+    for step in steps:
+        bits = int(step.observation_bits)
+        if bits & task.WARNING:
+            in_force = True
+        elif bits & (task.GRASP_ATTEMPT | task.HAS_OBJECT):
+            in_force = False
+        if in_force and step.robot_action in HELPING_ACTIONS:
+            count += 1
+    return count
+
+
 def score_episode(key: EpisodeKey, steps: Sequence, reason: str, start_sim_time: float,
                   model: Model, wall_seconds: float) -> EpisodeRow:
-    """One results row for a finished episode."""
+    """One results row for a finished episode, not yet paired with the human alone
+    (outcome ``unpaired``: :func:`pair` sets the counterfactual columns)."""
     human_model, robot_policy, seed, episode = key
     holder = steps[-1].object_holder if steps else "none"
     success = reason == "success"
+    # The old label-based count: helping while the observer's label says no help is needed.
     intrusive = sum(1 for s in steps if s.robot_action in HELPING_ACTIONS
                     and s.robot_state not in task.NEEDS_HELP_STATES)
     warnings = sum(1 for s in steps if s.observation_bits & task.WARNING)
@@ -80,11 +181,41 @@ def score_episode(key: EpisodeKey, steps: Sequence, reason: str, start_sim_time:
         success=int(success),
         succeeded_by=holder if success else "none", end_reason=reason, steps=len(steps),
         sim_seconds=(steps[-1].sim_time - start_sim_time) if steps else 0.0,
+        time_to_success=time_to_success(steps, reason, start_sim_time),
+        alone_success=0, alone_time_to_success=math.nan, outcome=UNPAIRED,
+        time_gain=math.nan, wasted_actions=wasted_actions(steps),
+        against_warning=against_warning(steps), in_sample=0,
         robot_discounted_reward=discounted_robot_reward(steps, model),
         intrusive_actions=intrusive, warnings=warnings,
         zero_probability_observations=zero_probability,
         mean_decision_ms=float(np.mean(decisions)) if decisions else 0.0,
         wall_seconds=wall_seconds)
+
+
+def stream_of(row: EpisodeRow) -> tuple:
+    """(human_model, seed, episode): the human stream an episode ran on."""
+    return (row.human_model, row.seed, row.episode)
+
+
+def pair(row: EpisodeRow, alone: EpisodeRow, in_sample: bool = False) -> EpisodeRow:
+    """``row`` with its counterfactual columns set from ``alone``, the ``no_robot`` episode
+    on the same (human model, seed, episode) stream; ``in_sample`` marks a row whose robot
+    model was fitted on this stream. ValueError when ``alone`` is not that episode."""
+    if alone.robot_policy != ALONE_POLICY or stream_of(alone) != stream_of(row):
+        raise ValueError(f"episode {alone.key} is not the human alone on the stream of "
+                         f"{row.key}")
+    both = bool(row.success and alone.success)
+    return replace(
+        row, alone_success=alone.success, alone_time_to_success=alone.time_to_success,
+        outcome=counterfactual_outcome(bool(alone.success), bool(row.success),
+                                       row.succeeded_by),
+        time_gain=(alone.time_to_success - row.time_to_success) if both else math.nan,
+        in_sample=int(bool(in_sample)))
+
+
+def pair_alone(row: EpisodeRow) -> EpisodeRow:
+    """A ``no_robot`` row paired with itself: it is the human alone."""
+    return pair(row, row)
 
 
 def step_rows(key: EpisodeKey, steps: Sequence) -> list:

@@ -21,7 +21,10 @@ state the humans reach. From each episode it counts what the robot model describ
 It combines the counts with the prior model as a Dirichlet prior of ``--strength``
 pseudo-counts per row (:func:`ros_hrc.pomdp.fit.fit_model`: rows the episodes never reached keep
 the prior's), keeps the prior's rewards, discount and start, and writes a Cassandra ``.pomdp``
-whose header says how it was made (human models, episodes, seed, prior, strength, counts).
+whose header says how it was made (human models, episodes, seed, prior, strength, counts),
+with one machine-readable ``# hrc-fitted-on: {...}`` line per human model
+(:mod:`ros_hrc.experiment.provenance`): ``hrc_experiment`` refuses to evaluate the model on
+those streams unless ``--allow-in-sample``.
 
 The episodes are kept in ``--runs`` (a results directory as ``hrc_experiment`` writes, with a
 ``fit.json`` naming the configuration), so running the same command again reuses them and
@@ -49,6 +52,7 @@ from ros_hrc.errors import HrcError
 from ros_hrc.experiment.cli import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
                                     file_error_line, names_argument, open_results,
                                     run_stoppable)
+from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
 from ros_hrc.loop import settings, task
@@ -209,8 +213,19 @@ def header_lines(args: argparse.Namespace, prior_path: str, episodes: int, steps
         "observer's labels (ros_hrc.loop.task.RobotStateTracker)",
         f"experience: {steps} steps; {counts.n_transitions} transitions, "
         f"{counts.n_observations_counted} observations",
+        "the streams fitted on, one line per human model (hrc_experiment refuses to evaluate "
+        "this model on them unless --allow-in-sample):",
+        *fitted_on_lines(args),
         "",
     ]
+
+
+def fitted_on_lines(args: argparse.Namespace) -> List[str]:
+    """The machine-readable header lines (:mod:`ros_hrc.experiment.provenance`): each human
+    model (by its file's contents), the seed and the episodes fitted on."""
+    return [FittedStreams(human, file_sha256(args.human_files[human]), args.seed,
+                          (0, args.episodes)).line()
+            for human in dict.fromkeys(args.human_models)]
 
 
 def _error(text: object) -> int:

@@ -1,8 +1,9 @@
 """The plots of an experiment, as PNG files.
 
-:func:`plot_outcomes` (success rate and mean steps, grouped bars with 95 % CIs) and
-:func:`plot_belief` (the robot's belief that the human needs help against the truth, one line
-per robot policy on the same human). Both draw on a bare ``Figure`` rendered by Agg
+:func:`plot_outcomes` (the counterfactual outcomes per human model and robot policy, stacked,
+with the success rate's interval and the human-alone rate), :func:`plot_time_gain` (the time
+gained against the human alone, per episode pair) and :func:`plot_belief` (the robot's belief
+that the human needs help against the truth, one line per robot policy on the same human). Both draw on a bare ``Figure`` rendered by Agg
 (matplotlib, imported on first use), so they work headless and leave pyplot's global state
 alone. No ROS.
 """
@@ -45,50 +46,108 @@ def _policy_colours(policies: Sequence[str]) -> Dict[str, Any]:
     return {p: cmap(i % 10) for i, p in enumerate(policies)}
 
 
+#: Colours of the counterfactual outcomes: good for the human in greens, bad in reds.
+OUTCOME_COLOURS = {"both_succeed": "#9bd49b", "rescued": "#2e8b57", "pre_empted": "#e8a33d",
+                   "hindered": "#c0392b", "both_fail": "#7f7f7f"}
+OUTCOME_LABELS = {"both_succeed": "both succeed", "rescued": "rescued",
+                  "pre_empted": "pre-empted", "hindered": "hindered", "both_fail": "both fail"}
+
+
 def plot_outcomes(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.PathLike]) -> str:
-    """Success rate and mean steps, grouped by human model, one bar per robot policy, with
-    the summary's confidence intervals as error bars. Returns the PNG's path."""
+    """Success against the counterfactual: per human model (pooled entries included), one
+    stacked bar per robot policy with the share of its episodes in each counterfactual
+    outcome (both succeed, rescued, pre-empted, hindered, both fail), the success rate's
+    interval as a whisker and the human-alone success rate as a dashed line. Returns the
+    PNG's path."""
     if not summary:
         raise ValueError("plot_outcomes: the summary is empty, nothing to plot")
+    from ros_hrc.experiment.paired import OUTCOMES
+
     humans = _ordered(e["human_model"] for e in summary)
     policies = _ordered(e["robot_policy"] for e in summary)
-    colours = _policy_colours(policies)
     by_key = {(e["human_model"], e["robot_policy"]): e for e in summary}
-    width = 0.8 / len(policies)
-
-    fig = _new_figure(max(8.0, 1.6 * len(humans) * 2 + 2), 4.5)
-    ax_rate, ax_steps = fig.subplots(1, 2)
-    panels = ((ax_rate, "success_rate", "success_low", "success_high", "Success rate"),
-              (ax_steps, "steps_mean", "steps_low", "steps_high", "Mean steps per episode"))
-    for ax, mean_key, low_key, high_key, ylabel in panels:
-        for j, policy in enumerate(policies):
-            xs, heights, below, above = [], [], [], []
-            for i, human in enumerate(humans):
-                e = by_key.get((human, policy))
-                if e is None:
-                    continue  # this pair was not run: leave a gap, not a zero bar
-                m, lo, hi = e[mean_key], e[low_key], e[high_key]
-                xs.append(i - 0.4 + width * (j + 0.5))
-                heights.append(m)
-                # No interval (n = 1): no error bar rather than a zero-length one.
-                below.append(m - lo if math.isfinite(lo) else math.nan)
-                above.append(hi - m if math.isfinite(hi) else math.nan)
-            ax.bar(xs, heights, width, yerr=[below, above], capsize=3,
-                   color=colours[policy], label=policy, error_kw={"elinewidth": 1})
-        ax.set_xticks(range(len(humans)), humans)
-        ax.set_xlabel("Human model")
-        ax.set_ylabel(ylabel)
+    columns = min(len(humans), 3)
+    rows = (len(humans) + columns - 1) // columns
+    fig = _new_figure(max(6.0, 0.55 * len(policies) * columns + 2.5), 3.2 * rows + 0.8)
+    axes = fig.subplots(rows, columns, squeeze=False, sharey=True)
+    for index, human in enumerate(humans):
+        ax = axes[index // columns][index % columns]
+        present = [p for p in policies if (human, p) in by_key]
+        xs = range(len(present))
+        bottoms = [0.0] * len(present)
+        for outcome in OUTCOMES:
+            shares = [by_key[(human, p)][outcome] / by_key[(human, p)]["n"] for p in present]
+            ax.bar(xs, shares, 0.7, bottom=bottoms, color=OUTCOME_COLOURS[outcome],
+                   label=OUTCOME_LABELS[outcome] if index == 0 else "_nolegend_")
+            bottoms = [b + v for b, v in zip(bottoms, shares)]
+        for x, p in zip(xs, present):
+            e = by_key[(human, p)]
+            # Success = both succeed + rescued + pre-empted: the top of those three segments.
+            rate, low, high = e["success_rate"], e["success_low"], e["success_high"]
+            if math.isfinite(low) and math.isfinite(high):
+                ax.errorbar([x], [rate], yerr=[[rate - low], [high - rate]], color="black",
+                            capsize=3, linewidth=1,
+                            label="success, 95 % CI" if index == 0 and x == 0 else "_nolegend_")
+            alone = e["alone_successes"] / e["n"] if e["n"] else math.nan
+            ax.hlines(alone, x - 0.35, x + 0.35, colors="black", linestyles="dashed",
+                      linewidth=1,
+                      label="success alone" if index == 0 and x == 0 else "_nolegend_")
+        ax.set_xticks(list(xs), present, rotation=45, ha="right", fontsize="small")
+        ns = sorted({by_key[(human, p)]["n"] for p in present})
+        n_text = f"n = {ns[0]}" if len(ns) == 1 else f"n = {ns[0]}–{ns[-1]}"
+        ax.set_title(f"{human} ({n_text})", fontsize="medium")
+        ax.set_ylim(0, 1.02)
         ax.grid(axis="y", alpha=0.3)
         ax.set_axisbelow(True)
-    ax_rate.set_ylim(0, 1.05)
-    ax_steps.set_ylim(bottom=0)
-    ax_rate.legend(title="Robot policy", fontsize="small")
-    levels = _ordered(e.get("confidence", 0.95) for e in summary)
-    ns = [e["n"] for e in summary]
-    n_text = f"n = {ns[0]}" if min(ns) == max(ns) else f"n = {min(ns)}–{max(ns)}"
-    fig.suptitle("Outcomes by human model and robot policy (mean, "
-                 + "/".join(f"{100 * c:g} %" for c in levels)
-                 + f" CI; {n_text} episodes per bar)")
+    for index in range(len(humans), rows * columns):
+        axes[index // columns][index % columns].set_visible(False)
+    for r in range(rows):
+        axes[r][0].set_ylabel("share of episodes")
+    fig.legend(loc="outside lower center", ncol=7, fontsize="small")
+    fig.suptitle("Each robot against the same human alone: counterfactual outcomes per episode")
+    return _save(fig, png_path)
+
+
+def plot_time_gain(rows: Iterable[Any], png_path: Union[str, os.PathLike]) -> str:
+    """Time against the counterfactual: per human model, the distribution of the time gain
+    (simulated seconds the human alone took minus those with the robot, on the episodes where
+    both succeeded) of each robot policy, as a box with every episode as a dot, and how many
+    pairs each has. Returns the PNG's path."""
+    rows = [r for r in rows if r.robot_policy != "no_robot"]
+    if not rows:
+        raise ValueError("plot_time_gain: no robot episodes, nothing to plot")
+    humans = _ordered(r.human_model for r in rows)
+    policies = _ordered(r.robot_policy for r in rows)
+    colours = _policy_colours(policies)
+    columns = min(len(humans), 3)
+    n_rows = (len(humans) + columns - 1) // columns
+    fig = _new_figure(max(6.0, 0.55 * len(policies) * columns + 2.5), 3.2 * n_rows + 0.6)
+    axes = fig.subplots(n_rows, columns, squeeze=False)
+    for index, human in enumerate(humans):
+        ax = axes[index // columns][index % columns]
+        for x, policy in enumerate(policies):
+            gains = [r.time_gain for r in rows if (r.human_model, r.robot_policy) ==
+                     (human, policy) and math.isfinite(r.time_gain)]
+            if gains:
+                ax.boxplot([gains], positions=[x], widths=0.6, showfliers=False,
+                           medianprops={"color": "black"})
+                jitter = [x + 0.25 * (((i * 7919) % 101) / 100 - 0.5) for i in range(len(gains))]
+                ax.scatter(jitter, gains, s=6, color=colours[policy], alpha=0.6, zorder=3)
+            ax.annotate(f"{len(gains)}", (x, 0), xycoords=("data", "axes fraction"),
+                        xytext=(0, 2), textcoords="offset points", ha="center",
+                        fontsize="x-small")
+        ax.axhline(0.0, color="0.4", linewidth=0.8)
+        ax.set_xticks(range(len(policies)), policies, rotation=45, ha="right",
+                      fontsize="small")
+        ax.set_xlim(-0.6, len(policies) - 0.4)
+        ax.set_title(human, fontsize="medium")
+        ax.grid(axis="y", alpha=0.3)
+    for index in range(len(humans), n_rows * columns):
+        axes[index // columns][index % columns].set_visible(False)
+    for r in range(n_rows):
+        axes[r][0].set_ylabel("time gain (s): alone − with robot")
+    fig.suptitle("Time to success against the same human alone (pairs where both succeed; "
+                 "the number of pairs under each box)")
     return _save(fig, png_path)
 
 

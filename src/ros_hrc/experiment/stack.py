@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
-from ros_hrc.experiment.episode import ROBOT_POLICIES
+from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
 from ros_hrc.experiment.store import EpisodeRow, StepRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
 from ros_hrc.loop import settings
@@ -165,12 +165,14 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     time, and /clock would cost every node a thousand messages a second. Nothing for RViz
     (viz:=false): no one watches a cell.
     ``spec.extra_args`` (``name:=value``) come last and win."""
-    if spec.robot_policy not in ROBOT_POLICIES:
+    try:
+        policy = robot_policy(spec.robot_policy)
+    except KeyError:
         raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
-                         f"{', '.join(ROBOT_POLICIES)}")
+                         f"{', '.join(ROBOT_POLICIES)}, reactive@N") from None
     values = {
         "human_model": spec.human_model_file or spec.human_model, "robot_model": spec.robot_model,
-        "planner": ROBOT_POLICIES[spec.robot_policy].planner, "seed": spec.seed,
+        "planner": policy.planner, "seed": spec.seed,
         "mode": "auto", "gui": False, "viz": False, "use_sim_time": False, "real_time_factor": 0,
         "step_delay": 0, "max_steps": spec.step_limit, "on_episode_end": "reset",
         "end_on_goal": False, "read_stdin": False,

@@ -40,10 +40,13 @@ from typing import (Any, ClassVar, Dict, Iterable, List, Mapping, Optional, Sequ
                     Type, TypeVar, Union)
 
 from ros_hrc.errors import HrcError
+from ros_hrc.experiment.paired import OUTCOMES as PAIRED_OUTCOMES
 
 EPISODE_COLUMNS: Tuple[str, ...] = (
     "human_model", "robot_policy", "seed", "episode", "success", "succeeded_by", "end_reason",
-    "steps", "sim_seconds", "robot_discounted_reward", "intrusive_actions", "warnings",
+    "steps", "sim_seconds", "time_to_success", "alone_success", "alone_time_to_success",
+    "outcome", "time_gain", "wasted_actions", "against_warning", "in_sample",
+    "robot_discounted_reward", "intrusive_actions", "warnings",
     "zero_probability_observations", "mean_decision_ms", "wall_seconds")
 
 STEP_COLUMNS: Tuple[str, ...] = (
@@ -52,6 +55,11 @@ STEP_COLUMNS: Tuple[str, ...] = (
     "zero_probability")
 
 SUCCEEDED_BY: Tuple[str, ...] = ("human", "robot", "none")
+#: The counterfactual outcomes (:data:`ros_hrc.experiment.paired.OUTCOMES`), and ``unpaired``:
+#: an episode not (yet) set against the same human stream alone (a worker's row before the
+#: driver pairs it; hrc_fit's exploring episodes, which are never paired).
+UNPAIRED = "unpaired"
+OUTCOME_VALUES: Tuple[str, ...] = PAIRED_OUTCOMES + (UNPAIRED,)
 END_REASONS: Tuple[str, ...] = ("success", "object_left_belt", "step_limit")
 
 #: What identifies an episode: (human_model, robot_policy, seed, episode).
@@ -176,13 +184,18 @@ class _Row:
         return row
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EpisodeRow(_Row):
     """One finished episode.
 
     success is 1 exactly when end_reason is ``success`` and succeeded_by is ``human`` or
-    ``robot``; mean_decision_ms may be NaN (a policy that timed no decisions), every other
-    float must be finite.
+    ``robot``; time_to_success is the simulated seconds from the episode's start to the
+    success (NaN without one). The counterfactual columns set the episode against the same
+    (human model, seed, episode) stream with ``no_robot`` (the human alone):
+    alone_success, alone_time_to_success, outcome (one of :data:`OUTCOME_VALUES`) and
+    time_gain = alone_time_to_success - time_to_success (NaN unless both succeed). in_sample
+    is 1 when the robot's model was fitted on this stream. mean_decision_ms may be NaN (a
+    policy that timed no decisions); the other floats must be finite.
     """
 
     COLUMNS: ClassVar[Tuple[str, ...]] = EPISODE_COLUMNS
@@ -202,6 +215,31 @@ class EpisodeRow(_Row):
     zero_probability_observations: int
     mean_decision_ms: float
     wall_seconds: float
+    # Defaults: an unpaired row that wasted nothing; time_to_success None is sim_seconds
+    # for a success, NaN otherwise. (The CSV's column order is EPISODE_COLUMNS.)
+    time_to_success: Optional[float] = None
+    alone_success: int = 0
+    alone_time_to_success: float = math.nan
+    outcome: str = UNPAIRED
+    time_gain: float = math.nan
+    wasted_actions: int = 0
+    against_warning: int = 0
+    in_sample: int = 0
+
+    def __eq__(self, other: object) -> bool:
+        # As their CSV cells: NaN (no time without a success) equals NaN here.
+        if not isinstance(other, EpisodeRow):
+            return NotImplemented
+        return self.as_dict() == other.as_dict()
+
+    def __hash__(self) -> int:
+        return hash(tuple(self.as_dict().values()))
+
+    def __post_init__(self) -> None:
+        if self.time_to_success is None:
+            time = self.sim_seconds if self.success == 1 else math.nan
+            object.__setattr__(self, "time_to_success", time)
+        super().__post_init__()
 
     def _check(self) -> None:
         self._nonempty("human_model", "robot_policy")
@@ -216,7 +254,37 @@ class EpisodeRow(_Row):
         if bool(self.success) != (self.succeeded_by != "none"):
             raise self._bad("succeeded_by", f"contradicts success {self.success}")
         self._non_negative("seed", "episode", "steps", "sim_seconds", "intrusive_actions",
-                           "warnings", "zero_probability_observations", "wall_seconds")
+                           "warnings", "zero_probability_observations", "wall_seconds",
+                           "wasted_actions", "against_warning")
+        self._zero_one("alone_success", "in_sample")
+        if self.outcome not in OUTCOME_VALUES:
+            raise self._bad("outcome", f"expected one of {', '.join(OUTCOME_VALUES)}")
+        # A time exists exactly when its success does.
+        for time_column, succeeded in (("time_to_success", self.success),
+                                       ("alone_time_to_success", self.alone_success)):
+            value = getattr(self, time_column)
+            if self.outcome == UNPAIRED and time_column == "alone_time_to_success":
+                succeeded = 0
+            if succeeded and not (math.isfinite(value) and value >= 0):
+                raise self._bad(time_column, "must be a time >= 0 when it succeeded")
+            if not succeeded and not math.isnan(value):
+                raise self._bad(time_column, "must be nan without a success")
+        if self.outcome == UNPAIRED:
+            if self.alone_success:
+                raise self._bad("alone_success", "must be 0 in an unpaired row")
+        else:
+            from ros_hrc.experiment.paired import counterfactual_outcome
+            expected = counterfactual_outcome(bool(self.alone_success), bool(self.success),
+                                              self.succeeded_by)
+            if self.outcome != expected:
+                raise self._bad("outcome", f"contradicts alone_success {self.alone_success} "
+                                           f"and succeeded_by {self.succeeded_by!r} "
+                                           f"({expected})")
+        both = self.success and self.alone_success and self.outcome != UNPAIRED
+        if both and not math.isfinite(self.time_gain):
+            raise self._bad("time_gain", "must be finite when both succeed")
+        if not both and not math.isnan(self.time_gain):
+            raise self._bad("time_gain", "must be nan unless both succeed")
         if not math.isfinite(self.robot_discounted_reward):
             raise self._bad("robot_discounted_reward", "must be finite")
         self._non_negative("mean_decision_ms", finite=False)
@@ -258,6 +326,25 @@ class StepRow(_Row):
         if not math.isnan(b) and not -_BELIEF_TOLERANCE <= b <= 1 + _BELIEF_TOLERANCE:
             raise self._bad("belief_needs_help", "must be a probability in [0, 1] or nan")
 
+
+
+def header_mismatch(path: str, header: Optional[Sequence[str]],
+                    columns: Sequence[str]) -> str:
+    """One line: ``path`` holds other columns than ``columns`` (results of another version,
+    or not results at all); rows of two layouts are never mixed in one file."""
+    if not header:
+        return f"{path}:1: no header; expected the columns {', '.join(columns)}"
+    missing = [c for c in columns if c not in header]
+    extra = [c for c in header if c not in columns]
+    if set(header) == set(columns):
+        why = "the same columns in another order"
+    else:
+        why = "; ".join(part for part in (
+            f"missing {', '.join(missing)}" if missing else "",
+            f"unknown {', '.join(extra[:5])}{' ...' if len(extra) > 5 else ''}" if extra else "")
+            if part)
+    return (f"{path}:1: written with other columns ({why}): results of another version are "
+            "not mixed with these; choose another directory or move this one away")
 
 
 # --------------------------------------------------------------------------------------------
@@ -366,8 +453,7 @@ class ResultsStore:
             reader = csv.reader(f)
             header = next(reader, None)
             if header is None or tuple(header) != columns:
-                raise ValueError(f"{path}:1: header {header!r} differs from the expected "
-                                 f"columns {list(columns)!r}")
+                raise ValueError(header_mismatch(path, header, columns))
             for cells in reader:
                 # Strings hold no line breaks, so the reader's line number is the file's.
                 line = reader.line_num

@@ -103,7 +103,7 @@ def test_a_worker_line_carries_a_whole_episode_and_other_lines_are_ignored(robot
     line = encode_episode(row, step_rows(key, steps))
     assert "\n" not in line
     back, trace = decode_episode(line)
-    assert back == row and [t.step for t in trace] == [0, 1]
+    assert back.as_dict() == row.as_dict() and [t.step for t in trace] == [0, 1]
     assert decode_episode("[INFO] something else a worker printed") is None
 
 
@@ -113,7 +113,8 @@ def test_each_robot_policy_starts_its_own_planner_on_its_own_ports():
     assert "planner:=reactive" in args and "reactive_budget:=5" in args
     assert {"pomdp_port:=7071", "robot_port:=8081", "human_port:=9091"} <= set(args)
     assert {"use_sim_time:=false", "real_time_factor:=0", "gui:=false", "seed:=4"} <= set(args)
-    assert set(ROBOT_POLICIES) == {"pomdp", "pomdp_fitted", "reactive", "no_robot", "explore"}
+    assert set(ROBOT_POLICIES) == {"pomdp", "pomdp_fitted", "pomdp_considerate", "reactive",
+                                   "no_robot", "explore"}
     assert ROBOT_POLICIES["pomdp_fitted"].robot_model == "robot_fitted"
     with pytest.raises(ValueError, match="unknown robot policy"):
         launch_arguments(CellSpec("tired", "telepathic", 0, episodes=[0]), {

@@ -11,8 +11,8 @@ import warnings
 import pytest
 
 from ros_hrc.experiment.plots import plot_belief, plot_outcomes
-from ros_hrc.experiment.statistics import (SUMMARY_COLUMNS, format_ci, mean_ci, proportion_ci,
-                                           summarize, write_summary)
+from ros_hrc.experiment.statistics import (POOLED, SUMMARY_COLUMNS, format_ci, mean_ci,
+                                           proportion_ci, summarize, write_summary)
 from ros_hrc.experiment.store import (EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, ResultsStore,
                                       ResultsWarning, StepRow)
 
@@ -47,8 +47,10 @@ def read_lines(path):
 def test_columns_are_in_the_agreed_order_and_match_the_dataclasses():
     assert EPISODE_COLUMNS == (
         "human_model", "robot_policy", "seed", "episode", "success", "succeeded_by",
-        "end_reason", "steps", "sim_seconds", "robot_discounted_reward", "intrusive_actions",
-        "warnings", "zero_probability_observations", "mean_decision_ms", "wall_seconds")
+        "end_reason", "steps", "sim_seconds", "time_to_success", "alone_success",
+        "alone_time_to_success", "outcome", "time_gain", "wasted_actions", "against_warning",
+        "in_sample", "robot_discounted_reward", "intrusive_actions", "warnings",
+        "zero_probability_observations", "mean_decision_ms", "wall_seconds")
     assert STEP_COLUMNS == (
         "human_model", "robot_policy", "seed", "episode", "step", "human_action",
         "human_state", "robot_state", "robot_action", "observation", "belief_needs_help",
@@ -230,7 +232,7 @@ def test_summarize_groups_in_order_of_first_appearance_and_counts():
     summary = summarize(rows)
     assert [(s["human_model"], s["robot_policy"]) for s in summary] == [
         ("careful", "reactive"), ("careful", "pomdp"), ("distracted", "pomdp"),
-        ("distracted", "reactive")]
+        ("distracted", "reactive"), (POOLED, "reactive"), (POOLED, "pomdp")]
     s = summary[1]
     assert set(s) == set(SUMMARY_COLUMNS)
     assert (s["n"], s["successes"], s["human_successes"], s["robot_successes"]) == (4, 3, 2, 1)
@@ -246,13 +248,14 @@ def test_write_summary_writes_a_csv_and_a_paper_ready_table(tmp_path):
     csv_path, md_path = write_summary(summary, tmp_path / "s.csv", tmp_path / "out" / "s.md")
     with open(csv_path, encoding="utf-8") as f:
         table = list(csv.DictReader(f))
-    assert tuple(table[0]) == SUMMARY_COLUMNS and len(table) == 5
+    assert tuple(table[0]) == SUMMARY_COLUMNS and len(table) == 5 + 2   # + 2 pooled
     assert float(table[0]["success_low"]) == summary[0]["success_low"]
     md = read_lines(md_path)
-    assert md[0].startswith("| Human model | Robot policy | n |") and md[1].startswith("|---")
-    assert f"| careful | pomdp | 4 | {format_ci(*proportion_ci(3, 4))} | 2 / 1 |" in md[2]
-    assert "| lone | pomdp | 1 | 1.00 [0.21, 1.00] |" in md[6]
-    assert "12.0 [n/a]" in md[6]                          # one episode: no t interval
+    assert md[0] == "## Outcomes against the human alone"
+    assert md[2].startswith("| Human model | Robot policy | n |") and md[3].startswith("|---")
+    assert f"| careful | pomdp | 4 | {format_ci(*proportion_ci(3, 4))} |" in md[4]
+    assert "| lone | pomdp | 1 | 1.00 [0.21, 1.00] |" in md[8]
+    assert any(line.startswith("| lone | pomdp | 12.0 [n/a] |") for line in md)  # no t interval
     assert format_ci(0.85, 0.71, 0.93) == "0.85 [0.71, 0.93]"
 
 
