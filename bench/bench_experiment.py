@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Benchmark of hrc_experiment: episodes per minute headless and the speed-up over real time.
 
-Runs a fixed grid (2 human models x 3 robot policies x 1 seed x 20 episodes, step limit 10)
-through the real stack, one stack per core, into a fresh directory, and prints episodes per
-minute (stack start-up and shut-down included), the speed-up over real time (simulated
+Runs a fixed grid (2 human models x 2 robot policies x 1 seed x 20 episodes, step limit 10,
+plus the human alone on each of those streams, which hrc_experiment runs itself for the
+counterfactual: 120 episodes) through the real stack, one stack per core, into a fresh
+directory, and prints episodes per minute with the pairs included (stack start-up and
+shut-down included), the speed-up over real time (simulated
 seconds / wall seconds, for the whole run and per stack while it steps), wall seconds per
 episode (p50, p99) and each policy's mean decision time; writes bench/results/experiment.json.
 
@@ -35,16 +37,17 @@ def main(argv=None) -> int:
                         default=Path(__file__).resolve().parent / "results" / "experiment.json")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bench_experiment_") as work:
-        # The policies named: the grid stays the one the recorded figures were measured on.
+        # The policies named: the grid stays the one the recorded figures were measured on;
+        # no_robot is not named, so its episodes are the counterfactual pairs (in work/alone).
         rc = hrc_experiment(["--human-models", "expert,distracted", "--seeds", "0",
-                             "--policies", "pomdp,reactive,no_robot",
+                             "--policies", "pomdp,reactive",
                              "--episodes", str(args.episodes), "--step-limit", "10",
                              "--jobs", str(args.jobs), "--out", work, "--no-plots"])
         if rc != 0:
             print(f"hrc_experiment failed ({rc})")
             return 1
         run = json.loads((Path(work) / "run.json").read_text())
-        rows = ResultsStore(work).episodes()
+        rows = ResultsStore(work).episodes() + ResultsStore(Path(work) / "alone").episodes()
     walls = [r.wall_seconds for r in rows]
     per_stack = sum(r.sim_seconds for r in rows) / sum(walls)
     decisions = {}

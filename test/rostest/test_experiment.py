@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """`hrc_experiment` on a tiny grid, as a researcher runs it: two robot policies against one
-kind of human, through the real stack; then the same command again resumes and adds nothing.
-And one cell whose model files are typed relative to the directory the command runs in."""
+kind of human, through the real stack, each episode set against the same human stream alone
+(run by hrc_experiment itself) with the paired tests in the summary; then the same command
+again resumes and adds nothing, the human alone included. And one cell whose model files are
+typed relative to the directory the command runs in."""
 import csv
 import os
 import shutil
@@ -14,8 +16,9 @@ import rostest
 
 from ros_hrc.experiment.store import EPISODE_COLUMNS, STEP_COLUMNS
 
-GRID = ["--human-models", "expert", "--policies", "pomdp,no_robot", "--seeds", "0",
+GRID = ["--human-models", "expert", "--policies", "pomdp,reactive", "--seeds", "0",
         "--episodes", "2", "--step-limit", "8", "--jobs", "2"]
+OUTCOMES = ("both_succeed", "rescued", "pre_empted", "hindered", "both_fail")
 
 
 MODELS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "models")
@@ -45,29 +48,48 @@ class TestExperiment(unittest.TestCase):
         self.assertEqual(tuple(header), EPISODE_COLUMNS)
         self.assertEqual(len(episodes), 4, "2 policies x 1 seed x 2 episodes")
         self.assertEqual({(e["robot_policy"], e["episode"]) for e in episodes},
-                         {("pomdp", "0"), ("pomdp", "1"), ("no_robot", "0"), ("no_robot", "1")})
+                         {("pomdp", "0"), ("pomdp", "1"), ("reactive", "0"), ("reactive", "1")})
+        # The human alone on the same two streams, run once for both policies.
+        _, alone = read_csv(os.path.join(out, "alone", "episodes.csv"))
+        self.assertEqual(sorted((a["robot_policy"], a["episode"]) for a in alone),
+                         [("no_robot", "0"), ("no_robot", "1")])
+        alone_success = {a["episode"]: a["success"] for a in alone}
         for e in episodes:
+            self.assertIn(e["outcome"], OUTCOMES, e)
+            self.assertEqual(e["alone_success"], alone_success[e["episode"]], e)
+            self.assertEqual(e["in_sample"], "0")
+            self.assertEqual(e["time_to_success"] == "nan", e["success"] == "0", e)
+            self.assertGreaterEqual(int(e["wasted_actions"]), 0)
+            self.assertGreaterEqual(int(e["against_warning"]), 0)
             steps = int(e["steps"])
             self.assertTrue(1 <= steps <= 8, e)
             self.assertIn(e["end_reason"], ("success", "object_left_belt", "step_limit"))
             self.assertEqual(e["success"] == "1", e["end_reason"] == "success", e)
             self.assertGreater(float(e["sim_seconds"]), 0.0, e)
-            if e["robot_policy"] == "no_robot":
-                self.assertNotEqual(e["succeeded_by"], "robot", "a robot that never acts")
-                self.assertEqual(e["intrusive_actions"], "0")
+        for a in alone:
+            self.assertNotEqual(a["succeeded_by"], "robot", "a robot that never acts")
+            self.assertEqual(a["intrusive_actions"], "0")
 
         header, steps = read_csv(os.path.join(out, "steps.csv"))
         self.assertEqual(tuple(header), STEP_COLUMNS)
         self.assertEqual(len(steps), sum(int(e["steps"]) for e in episodes))
         for s in steps:
             self.assertTrue(0.0 <= float(s["belief_needs_help"]) <= 1.0 + 1e-9, s)
-        for name in ("summary.csv", "summary.md", "outcomes.png", "belief.png", "run.json"):
+        for name in ("summary.csv", "summary.md", "outcomes.png", "time_gain.png", "belief.png",
+                     "run.json"):
             self.assertTrue(os.path.getsize(os.path.join(out, name)) > 0, name)
         with open(os.path.join(out, "outcomes.png"), "rb") as f:
             self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
         summary = open(os.path.join(out, "summary.md")).read()
-        self.assertIn("pomdp", summary)
-        self.assertIn("no_robot", summary)
+        self.assertIn("| expert | pomdp | reactive | 2 |", summary)   # against the best budget
+        self.assertIn("| expert | pomdp | no_robot | 2 |", summary)   # against the human alone
+        self.assertIn("p (McNemar)", summary)
+        self.assertIn("p (Wilcoxon)", summary)
+        _, table = read_csv(os.path.join(out, "summary.csv"))
+        pomdp = next(t for t in table if t["robot_policy"] == "pomdp")
+        self.assertEqual(pomdp["best_reactive"], "reactive")
+        for column in ("vs_reactive_success_p", "vs_alone_success_p", "vs_alone_pre_empted_p"):
+            self.assertTrue(0.0 <= float(pomdp[column]) <= 1.0, (column, pomdp[column]))
         self.assertIn("episodes/min", first.stdout)
         self.assertIn("speed-up over real time", first.stdout)
 
@@ -75,7 +97,9 @@ class TestExperiment(unittest.TestCase):
         again = run_experiment(out)
         self.assertEqual(again.returncode, 0, again.stderr[-3000:])
         self.assertIn("0 to run", again.stdout)
+        self.assertNotIn("of the human alone", again.stdout)
         self.assertEqual(len(read_csv(os.path.join(out, "episodes.csv"))[1]), 4)
+        self.assertEqual(len(read_csv(os.path.join(out, "alone", "episodes.csv"))[1]), 2)
 
     def test_relative_model_paths_run_their_cell(self):
         """Before: the robot process, started by roslaunch in $ROS_HOME, found no

@@ -57,6 +57,7 @@ from ros_hrc.experiment.stack import (MAX_EPISODES, CellSpec, EpisodeRanges, cel
                                       check_launch_settings, decode_episode, worker_command,
                                       write_spec)
 from ros_hrc.experiment.statistics import summarize, write_summary
+from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
                                       lock_directory)
 from ros_hrc.loop import settings
@@ -67,7 +68,8 @@ from ros_hrc.model_files import user_path
 from ros_hrc.pomdp.output import write_text_atomically
 
 NAME = "hrc_experiment"
-DEFAULT_HUMANS = "beginner,tired,distracted,humanModel"
+#: The study evaluates on the zoo's held-out humans (the robot model is fitted on the others).
+DEFAULT_HUMANS = zoo_argument("held_out")
 DEFAULT_POLICIES = ",".join(POLICIES_BY_DEFAULT)
 #: Episodes per cell by default: the fewest paired episodes at which McNemar's exact test
 #: detects a 15-point difference in success with 80 % power at alpha 0.05 when the weaker

@@ -50,7 +50,7 @@ ROBOT_POLICIES: Dict[str, RobotPolicy] = {
                                             "exploring robot"),
 }
 #: The policies of ``make experiment``'s default grid.
-DEFAULT_POLICIES = ("pomdp", "pomdp_fitted", "reactive", "no_robot")
+DEFAULT_POLICIES = ("pomdp", "pomdp_fitted", "pomdp_considerate", "reactive", "no_robot")
 #: The human alone: the counterfactual every robot's episode is set against.
 ALONE_POLICY = "no_robot"
 REACTIVE = "reactive"

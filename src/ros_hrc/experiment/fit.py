@@ -1,6 +1,6 @@
 """hrc_fit: fit the robot model's T and O to the world, by running episodes through the stack.
 
-    hrc_fit --human-models beginner,tired,distracted,humanModel --episodes 100 --seed 0 \\
+    hrc_fit --human-models humanModel,distracted,walker --episodes 100 --seed 0 \\
             --prior robot --strength 5 --out models/robot/robot_fitted.pomdp
 
 It runs ``--episodes`` episodes per human model through the real stack (one ``hrc.launch`` per
@@ -52,6 +52,7 @@ from ros_hrc.errors import HrcError
 from ros_hrc.experiment.cli import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
                                     file_error_line, names_argument, open_results,
                                     run_stoppable)
+from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
@@ -66,7 +67,8 @@ from ros_hrc.pomdp.model import Model
 
 NAME = "hrc_fit"
 POLICY = "explore"
-DEFAULT_HUMANS = "beginner,tired,distracted,humanModel"
+#: hrc_fit fits on the zoo's fit set; hrc_experiment evaluates on the held-out humans.
+DEFAULT_HUMANS = zoo_argument("fit")
 #: The robot's action before its first decision: the robot process's first belief update.
 FIRST_ACTION = "rIdle"
 #: The state an episode that ends in success reaches (someone holds the object).
