@@ -12,6 +12,7 @@ import rospy
 
 from ros_hrc.experiment.stack import stop_launched
 from ros_hrc.loop import task
+from ros_hrc.nodes.guard import children_of, parent_of
 from ros_hrc.msg import Status, WorldState
 
 HUMAN_STATES = list(task.HUMAN_STATES)
@@ -75,10 +76,12 @@ stop_stack = stop_launched
 
 def node_pids(proc, name):
     """PIDs of the launch's process ``name`` (a node or a solver: roslaunch gives each
-    ``__name:=<name>``)."""
-    out = subprocess.run(["pgrep", "-P", str(proc.pid), "-f", f"__name:={name}"],
-                         capture_output=True, text=True).stdout
-    return {int(pid) for pid in out.split()}
+    ``__name:=<name>``): a child of the launch's roslaunch, or a grandchild (hrc_world runs
+    under its guard, hrc_guard)."""
+    out = subprocess.run(["pgrep", "-f", f"__name:={name}"], capture_output=True,
+                         text=True).stdout
+    parents = {proc.pid} | set(children_of(proc.pid))
+    return {int(pid) for pid in out.split() if parent_of(int(pid)) in parents}
 
 
 def wait_for_pids(proc, name, unlike=frozenset()):

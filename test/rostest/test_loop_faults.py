@@ -10,11 +10,17 @@
 * 50 concurrent /hrc/reset calls all succeed and are one reset (every answer names the same
   episode), and afterwards the steps run 0, 1, 2 ... in one new epoch, every status
   consistent.
+* Sixteen threads calling the world's services (/human/*, /robot/*) while the loop runs: the
+  loop keeps stepping, no step fails (the loop's calls go first; the others are answered
+  "busy" while the loop acts).
 * kill -9 of hrc_robot, hrc_obs, despot_pomdp, despot_mdp and hrc_human: each respawns and the
-  run goes on from a reset. kill -9 of hrc_world (required): the whole launch stops.
+  run goes on from a reset. kill -9 of hrc_world (required): the whole launch stops, with a
+  non-zero status and one line saying so, and no process of it is left; Ctrl-C still ends a
+  launch with status 0 (world.launch with a master of its own: that master ends too).
 """
 import json
 import os
+import random
 import re
 import signal
 import subprocess
@@ -28,9 +34,12 @@ import websocket
 import rostest
 from std_srvs.srv import Trigger
 
+from ros_hrc.experiment.stack import pick_ports
 from ros_hrc.link.protocol import Action, Error, Reset
 from ros_hrc.link.token import read_token
 from ros_hrc.link.transport import MessageClient, link_url
+from ros_hrc.nodes.guard import children_of
+from ros_hrc.world import HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS
 
 from hrc_stack import (WAIT, StatusLog, check_epochs, check_step, fresh_run, node_pids,
                        start_stack, stop_stack, wait_for_pids)
@@ -42,8 +51,12 @@ class TestLoopFaults(unittest.TestCase):
     def setUpClass(cls):
         rospy.init_node("test_loop_faults", anonymous=True)
         cls.log = StatusLog()
+        cls.ports = pick_ports()   # the links' ports, free (rostest gives the master)
         cls.proc = start_stack("mode:=auto", "on_episode_end:=reset", "max_steps:=6",
-                               name="faults")
+                               f"pomdp_port:={cls.ports['pomdp']}",
+                               f"robot_port:={cls.ports['robot']}",
+                               f"human_port:={cls.ports['human']}", name="faults")
+        cls.launch_log = os.readlink(f"/proc/{cls.proc.pid}/fd/1")
 
     @classmethod
     def tearDownClass(cls):
@@ -59,7 +72,8 @@ class TestLoopFaults(unittest.TestCase):
         # The documented way for a process run by hand: the token file hrc.launch made.
         token_file = rospy.get_param("/hrc/config/token_file")
         second = subprocess.run(
-            [sys.executable, "-m", "ros_hrc.processes.despot_mdp", "--model", "tired"],
+            [sys.executable, "-m", "ros_hrc.processes.despot_mdp", "--model", "tired",
+             "--port", str(self.ports["human"])],
             stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=WAIT,
             env=dict(os.environ, HRC_LINK_TOKEN_FILE=token_file))
         self.assertEqual(second.returncode, 3, second.stdout + second.stderr)
@@ -102,9 +116,9 @@ class TestLoopFaults(unittest.TestCase):
 
     def test_1b_frames_without_the_token_are_refused_and_change_nothing(self):
         ok, statuses = self.log.wait_for(lambda s: len(s) >= 1)
-        human = self.refused_without_the_token(9090, [json.dumps({"type": "reset"})])
+        human = self.refused_without_the_token(self.ports["human"], [json.dumps({"type": "reset"})])
         # The hostile user's order: before the token, this grasped the object.
-        robot = self.refused_without_the_token(8080, [
+        robot = self.refused_without_the_token(self.ports["robot"], [
             json.dumps({"type": "hello", "who": "hrc_human", "version": 2}),
             json.dumps({"type": "action", "step": 0, "action": "rGrasp_obj", "id": 1})])
         for answers in (human, robot):
@@ -120,7 +134,7 @@ class TestLoopFaults(unittest.TestCase):
         """Issue #20: any holder of the token could send an action to the robot port, with no
         epoch, and the robot moved. Only the coordinator's connection gives orders."""
         token_file = rospy.get_param("/hrc/config/token_file")
-        client = MessageClient(link_url(8080), "intruder", token=read_token(token_file),
+        client = MessageClient(link_url(self.ports["robot"]), "intruder", token=read_token(token_file),
                                backoff=(0.05, 0.5)).connect(WAIT)
         try:
             for order in (Action(step=0, action="rGrasp_obj", epoch=1),
@@ -162,11 +176,64 @@ class TestLoopFaults(unittest.TestCase):
         self.assertTrue(ok, f"no run 0, 1, 2, 3 after the resets: "
                             f"{[(s.epoch, s.step) for s in statuses][:20]}")
         first_epoch = statuses[0].epoch
-        self.assertEqual(statuses[0].step, 0, "a step of an older epoch after the reset")
+        # No step of an episode before the reset's (the loop may have stepped, even ended
+        # that episode, between the answers and clear(): its episodes end in a step or two).
+        reset_episode = int(next(iter(episodes)))
+        self.assertGreaterEqual(min(s.episode for s in statuses), reset_episode,
+                                "a step of an older episode after the reset")
         for status in statuses:
             if status.epoch == first_epoch:
                 check_step(self, status)
         check_epochs(self, statuses)
+
+    def test_2b_a_storm_of_world_calls_does_not_starve_the_loop(self):
+        """Issue #20: sixteen threads calling world services starved the loop for up to 40 s,
+        and no step said why. The loop's calls go first (an outside action under way is
+        interrupted, the step's result says so); outside calls for an agent the loop is using
+        are answered "busy" at once."""
+        services = [f"/human/{a}" for a in HUMAN_ACTIONS + PREDICATES] + \
+            [f"/robot/{a}" for a in ROBOT_ACTIONS]
+        for name in services:
+            rospy.wait_for_service(name, WAIT)
+        stop = threading.Event()
+        answers = {"busy": 0, "served": 0, "errors": []}
+        guard = threading.Lock()
+
+        def storm(seed):
+            rng = random.Random(seed)
+            proxies = {name: rospy.ServiceProxy(name, Trigger) for name in services}
+            while not stop.is_set():
+                name = rng.choice(services)
+                try:
+                    answer = proxies[name]()
+                except (rospy.ServiceException, rospy.ROSException) as error:
+                    with guard:
+                        answers["errors"].append(f"{name}: {error}")
+                    continue
+                with guard:
+                    answers["busy" if answer.message.startswith("busy:") else "served"] += 1
+
+        self.log.clear()
+        threads = [threading.Thread(target=storm, args=(i,), daemon=True) for i in range(16)]
+        for thread in threads:
+            thread.start()
+        try:
+            ok, statuses = self.log.wait_for(
+                lambda s: sum(1 for x in s if not x.fault) >= 12 or any(x.fault for x in s))
+        finally:
+            stop.set()
+            for thread in threads:
+                thread.join(WAIT)
+        self.assertEqual([s.fault for s in statuses if s.fault], [],
+                         "a step failed during the storm")
+        self.assertTrue(ok, f"the loop stopped stepping under the storm: {len(statuses)} steps")
+        self.assertEqual(answers["errors"], [], "a world service failed under the storm")
+        self.assertGreater(answers["busy"], 0, answers)
+        self.assertGreater(answers["served"], 0, answers)
+        check_epochs(self, statuses)
+        for status in statuses:
+            if "interrupted" in status.human_result:   # what the storm did is named
+                self.assertIn("it first interrupted", status.human_result)
 
     def kill_and_expect_a_run_from_a_reset(self, name):
         old = node_pids(self.proc, name)
@@ -201,26 +268,106 @@ class TestLoopFaults(unittest.TestCase):
     def test_7_killed_hrc_human_respawns_and_the_run_goes_on_from_a_reset(self):
         self.kill_and_expect_a_run_from_a_reset("hrc_human")
 
-    def test_8_killed_world_stops_the_whole_launch(self):
+    def test_8_killed_world_stops_the_whole_launch_with_a_non_zero_status(self):
+        """Issue #20: killing hrc_world ended the launch, but roslaunch exited 0."""
         world = node_pids(self.proc, "hrc_world")
         self.assertTrue(world, "no hrc_world in the launch")
-        children = set()
-        for name in ("hrc_human", "hrc_obs", "hrc_robot", "despot_mdp", "despot_pomdp"):
-            children |= node_pids(self.proc, name)
+        everything = launch_processes(self.proc.pid)
+        self.assertTrue(world <= everything)
+        offset = os.path.getsize(self.launch_log)
         for pid in world:
             os.kill(pid, signal.SIGKILL)
         try:
             self.proc.wait(WAIT)
         except subprocess.TimeoutExpired:
             self.fail("hrc.launch still runs after its world was killed")
-        deadline = time.monotonic() + 30
-        alive = children
-        while alive and time.monotonic() < deadline:
-            alive = {pid for pid in alive if os.path.exists(f"/proc/{pid}")
-                     and "zombie" not in open(f"/proc/{pid}/status").read().lower()}
+        output = read_from(self.launch_log, offset)
+        self.assertEqual(self.proc.returncode, -signal.SIGKILL, output[-3000:])   # 137 in a shell
+        self.assertEqual([line for line in output.splitlines() if "died" in line], [
+            "hrc_world died (killed by SIGKILL): it is required, so the launch stops with it; "
+            "roslaunch exits with status 137 (Killed)"])
+        self.assertNotIn("REQUIRED process", output)
+        self.assertNotIn("Traceback", output)
+        self.assertEqual(left_alive(everything), set(), "processes left after the launch stopped")
+
+
+def launch_processes(pid):
+    """Every process under ``pid`` now (its children, theirs, ...)."""
+    found, todo = set(), [pid]
+    while todo:
+        for child in children_of(todo.pop()):
+            if child not in found:
+                found.add(child)
+                todo.append(child)
+    return found
+
+
+def left_alive(pids, timeout=30.0):
+    """Those of ``pids`` still running (not ended, not a zombie) after at most ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    alive = set(pids)
+    while True:
+        alive = {pid for pid in alive if os.path.exists(f"/proc/{pid}") and
+                 "zombie" not in open(f"/proc/{pid}/status").read().lower()}
+        if not alive or time.monotonic() > deadline:
+            return alive
+        time.sleep(0.2)
+
+
+def read_from(path, offset=0):
+    with open(path, "rb") as f:
+        f.seek(offset)
+        return f.read().decode("utf-8", "replace")
+
+
+class TestWorldLaunchEnds(unittest.TestCase):
+    """world.launch with a master of its own (roslaunch starts it, as a user's first launch
+    does): Ctrl-C ends it with status 0; a killed world ends it non-zero, its master too."""
+
+    def start(self):
+        port = pick_ports()["master"]
+        log_dir = os.environ.get("ROS_LOG_DIR") or "/tmp"
+        log = open(os.path.join(log_dir, f"test_world_launch_{os.getpid()}_{port}.log"), "wb")
+        with log:
+            proc = subprocess.Popen(
+                ["roslaunch", "-p", str(port), "ros_hrc", "world.launch", "viz:=false"],
+                stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                start_new_session=True,
+                env=dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}"))
+        self.addCleanup(stop_stack, proc)
+        deadline = time.monotonic() + WAIT
+        while "services up" not in read_from(log.name) and time.monotonic() < deadline:
+            self.assertIsNone(proc.poll(), read_from(log.name)[-3000:])
             time.sleep(0.2)
-        self.assertFalse(alive, f"processes left after the launch stopped: {alive}")
+        self.assertIn("services up", read_from(log.name), "the world did not come up")
+        everything = launch_processes(proc.pid)
+        masters = {pid for pid in everything if "rosmaster" in " ".join(
+            open(f"/proc/{pid}/cmdline").read().split("\0")[:2])}
+        self.assertEqual(len(masters), 1, "roslaunch started no master of its own")
+        return proc, log.name, everything
+
+    def test_ctrl_c_still_ends_the_launch_with_status_0(self):
+        proc, log, everything = self.start()
+        os.kill(proc.pid, signal.SIGINT)
+        proc.wait(WAIT)
+        output = read_from(log)
+        self.assertEqual(proc.returncode, 0, output[-3000:])
+        self.assertNotIn("died", output)
+        self.assertEqual(left_alive(everything), set())
+
+    def test_a_killed_world_ends_the_launch_and_its_master_non_zero(self):
+        proc, log, everything = self.start()
+        for pid in node_pids(proc, "hrc_world"):
+            os.kill(pid, signal.SIGKILL)
+        proc.wait(WAIT)
+        output = read_from(log)
+        self.assertEqual(proc.returncode, -signal.SIGKILL, output[-3000:])
+        self.assertEqual(len([line for line in output.splitlines()
+                              if line.startswith("hrc_world died (killed by SIGKILL)")]), 1)
+        self.assertNotIn("REQUIRED process", output)
+        self.assertEqual(left_alive(everything), set())
 
 
 if __name__ == "__main__":
-    rostest.rosrun("ros_hrc", "hrc_loop_faults", TestLoopFaults, sys.argv)
+    # Both classes: the attacked stack's, then world.launch's own ends.
+    rostest.rosrun("ros_hrc", "hrc_loop_faults", "__main__", sys.argv)

@@ -5,6 +5,13 @@ when their motion is over (``success``: it did what was asked; ``message``: what
 predicates answer in ``success`` and explain in ``message``. A fault of the world (it closed,
 an action did not finish in time) is a service error, never a ``false``.
 
+The loop's nodes (~loop_nodes: hrc_human and hrc_robot, who call /human/<action>,
+/robot/<action> and /hrc/world/reset) drive the agents and are served first: their action
+interrupts another caller's action of that agent under way and cancels those queued, and while
+it runs another caller's call for that agent gets ``success=false``, ``busy: the human is
+doing grasp for /hrc_human, ...`` at once (docs/world.md, "Who is served first"). The caller
+is the node named in the call's connection header.
+
 Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapshot):
   /human/walk_away, /human/look_around, /human/warn_robot, /human/attempt_grasp, /human/grasp,
   /human/reset (human and object back to the start), /human/idle (relax and do nothing: the
@@ -59,6 +66,8 @@ Parameters (read once at start-up):
   ~tf_rate (float, 30.0)          their rate, Hz (wall clock)
   ~camera_rate (float, 0.0)       /hrc/camera/image's rate, Hz (wall clock); 0: not published
   ~model_dir (str, <package>/models/urdf)       where the URDF models are
+  ~loop_nodes (list, [hrc_human, hrc_robot])   the nodes whose calls drive the agents (names
+                                  relative to this node's namespace)
   /use_sim_time (bool, false)     publish /clock from the simulated time
 """
 from __future__ import annotations
@@ -69,8 +78,7 @@ import signal
 import threading
 import time
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import rospkg
 import rospy
@@ -85,6 +93,7 @@ from ros_hrc.errors import HrcError, SimulationError
 from ros_hrc.loop import settings
 from ros_hrc.loop.display import StepCaption
 from ros_hrc.msg import Status, WorldState
+from ros_hrc.nodes.guard import is_guard, is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
 from ros_hrc.world import (HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World,
                            WorldConfig)
@@ -111,6 +120,7 @@ class WorldNodeConfig:
     viz: bool = True
     tf_rate: float = 30.0
     camera_rate: float = 0.0
+    loop_nodes: Tuple[str, ...] = ("hrc_human", "hrc_robot")
 
     @classmethod
     def from_params(cls, get_param: Callable[[str, Any], Any] = rospy.get_param) -> "WorldNodeConfig":
@@ -136,7 +146,8 @@ class WorldNodeConfig:
             snapshot_dir=snapshot_dir, model_dir=model_dir,
             use_sim_time=bool(get_param("/use_sim_time", defaults.use_sim_time)),
             viz=setting("viz"), camera_rate=setting("camera_rate"),
-            tf_rate=float(get_param("~tf_rate", defaults.tf_rate)))
+            tf_rate=float(get_param("~tf_rate", defaults.tf_rate)),
+            loop_nodes=_names(get_param("~loop_nodes", list(defaults.loop_nodes))))
         if config.real_time_factor < 0 or config.publish_rate <= 0 or config.action_timeout <= 0:
             raise ValueError("~real_time_factor must be >= 0, ~publish_rate and ~action_timeout > 0; "
                              f"got {config}")
@@ -145,15 +156,21 @@ class WorldNodeConfig:
         return config
 
 
+def _names(value: Any) -> Tuple[str, ...]:
+    """Node names from a parameter: a list, or one text with names apart by spaces or commas."""
+    if isinstance(value, str):
+        value = value.replace(",", " ").split()
+    return tuple(str(name) for name in value)
+
+
 def stop_parent_launch(parent: Optional[int] = None) -> bool:
-    """Ask the roslaunch that started this process to stop, as Ctrl-C does (SIGINT). False,
-    and nothing sent, when the parent is not a roslaunch (a node run by hand, or by rostest)."""
+    """Ask the roslaunch that started this process (through its guard, hrc_guard) to stop, as
+    Ctrl-C does (SIGINT). False, and nothing sent, when that is not a roslaunch (a node run by
+    hand, or by rostest)."""
     parent = os.getppid() if parent is None else parent
-    try:
-        argv = Path(f"/proc/{parent}/cmdline").read_bytes().split(b"\0")
-    except OSError:
-        return False
-    if not any(os.path.basename(word.decode("utf-8", "replace")) == "roslaunch" for word in argv[:2]):
+    if is_guard(parent):
+        parent = parent_of(parent) or 0
+    if parent <= 1 or not is_roslaunch(parent):
         return False
     try:
         os.kill(parent, signal.SIGINT)
@@ -183,21 +200,34 @@ def _quiet_when_closed(handler: Callable[[Any], Any]) -> Callable[[Any], Any]:
     return handle
 
 
+def caller_of(request: Any) -> str:
+    """The node that made a service call (its connection header's ``callerid``), or ""."""
+    header = getattr(request, "_connection_header", None) or {}
+    return str(header.get("callerid", ""))
+
+
 def action_handler(world: World, agent: str, action: str, timeout: float,
-                   board: Optional["CaptionBoard"] = None) -> Callable[[TriggerRequest], TriggerResponse]:
+                   board: Optional["CaptionBoard"] = None,
+                   loop_nodes: frozenset = frozenset()) -> Callable[[TriggerRequest], TriggerResponse]:
     """Trigger handler running ``agent``'s ``action`` in the world and waiting for its outcome;
-    ``board`` (if any) is told when it starts and how it ended."""
-    def handle(_request: TriggerRequest) -> TriggerResponse:
-        if board is None:
-            outcome = world.run(agent, action, timeout)   # SimulationError: a service error
-            return TriggerResponse(outcome.success, outcome.message)
-        board.action_started(agent, action)
+    ``board`` (if any) is told when it starts and how it ended. A call from one of
+    ``loop_nodes`` is the driver's (:meth:`ros_hrc.world.World.submit`): it goes first, and
+    other callers are answered ``busy`` while it runs."""
+    def handle(request: TriggerRequest) -> TriggerResponse:
+        caller = caller_of(request)
+        ticket = world.submit(agent, action, caller, caller in loop_nodes)
+        if ticket.refused:   # busy for the loop: a normal answer, nothing was shown or done
+            return TriggerResponse(False, ticket.outcome.message)
+        if board is not None:
+            board.action_started(agent, action)
         try:
-            outcome = world.run(agent, action, timeout)
+            outcome = ticket.wait(timeout)   # SimulationError: a service error
         except SimulationError as error:
-            board.action_finished(agent, action, False, str(error))
+            if board is not None:
+                board.action_finished(agent, action, False, str(error))
             raise
-        board.action_finished(agent, action, outcome.success, outcome.message)
+        if board is not None:
+            board.action_finished(agent, action, outcome.success, outcome.message)
         return TriggerResponse(outcome.success, outcome.message)
     return _quiet_when_closed(handle)
 
@@ -318,17 +348,20 @@ class WorldNode:
             board = CaptionBoard(self.world.show_overlay if c.gui else None,
                                  lambda text: caption_pub.publish(String(data=text)))
         self.board = board
+        # The loop's nodes drive the agents: their calls go first (docs/world.md, "Who is
+        # served first").
+        loop = frozenset(rospy.resolve_name(name) for name in c.loop_nodes)
         for action in HUMAN_ACTIONS:
-            self._advertise(f"/human/{action}",
-                            action_handler(self.world, "human", action, c.action_timeout, board))
+            self._advertise(f"/human/{action}", action_handler(
+                self.world, "human", action, c.action_timeout, board, loop))
         for predicate in PREDICATES:
             self._advertise(f"/human/{predicate}", predicate_handler(self.world, predicate))
         for action in ROBOT_ACTIONS:
-            self._advertise(f"/robot/{action}",
-                            action_handler(self.world, "robot", action, c.action_timeout, board))
+            self._advertise(f"/robot/{action}", action_handler(
+                self.world, "robot", action, c.action_timeout, board, loop))
         self._advertise("/hrc/world/snapshot", snapshot_handler(self.world, c.snapshot_dir))
-        self._advertise("/hrc/world/reset",
-                        action_handler(self.world, "world", "reset", c.action_timeout, board))
+        self._advertise("/hrc/world/reset", action_handler(
+            self.world, "world", "reset", c.action_timeout, board, loop))
         self._services.append(rospy.Service("/hrc/world/state", GetWorldState,
                                             _quiet_when_closed(self._state_now)))
         # The physics runs in its own thread paced by the wall clock: under /use_sim_time this

@@ -154,20 +154,31 @@ class WorldConfig:
 
 
 class Ticket:
-    """A submitted action: wait for it to get its :class:`Outcome`."""
+    """A submitted action: wait for it to get its :class:`Outcome`.
 
-    def __init__(self, agent: str, action: str) -> None:
+    ``caller`` names who asked (for messages); ``driver``: the agents' driver asked (the
+    loop), whose actions go first (see :meth:`World.submit`)."""
+
+    def __init__(self, agent: str, action: str, caller: str = "", driver: bool = False) -> None:
         self.agent = agent
         self.action = action
+        self.caller = caller
+        self.driver = driver
         self.started_at: Optional[float] = None   # simulated time the motion began
         self.outcome: Optional[Outcome] = None
         self.error: Optional[SimulationError] = None   # raised by wait(): the world failed
+        self.refused = False                      # answered at once: the agent was busy
+        self.preempted: List[str] = []            # other callers' actions this one cut short
         self._done = threading.Event()
 
     @property
     def name(self) -> str:
         """``agent/action``, as in the service names."""
         return f"{self.agent}/{self.action}"
+
+    def asked_by(self) -> str:
+        """``agent/action`` and who asked, for messages."""
+        return self.name + (f" (asked by {self.caller})" if self.caller else "")
 
     def done(self) -> bool:
         """True once the action is over (finished, failed or interrupted)."""
@@ -185,8 +196,16 @@ class Ticket:
     def finish(self, outcome: Outcome, now: float) -> None:
         """Record the outcome (with its simulated duration) and wake the waiters."""
         started = self.started_at if self.started_at is not None else now
+        if self.preempted:   # say why the agent did not start from where the step left it
+            outcome = replace(outcome, message=outcome.message + "; it first interrupted "
+                              + ", ".join(self.preempted))
         self.outcome = replace(outcome, duration=now - started)
         self._done.set()
+
+    def refuse(self, message: str, now: float) -> None:
+        """Answer at once that the action will not run (the agent is busy for its driver)."""
+        self.refused = True
+        self.finish(Outcome(False, message), now)
 
     def fail(self, error: SimulationError, now: float) -> None:
         """End the action because the world cannot go on: the waiters get ``error``."""
@@ -441,7 +460,10 @@ class World:
         while self._requests:
             ticket = self._requests.popleft()
             if (ticket.agent, ticket.action) not in _INTERRUPTING:
-                self._channels[ticket.agent].queue.append(ticket)
+                channel = self._channels[ticket.agent]
+                if ticket.driver:
+                    self._preempt(channel, ticket)
+                channel.queue.append(ticket)
                 continue
             ticket.started_at = self.sim_time
             if ticket.agent == "world":
@@ -481,6 +503,28 @@ class World:
             channel.queue.popleft().finish(
                 Outcome(False, f"cancelled by {agent}/{by} before it started"), self.sim_time)
         return interrupted
+
+    def _preempt(self, channel: _Channel, by: Ticket) -> None:
+        """The driver's ``by`` goes first: another caller's action under way on ``channel``
+        is interrupted, those queued are cancelled (the driver's own stay in order)."""
+        running = channel.ticket
+        if running is not None and not running.driver:
+            if channel.motion is not None:
+                channel.motion.close()
+            running.finish(Outcome(False, f"{running.name} interrupted by {by.asked_by()} after "
+                                          f"{self.sim_time - running.started_at:.1f} s"),
+                           self.sim_time)
+            by.preempted.append(running.asked_by())
+            channel.motion, channel.ticket = None, None
+            channel.body.moving = False   # its joints stay where the last step put them
+        kept: Deque[Ticket] = deque()
+        for queued in channel.queue:
+            if queued.driver:
+                kept.append(queued)
+            else:
+                queued.finish(Outcome(False, f"cancelled by {by.asked_by()} before it started"),
+                              self.sim_time)
+        channel.queue = kept
 
     def _advance(self, channel: _Channel) -> None:
         # Loop: a motion may end at its first step (e.g. "already away"), letting the next start.
@@ -681,25 +725,66 @@ class World:
         """Advance ``seconds`` of simulated time on the calling thread."""
         self.step(max(0, int(round(seconds / self.control_period))))
 
-    def submit(self, agent: str, action: str) -> Ticket:
-        """Ask ``agent`` ("human", "robot" or "world") to carry out ``action``; returns at once."""
+    def submit(self, agent: str, action: str, caller: str = "", driver: bool = False) -> Ticket:
+        """Ask ``agent`` ("human", "robot" or "world") to carry out ``action``; returns at once.
+
+        ``caller`` names who asks (for messages). Requests queue per agent, in order; a reset
+        or a cancel interrupts the agent's motion and queue. The agents have one *driver*
+        (``driver=True``: the loop), who never waits behind other callers:
+
+        * a driver's action goes first: it interrupts another caller's action of that agent
+          under way (that caller's outcome says so, the driver's names what it cut short) and
+          cancels the others' actions queued behind it;
+        * while a driver's request for an agent is under way or waiting, another caller's
+          request for that agent (for "world": for either agent) is refused at once: the
+          ticket comes back done and ``refused``, its outcome ``busy: ...``.
+
+        Without a driver's request in the world, every caller is served as it comes.
+        """
         known = {"human": HUMAN_ACTIONS, "robot": ROBOT_ACTIONS, "world": ("reset",)}
         if action not in known.get(agent, ()):
             raise SimulationError(f"unknown action {agent}/{action}; known: " + ", ".join(
                 f"{a}/{x}" for a, xs in known.items() for x in xs))
-        ticket = Ticket(agent, action)
+        ticket = Ticket(agent, action, caller, driver)
         with self._locked():
+            busy = None if driver else self._driven(agent)
+            if busy is not None:
+                doing = "resetting" if busy.agent == "world" else f"doing {busy.action}"
+                ticket.refuse(f"busy: the {busy.agent} is {doing} for "
+                              f"{busy.caller or 'its driver'}, which drives it; call again "
+                              "when that is done", self.sim_time)
+                return ticket
             self._requests.append(ticket)
         self._work.set()
         return ticket
 
-    def run(self, agent: str, action: str, timeout: Optional[float] = None) -> Outcome:
-        """Carry out an action and return its outcome once it is over.
+    def _driven(self, agent: str) -> Optional[Ticket]:
+        """The driver's request that holds ``agent`` (any agent for "world"): under way,
+        queued or just submitted; None if none does. (Under the lock.)"""
+        agents = tuple(self._channels) if agent == "world" else (agent,)
+        for ticket in self._requests:
+            if ticket.driver and (agent == "world" or ticket.agent in (agent, "world")):
+                return ticket
+        for name in agents:
+            channel = self._channels[name]
+            if channel.ticket is not None and channel.ticket.driver:
+                return channel.ticket
+            for ticket in channel.queue:
+                if ticket.driver:
+                    return ticket
+        return None
+
+    def run(self, agent: str, action: str, timeout: Optional[float] = None,
+            caller: str = "", driver: bool = False) -> Outcome:
+        """Carry out an action and return its outcome once it is over (``caller`` and
+        ``driver`` as for :meth:`submit`).
 
         With the stepping thread running this waits (``timeout`` in wall seconds); without it,
         it steps the physics itself until the action is over.
         """
-        ticket = self.submit(agent, action)
+        ticket = self.submit(agent, action, caller, driver)
+        if ticket.done():
+            return ticket.outcome
         if self.running:
             return ticket.wait(timeout)
         limit = int(_MAX_ACTION_TIME / self.control_period)
