@@ -28,7 +28,8 @@ human needs help; only their *decisions* ignore that belief.
     Always ``rIdle``: the human works alone.
 
 ``ExplorePlanner``
-    A uniformly random action of the model at every step, from its own seeded stream: the
+    A uniformly random action of the model at every step, from its own seeded stream (restarted
+    by ``reseed``, at each episode's reset in the robot process): the
     exploring robot whose experience ``hrc_fit`` counts, so that every action is tried in every
     state the human reaches.
 
@@ -191,6 +192,10 @@ class ExplorePlanner(BeliefPlanner):
     def __init__(self, model: Model, seed: Optional[int] = None) -> None:
         super().__init__(model, seed)
         # Its own stream, so the belief's sampling (if any) does not shift the actions.
+        self._choices = np.random.default_rng(seed)
+
+    def reseed(self, seed: int) -> None:
+        super().reseed(seed)
         self._choices = np.random.default_rng(seed)
 
     def act(self) -> int:

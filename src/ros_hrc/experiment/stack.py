@@ -32,11 +32,19 @@ from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
 from ros_hrc.experiment.store import EpisodeRow, StepRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
 from ros_hrc.loop import settings
+from ros_hrc.loop.streams import EpisodeSchedule
 from ros_hrc.pomdp.output import write_text_atomically
 
 #: The module a worker process runs (``python -m``).
 WORKER_MODULE = "ros_hrc.nodes.experiment_cell"
 
+
+#: DESPOT's trials per decision in a cell, with no time budget (``time_per_step:=0``), unless
+#: the spec gives ``max_trials``: a cell's decisions then depend on its seed alone, not on the
+#: machine or its load. About the trials the live 0.1 s budget achieves on this machine where
+#: it binds, and its decisions agree with the 0.1 s planner's as often as the 0.1 s planner's
+#: agree with themselves (bench/bench_trials.py; docs/performance.md, "Work-bounded planner").
+EXPERIMENT_TRIALS = 500
 
 #: Episode numbers are uint32 where they travel (``ros_hrc/Status.episode``, the coordinator's
 #: count from 1): a cell records at most this many.
@@ -163,7 +171,11 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     episodes by the world (someone holds the object, it left the belt) or the step limit, and
     starts the next one at once. Nodes keep the wall clock: the steps carry the simulated
     time, and /clock would cost every node a thousand messages a second. Nothing for RViz
-    (viz:=false): no one watches a cell.
+    (viz:=false): no one watches a cell. The robot's DESPOT is bounded by work, not time:
+    ``spec.max_trials`` (or :data:`EXPERIMENT_TRIALS`) trials per decision and no time budget
+    (``spec.time_per_step`` is not used), so a cell gives the same rows on any machine and
+    under any load. The coordinator plays exactly the spec's episodes, by their numbers
+    (``episodes:=``), each on its own streams (:mod:`ros_hrc.loop.streams`).
     ``spec.extra_args`` (``name:=value``) come last and win."""
     try:
         policy = robot_policy(spec.robot_policy)
@@ -176,8 +188,11 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
         "mode": "auto", "gui": False, "viz": False, "use_sim_time": False, "real_time_factor": 0,
         "step_delay": 0, "max_steps": spec.step_limit, "on_episode_end": "reset",
         "end_on_goal": False, "read_stdin": False,
-        "human_choice": spec.human_choice, "time_per_step": spec.time_per_step,
-        "max_trials": spec.max_trials, "reactive_budget": spec.reactive_budget,
+        "episodes": EpisodeSchedule(EpisodeRanges.of(spec.episodes).spans).text()
+        if spec.episodes else "live",
+        "human_choice": spec.human_choice, "time_per_step": 0,
+        "max_trials": spec.max_trials or EXPERIMENT_TRIALS,
+        "reactive_budget": spec.reactive_budget,
         "scenarios": spec.scenarios, "depth": spec.depth, "lambda": spec.lambda_,
         "pomdp_port": ports["pomdp"], "robot_port": ports["robot"], "human_port": ports["human"],
     }

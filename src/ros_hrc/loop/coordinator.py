@@ -29,6 +29,16 @@ early world reset), then resets the world and the planner into the new epoch, an
 tells the MDP, so nothing of the old epoch can act in the new one. Resets asked for while one
 is under way join it (a burst of fifty is one reset).
 
+**Episode numbers.** An episode's number names its random streams (:mod:`ros_hrc.loop.streams`:
+the MDP, the world and the planner reseed from (seed, episode) at its reset), so it is the
+study's number, not a count of resets. Without a schedule (a live launch) every reset that
+succeeds starts the next number, 1, 2, 3 ... With one (``CoordinatorConfig.episodes``, an
+experiment cell's episodes, e.g. 5 and 7 only) the episodes are the schedule's, in order: the
+next one starts only after an episode *ended* (success, the object left the belt, the step
+limit, the goal); a reset before that (a failed step, a process that restarted) plays the same
+episode again from its start, so every scheduled episode is played whole, on its own streams.
+After the schedule's last episode ended the loop waits: no reset starts another.
+
 **Failures.** A call that fails (a fault: the service or process is gone, or answered
 nonsense) fails its step visibly (the report's ``fault``), and the loop recovers by a reset,
 retried every ``retry_delay`` seconds until it succeeds (a respawned process comes back). A
@@ -41,6 +51,7 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from ros_hrc.loop import task
+from ros_hrc.loop.streams import EpisodeSchedule
 
 # -- what comes back from the interfaces --------------------------------------------------------
 
@@ -131,9 +142,11 @@ class ActRobot(Call):
 
 @dataclass(frozen=True)
 class ResetWorld(Call):
-    """Put human, robot and object back at their start (answer: :class:`Outcome`).
-    ``interrupt``: only to stop actions still under way before the real reset."""
+    """Put human, robot and object back at their start (answer: :class:`Outcome`), for
+    episode ``episode`` (the world reseeds its stream). ``interrupt``: only to stop actions
+    still under way before the real reset."""
     interrupt: bool = False
+    episode: int = 0
 
 
 @dataclass(frozen=True)
@@ -296,7 +309,8 @@ class CoordinatorConfig:
     reset (a burst of calls is one reset, however long it is spread). ``wait_note_every``: while a
     step's call is out, say every this many seconds what the step waits for.
     ``world_call_timeout``: a step whose call to the world (the human's action, a snapshot)
-    has not come back after this many seconds fails, naming the call."""
+    has not come back after this many seconds fails, naming the call. ``episodes``: the
+    episode numbers to play, in order (None: 1, 2, 3 ...; see the module docstring)."""
 
     max_steps: int = 0
     end_on_goal: bool = True
@@ -308,6 +322,7 @@ class CoordinatorConfig:
     reset_join_window: float = RESET_JOIN_WINDOW
     wait_note_every: float = WAIT_NOTE_EVERY
     world_call_timeout: float = WORLD_CALL_TIMEOUT
+    episodes: Optional[EpisodeSchedule] = None
 
     def __post_init__(self) -> None:
         if self.on_episode_end not in EPISODE_END_POLICIES:
@@ -346,6 +361,8 @@ class Coordinator:
         self._outstanding: Dict[int, Call] = {}
         self._step: Optional[_StepContext] = None
         self._episode_ended = False     # with on_episode_end=continue: report the end once
+        self._episode_done = False      # the current episode ended (not only cut short)
+        self._started_any = False       # an episode has started since this coordinator began
         self._episode_start_time = 0.0
         # the reset under way
         self._reset_tokens: List[Any] = []
@@ -549,9 +566,13 @@ class Coordinator:
         report.end_reason = reason
         self.expected_step = report.step + 1
         self._emit(PublishStep(report))
+        if reason:
+            self._episode_done = True
+        # No episode of the schedule is left after this one: the loop stops here.
+        played_out = bool(reason) and self._next_episode() is None
         # The MDP's episode_over means "stop: a reset comes next"; with on_episode_end
         # continue the end is reported (end_reason) and stepping goes on.
-        stops = bool(reason) and self.config.on_episode_end != "continue"
+        stops = bool(reason) and (self.config.on_episode_end != "continue" or played_out)
         self._emit(MdpStepDone(ctx.peer, ctx.request.reply, self.epoch, report.step,
                                report.robot_action, report.robot_acted, report.robot_result,
                                self.episode, stops, reason))
@@ -561,7 +582,11 @@ class Coordinator:
         policy = self.config.on_episode_end
         self._note("info", f"episode {self.episode} over after {report.step + 1} steps: "
                            f"{reason}")
-        if policy == "wait":
+        if played_out:
+            self.phase = EPISODE_OVER
+            self._note("info", f"the episodes asked for ({self.config.episodes.text()}) are "
+                               "all played: no reset starts another")
+        elif policy == "wait":
             self.phase = EPISODE_OVER
         elif policy == "reset":
             self._begin_reset(f"episode {self.episode} over ({reason})", None)
@@ -642,11 +667,29 @@ class Coordinator:
         self._note("warn", f"step {call.step} waits for {_what(call)}: {waited:g} s so far")
         self._arm_wait_timer(call_id, waited)
 
+    def _next_episode(self) -> Optional[int]:
+        """The number of the episode the next reset starts; None when the schedule's last
+        episode has ended."""
+        schedule = self.config.episodes
+        if schedule is None:
+            return self.episode + 1
+        if not self._started_any:
+            return schedule.first()
+        if not self._episode_done:
+            return self.episode     # cut short: played again, whole, on its own streams
+        return schedule.after(self.episode)
+
     def _begin_reset(self, reason: str, token: Any) -> None:
         if self.phase == RESETTING:
             # Joins the reset under way: nothing has stepped since it began.
             if token is not None:
                 self._reset_tokens.append(token)
+            return
+        if self._next_episode() is None:
+            # The schedule is played out: nothing is left to reset into.
+            if token is not None:
+                self._emit(ResetDone((token,), False, "no reset: the episodes asked for "
+                                     f"({self.config.episodes.text()}) are all played"))
             return
         self._retry_timer = None
         self.epoch = self._next_epoch
@@ -679,9 +722,10 @@ class Coordinator:
         self._reset_stage = "resetting"
         self.tracker.reset()
         self.expected_step = 0
-        world = self._call(ResetWorld, None)
-        # The episode's number counts resets that succeed: failed attempts take none.
-        planner = self._call(ResetPlanner, None, episode=self.episode + 1)
+        # The episode's number is taken when a reset succeeds: failed attempts take none.
+        episode = self._next_episode()
+        world = self._call(ResetWorld, None, episode=episode)
+        planner = self._call(ResetPlanner, None, episode=episode)
         self._reset_calls = {world.id: "world", planner.id: "robot planner"}
 
     def _reset_call_done(self, call: Call, result: Any) -> None:
@@ -712,7 +756,9 @@ class Coordinator:
             return self._reset_failed(f"world: the snapshot at the episode's start is "
                                       f"{result!r}")
         self._episode_start_time = float(result.sim_time)
-        self.episode += 1
+        self.episode = self._next_episode()
+        self._started_any = True
+        self._episode_done = False
         self.phase = READY
         self._retry_delay = self.config.retry_delay
         tokens, self._reset_tokens = tuple(self._reset_tokens), []

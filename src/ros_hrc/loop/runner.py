@@ -42,7 +42,9 @@ class WorldPort:
     def snapshot(self) -> Snapshot:
         raise NotImplementedError
 
-    def reset(self, interrupt: bool) -> Outcome:
+    def reset(self, interrupt: bool, episode: int) -> Outcome:
+        """Everything back at its start for episode ``episode`` (the world's random stream is
+        that episode's); ``interrupt``: only stop what is under way (a real reset follows)."""
         raise NotImplementedError
 
 
@@ -248,7 +250,7 @@ class LoopRunner:
         if isinstance(call, ObserveWorld):
             return self.world.snapshot()
         if isinstance(call, ResetWorld):
-            return self.world.reset(call.interrupt)
+            return self.world.reset(call.interrupt, call.episode)
         if isinstance(call, Decide):
             return self.planner.decide(call.epoch, call.step, call.observation, call.bits,
                                        call.state)

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
 from ros_hrc.errors import HrcError
+from ros_hrc.loop.streams import LIVE, EpisodeSchedule
 from ros_hrc.model_files import names_a_file, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
@@ -54,7 +55,7 @@ NO_FILE_WORD = "none"
 INT32_MAX = 2**31 - 1
 
 #: Setting kinds: how a value is read.
-KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir")
+KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes")
 
 
 class SettingError(HrcError):
@@ -141,6 +142,8 @@ class Setting:
             return "must be a readable file"
         if self.kind == "dir":
             return "must be a directory (made if missing)"
+        if self.kind == "episodes":
+            return "must be live or episode numbers and ranges, e.g. 2,5-7"
         return "must be a string"
 
     def parse(self, value: Any) -> Any:
@@ -208,6 +211,13 @@ class Setting:
         if text not in (self.choices or ()):
             raise self._refuse(value)
         return text
+
+    def _parse_episodes(self, value: Any) -> str:
+        try:
+            schedule = EpisodeSchedule.parse(str(value))
+        except ValueError:
+            raise self._refuse(value, unparsable=True) from None
+        return schedule.text() if schedule is not None else LIVE
 
     def _parse_str(self, value: Any) -> str:
         if not isinstance(value, str):
@@ -330,6 +340,10 @@ _TABLE: Iterable[Setting] = (
        "episode) or continue", choices=("wait", "reset", "continue")),
     _s("end_on_goal", "bool", True,
        "an episode also ends when the human MDP reaches its goal state success"),
+    _s("episodes", "episodes", LIVE, "live: episodes 1, 2, 3 ..., each reset the next; or the "
+       "episode numbers to play, in order, e.g. 0-99 or 2,5-7 (experiments: each names its "
+       "random streams, so (seed, episode) is the same episode whatever ran before it; an "
+       "episode cut short is played again; after the last the loop waits)"),
     # the robot (POMDP)
     _s("start_pomdp", "bool", True, "start the POMDP process"),
     _s("planner", "choice", "despot", "despot; policy with policy_file; reactive (baseline: "
@@ -339,8 +353,9 @@ _TABLE: Iterable[Setting] = (
     _s("policy_file", "file", "",
        "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that planner "
        "(none: no file)"),
-    _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision", minimum=0,
-       maximum=60, exclusive_minimum=True, unit="s"),
+    _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision (0: none, the "
+       "decision is bounded by max_trials alone, the same on any machine: experiments)",
+       minimum=0, maximum=60, smallest_nonzero=0.001, unit="s"),
     _s("scenarios", "int", 500, "DESPOT's number of sampled scenarios K", minimum=1,
        maximum=100000),
     _s("depth", "int", 90, "DESPOT's maximum search depth", minimum=1, maximum=1000),
@@ -409,6 +424,9 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     if out["planner"] != "policy" and out["policy_file"]:
         raise SettingError("policy_file", values.get("policy_file"),
                            f"only used with planner:=policy, not planner:={out['planner']}")
+    if out["time_per_step"] == 0 and out["max_trials"] == 0:
+        raise SettingError("time_per_step", values.get("time_per_step", 0),
+                           "0 (no time budget) needs max_trials > 0 to bound the decision")
     if out["pause_when_idle"] is None:
         # Manual mode: the world must not run on (the belt carrying the object away) while
         # someone types the human's next state.

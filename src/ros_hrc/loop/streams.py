@@ -11,19 +11,35 @@ construction (NumPy's hashing of the key; see NumPy's "Parallel random number ge
     stream(seed, episode, "human")      -> a SeedSequence
     generator(seed, episode, "world")   -> a numpy Generator on that stream
     stream_seed(seed, episode, "planner") -> a 64-bit integer seed, for consumers that take one
+
+Who draws: the human MDP process (``despot_mdp``) reseeds its agent from the ``human`` stream at
+each episode's reset, the robot process (``despot_pomdp``) its planner from ``planner``, and the
+world (``hrc_world``) its generator (the walk-away's heading) from ``world``; each learns the
+episode's number at that reset, from the coordinator (``reset.episode``; the world through the
+``/hrc/world/episode`` parameter). The number is the study's: a live launch plays episodes 1,
+2, 3 ...; an experiment cell plays the episodes it was asked for (:class:`EpisodeSchedule`,
+the launch argument ``episodes``), in order, so that (seed, episode) is the same episode
+whichever others ran before it.
 """
 from __future__ import annotations
 
 import operator
-from typing import Tuple
+import re
+from dataclasses import dataclass
+from typing import Iterable, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["ROLES", "MAX_SEED", "MAX_EPISODE", "stream", "generator", "stream_seed"]
+__all__ = ["ROLES", "MAX_SEED", "MAX_EPISODE", "stream", "generator", "stream_seed",
+           "EpisodeSchedule", "WORLD_EPISODE_PARAM"]
 
 #: Who draws from a stream. Appending a role keeps every existing stream as it was; reordering
 #: or renaming one changes the streams of every recorded run, so don't.
 ROLES: Tuple[str, ...] = ("human", "world", "planner")
+
+#: The ROS parameter the coordinator's node (hrc_human) sets to the episode that starts just
+#: before it resets the world (``/hrc/world/reset``, a Trigger); hrc_world reads it there.
+WORLD_EPISODE_PARAM = "/hrc/world/episode"
 
 #: The seed and episode travel through ROS messages and parameters as uint32.
 MAX_SEED = 2 ** 32 - 1
@@ -61,3 +77,77 @@ def stream_seed(seed: int, episode: int, role: str) -> int:
     takes an integer seed (a planner, a process started with ``--seed``)."""
     high, low = stream(seed, episode, role).generate_state(2, np.uint32)
     return (int(high) << 32) | int(low)
+
+
+#: The ``episodes`` text of no schedule: 1, 2, 3 ..., each reset the next (a live launch).
+LIVE = "live"
+
+_SPAN = re.compile(r"\s*([0-9]+)\s*(?:-\s*([0-9]+)\s*)?")
+
+
+@dataclass(frozen=True)
+class EpisodeSchedule:
+    """The episode numbers a run plays, in increasing order: sorted, disjoint half-open spans
+    ``[start, stop)`` (``0-999999`` is two integers, not a million).
+
+    As text (the launch argument ``episodes``): numbers and inclusive ranges separated by
+    commas, ``"2,5-7"`` is 2, 5, 6, 7; ``live`` (or the empty text) is no schedule, the live
+    default: 1, 2, 3 ... with no end, each reset the next (``None`` from :meth:`parse`)."""
+
+    spans: Tuple[Tuple[int, int], ...]
+
+    @classmethod
+    def of(cls, numbers: Iterable[int]) -> "EpisodeSchedule":
+        spans: list = []
+        for n in sorted(set(_checked("episode", n, MAX_EPISODE) for n in numbers)):
+            if spans and spans[-1][1] == n:
+                spans[-1][1] = n + 1
+            else:
+                spans.append([n, n + 1])
+        if not spans:
+            raise ValueError("an episode schedule needs at least one episode")
+        return cls(tuple((a, b) for a, b in spans))
+
+    @classmethod
+    def parse(cls, text: str) -> Optional["EpisodeSchedule"]:
+        """The schedule ``text`` names; None for ``live`` or the empty text (1, 2, 3 ...).
+        ValueError naming what is wrong otherwise."""
+        text = str(text).strip()
+        if text in ("", LIVE):
+            return None
+        spans = []
+        for part in text.split(","):
+            match = _SPAN.fullmatch(part)
+            if not match:
+                raise ValueError(f"episodes {text!r}: {part.strip()!r} is not a number nor a "
+                                 "range a-b (e.g. 2,5-7)")
+            low = _checked("episode", int(match.group(1)), MAX_EPISODE)
+            high = _checked("episode", int(match.group(2) or low), MAX_EPISODE)
+            if high < low:
+                raise ValueError(f"episodes {text!r}: the range {low}-{high} is empty")
+            spans.append((low, high + 1))
+        spans.sort()
+        merged: list = []
+        for a, b in spans:
+            if merged and a <= merged[-1][1]:
+                merged[-1][1] = max(merged[-1][1], b)
+            else:
+                merged.append([a, b])
+        return cls(tuple((a, b) for a, b in merged))
+
+    def text(self) -> str:
+        """The schedule as :meth:`parse` reads it."""
+        return ",".join(str(a) if b == a + 1 else f"{a}-{b - 1}" for a, b in self.spans)
+
+    def first(self) -> int:
+        return self.spans[0][0]
+
+    def after(self, episode: int) -> Optional[int]:
+        """The first scheduled episode past ``episode``; None when none is left."""
+        for a, b in self.spans:
+            if episode + 1 < b:
+                return max(a, episode + 1)
+        return None
+
+    def __len__(self) -> int:
+        return sum(b - a for a, b in self.spans)

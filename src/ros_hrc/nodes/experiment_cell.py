@@ -192,8 +192,18 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
         previous_end = None
         for episode in spec.episodes:
             watch.check()
-            steps, first_arrived, last_arrived = inbox.next_episode(spec.episode_timeout,
-                                                                    watch.check)
+            # The stack plays the spec's episodes by their numbers (episodes:=), in order;
+            # a restarted coordinator plays them from the first again: those are done.
+            while True:
+                steps, first_arrived, last_arrived = inbox.next_episode(spec.episode_timeout,
+                                                                        watch.check)
+                played = int(steps[0].episode)
+                if played == episode:
+                    break
+                if played > episode:
+                    raise CellFailed(f"{name}: the stack played episode {played} where "
+                                     f"episode {episode} was due")
+                previous_end = last_arrived
             # Wall time of the episode: since the previous one ended (its reset included);
             # the first one from when its first step began, not from the stack's start-up.
             began = previous_end if previous_end is not None else \

@@ -8,7 +8,9 @@ what it asks, through four adapters:
   ``step`` messages go to the coordinator; its answers go back as ``ack`` / ``error``, and a
   ``reset`` (with the new epoch) starts each episode.
 * the **world**: ``/human/<action>`` (the seed's Table 3.2), ``/hrc/world/state`` (one
-  atomic snapshot: the six predicates and where the object is) and ``/hrc/world/reset``.
+  atomic snapshot: the six predicates and where the object is) and ``/hrc/world/reset``,
+  after setting ``/hrc/world/episode`` to the episode that starts (the world reseeds its
+  random stream from it).
 * the **robot planner**: ``/hrc/obs/decide`` and ``/hrc/obs/reset_planner`` of hrc_obs, which
   speaks to the POMDP process.
 * the **robot executor**: a websocket client of hrc_robot (``~robot_port``, 8080).
@@ -34,7 +36,8 @@ Services offered: /hrc/reset (std_srvs/Trigger: reset everything and wait until 
 /hrc/set_human_state (ros_hrc/SetHumanState: the human's next state, for manual mode without
 a terminal).
 Parameters: ~host, ~port, ~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episode_end,
-~end_on_goal, ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
+~end_on_goal, ~episodes (the episode numbers to play, e.g. ``0-99`` or ``2,5-7``; ``live``: 1,
+2, 3 ...: see :mod:`ros_hrc.loop.streams`), ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
 ~service_timeout (s to wait for a service that went away during the run, e.g. a respawning
 hrc_obs; at start-up the node waits however long it takes), ~wait_report_every (s between
 the lines saying what the start-up still waits for), ~action_timeout (s a world or robot
@@ -70,6 +73,7 @@ from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE
                                       StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
+from ros_hrc.loop.streams import WORLD_EPISODE_PARAM, EpisodeSchedule
 from ros_hrc.msg import Status
 from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, read_config,
                                   route_python_logging)
@@ -85,6 +89,7 @@ class HumanNodeConfig:
     mode: str = "auto"
     max_steps: int = 0
     on_episode_end: str = "wait"
+    episodes: str = "live"      # the episode numbers to play (EpisodeSchedule text; live: 1, 2, ...)
     end_on_goal: bool = True
     read_stdin: bool = True
     print_steps: bool = True
@@ -191,8 +196,12 @@ class RosWorld(WorldPort):
             "is_h4": state.human_warning, "is_a2": state.human_idle},
             sim_time=state.sim_time, holder=state.holder, left_belt=state.object_left_belt)
 
-    def reset(self, interrupt: bool) -> Outcome:
+    def reset(self, interrupt: bool, episode: int) -> Outcome:
         self.ready()
+        if not interrupt:
+            # The world reseeds its stream for this episode at the reset (only this node
+            # resets the world, so the parameter is read by the reset it precedes).
+            rospy.set_param(WORLD_EPISODE_PARAM, episode)
         ok, message = self.call("/hrc/world/reset")
         return Outcome(ok, message)
 
@@ -337,7 +346,8 @@ class HumanNode:
             on_episode_end=config.on_episode_end, first_epoch=first_epoch,
             reset_join_window=config.reset_join_window,
             wait_note_every=config.wait_note_every,
-            world_call_timeout=config.world_call_timeout))
+            world_call_timeout=config.world_call_timeout,
+            episodes=EpisodeSchedule.parse(config.episodes)))
         token = launch_token(config)
         self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
                                    send_timeout=config.action_timeout, token=token)

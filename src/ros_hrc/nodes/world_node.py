@@ -19,7 +19,9 @@ Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapsho
   /human/is_h4, /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset,
   /hrc/world/snapshot (writes a PNG of the scene; ``message`` is its path)
   /hrc/world/reset (human, robot and object back at their start at once, interrupting any
-                    action under way: the coordinator's reset)
+                    action under way: the coordinator's reset; the world's random stream
+                    restarts as the one of episode /hrc/world/episode when that parameter is
+                    set: hrc_human sets it to the episode that starts, ros_hrc.loop.streams)
   /hrc/world/state (ros_hrc/GetWorldState: the state now, as /hrc/world_state publishes it)
 
 Topics published:
@@ -92,6 +94,7 @@ from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
 from ros_hrc.errors import HrcError, SimulationError
 from ros_hrc.loop import settings
 from ros_hrc.loop.display import StepCaption
+from ros_hrc.loop.streams import WORLD_EPISODE_PARAM
 from ros_hrc.msg import Status, WorldState
 from ros_hrc.nodes.guard import is_guard, is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
@@ -275,6 +278,19 @@ class CaptionBoard:
                 self._publish("\n".join(lines))
 
 
+def reseeding(world: World, reset: Callable[[TriggerRequest], TriggerResponse]
+              ) -> Callable[[TriggerRequest], TriggerResponse]:
+    """The world's reset handler ``reset``, first reseeding the world for the episode that
+    starts (the ``/hrc/world/episode`` parameter, which hrc_human sets just before it resets
+    the world); without the parameter (the world alone) the stream goes on as it was."""
+    def handle(request: TriggerRequest) -> TriggerResponse:
+        episode = rospy.get_param(WORLD_EPISODE_PARAM, None)
+        if episode is not None:
+            world.reseed(int(episode))
+        return reset(request)
+    return handle
+
+
 def predicate_handler(world: World, predicate: str) -> Callable[[TriggerRequest], TriggerResponse]:
     """Trigger handler answering a human predicate from the current geometry."""
     def handle(_request: TriggerRequest) -> TriggerResponse:
@@ -360,8 +376,8 @@ class WorldNode:
             self._advertise(f"/robot/{action}", action_handler(
                 self.world, "robot", action, c.action_timeout, board, loop))
         self._advertise("/hrc/world/snapshot", snapshot_handler(self.world, c.snapshot_dir))
-        self._advertise("/hrc/world/reset", action_handler(
-            self.world, "world", "reset", c.action_timeout, board, loop))
+        self._advertise("/hrc/world/reset", reseeding(self.world, action_handler(
+            self.world, "world", "reset", c.action_timeout, board, loop)))
         self._services.append(rospy.Service("/hrc/world/state", GetWorldState,
                                             _quiet_when_closed(self._state_now)))
         # The physics runs in its own thread paced by the wall clock: under /use_sim_time this

@@ -51,7 +51,9 @@ Time: ``time_per_step`` bounds all of act(), and the belief updates since the pr
 only the trials: the garbage collector is paused during act() (the tree has no reference cycles
 and is freed before act() returns), and the search stops before an expansion predicted to end
 too late to free the tree in time. Under ``max_trials`` with a generous budget none of this
-changes a trial or a random draw.
+changes a trial or a random draw; with ``time_per_step`` infinite (no time budget, which needs
+``max_trials``) the search is bounded by work alone: no clock reading changes it, so the same
+seed gives the same decision on any machine and under any load (what experiments run).
 """
 from __future__ import annotations
 
@@ -107,8 +109,8 @@ class DespotConfig:
     depth: int = 90                    # [D] maximum depth of the tree
     pruning: float = 0.1               # [λ] regularization: the cost of one policy node
     xi: float = 0.95                   # [ξ] target gap fraction in the excess uncertainty
-    time_per_step: float = 1.0         # seconds of search per act()
-    max_trials: Optional[int] = None   # stop after this many trials too (reproducible tests)
+    time_per_step: float = 1.0         # seconds of search per act(); inf: no time budget
+    max_trials: Optional[int] = None   # stop after this many trials too (reproducible runs)
     upper: str = "mdp"                 # "mdp" | "fib" | "trivial"
     lower: str = "blind"               # "blind" | "policy" | "rollout"
     particles: Optional[int] = None    # particle belief of this size; None: exact when small
@@ -119,10 +121,14 @@ class DespotConfig:
         """SolverError when a parameter is out of range."""
         if self.scenarios < 1 or self.depth < 0:
             raise SolverError("DESPOT needs at least one scenario and a non-negative depth")
-        if not (math.isfinite(self.pruning) and math.isfinite(self.time_per_step)) \
+        if not math.isfinite(self.pruning) or math.isnan(self.time_per_step) \
                 or self.pruning < 0 or not 0.0 <= self.xi <= 1.0 or self.time_per_step < 0:
             raise SolverError("DESPOT needs pruning >= 0, 0 <= xi <= 1 and time_per_step >= 0, "
-                              "all finite")
+                              "pruning finite")
+        if math.isinf(self.time_per_step) and self.max_trials is None:
+            # Work-bounded search (experiments): the trials alone end it, so they must.
+            raise SolverError("DESPOT without a time budget (time_per_step inf) needs "
+                              "max_trials")
         if self.max_nodes is not None and self.max_nodes < 1:
             raise SolverError(f"max_nodes must be at least 1, got {self.max_nodes}")
         if self.upper not in ("fib", "mdp", "trivial") or self.lower not in ("blind", "policy",

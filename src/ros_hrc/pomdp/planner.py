@@ -96,6 +96,11 @@ class BeliefPlanner(Planner):
         self._belief.reset(belief)
         self.last_update_zero_probability = False
 
+    def reseed(self, seed: int) -> None:
+        """Draw from ``seed``'s stream from now on, from its start (the robot process reseeds
+        its planner at each episode's reset). In place: the belief holds the same generator."""
+        self.rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
+
     def update(self, action: int, observation: int) -> None:
         try:
             self._belief.update(action, observation)

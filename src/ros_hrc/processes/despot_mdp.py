@@ -18,7 +18,10 @@ to answer. When its input ends (Ctrl-D at the prompt) it says so and goes on in 
 the model chooses every next state from then on; restart it to type states again.
 
 A ``reset`` message (Enter in the ROS terminal, ``/hrc/reset``, the end of an episode, a
-recovery) puts the human back to its initial state, step 0, zero reward.
+recovery) puts the human back to its initial state, step 0, zero reward, and restarts its
+random stream as the one of (``--seed``, the reset's episode, "human")
+(:mod:`ros_hrc.loop.streams`): episode e of seed s is the same human whatever ran before it,
+and no two episodes share a stream.
 
 The human node takes only processes of its own launch: this one proves the launch's link token
 in its hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
@@ -46,6 +49,7 @@ from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import load_human_model, positional_mapping_line
+from ros_hrc.loop.streams import stream_seed
 from ros_hrc.processes.human_agent import HumanAgent, HumanAgentConfig
 
 NAME = "despot_mdp"
@@ -245,8 +249,10 @@ class MdpProcess:
                     self._next_states.get_nowait()
             self._no_states = ""
         self.epoch = reset.epoch
-        self.episode = reset.episode or self.episode + 1
-        self.agent.reset(seed=self.args.seed + self.episode - 1)
+        # The coordinator names the episode (0 is one); a reset without a number (a client
+        # of the protocol's own) starts the next.
+        self.episode = reset.episode if reset.episode is not None else self.episode + 1
+        self.agent.reset(seed=stream_seed(self.args.seed, self.episode, "human"))
         self.print(f"\n##### RESET ({reset.reason or 'reset'}): episode {self.episode} "
                    f"#####\nInitial state:\n[{self.state_var}:{self.agent.state_name}]")
 

@@ -8,7 +8,14 @@ default, a saved offline policy, or a baseline robot of ``ros_hrc.robot_policies
 reactive robot or no robot, which keep the belief but decide without it), and answer with a
 ``decision``. The coordinator has the robot carry it out (hrc_robot), not this process.
 A ``reset`` puts the belief back to the model's initial belief (and the reactive robot's step
-count back to 0), in the epoch the reset names; observations of any other epoch are refused.
+count back to 0), in the epoch the reset names, and restarts the planner's random stream as
+the one of (``--seed``, the reset's episode, "planner") (:mod:`ros_hrc.loop.streams`): episode
+e of seed s gets the same decisions whatever ran before it. Observations of any other epoch
+are refused.
+
+``--time-per-step 0`` takes the time budget away: DESPOT is bounded by ``--max-trials`` alone,
+so its decisions depend on nothing but the seed (no clock is read in a decision); experiments
+run it so (``ros_hrc.experiment.stack``), live launches keep the 0.1 s budget.
 
 An observation of zero probability under the belief cannot be explained by the model: the
 belief keeps the prediction through T without it, the step goes on, and the terminal says so.
@@ -23,6 +30,7 @@ relative ``--model`` or ``--policy`` given by hand is taken from the directory i
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import threading
 import time
@@ -38,6 +46,7 @@ from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import load_robot_model, positional_mapping_line
+from ros_hrc.loop.streams import stream_seed
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
@@ -49,15 +58,26 @@ NAME = "despot_pomdp"
 
 
 class RobotAgent:
-    """The robot's belief and planner, stepped by observation names."""
+    """The robot's belief and planner, stepped by observation names. ``seed``: the run's seed,
+    from which each episode's planner stream is derived."""
 
-    def __init__(self, model: Model, planner: Planner, first_action: str = "rIdle") -> None:
+    def __init__(self, model: Model, planner: Planner, first_action: str = "rIdle",
+                 seed: int = 0) -> None:
         self.model = model
         self.planner = planner
+        self.seed = seed
+        self.episode: Optional[int] = None
         self.first_action = model.index("action", first_action) if first_action in model.actions else 0
         self.reset()
 
-    def reset(self) -> None:
+    def reset(self, episode: Optional[int] = None) -> None:
+        """Back to the initial belief; for ``episode`` (when given), the planner draws from
+        that episode's stream, from its start."""
+        if episode is not None:
+            reseed = getattr(self.planner, "reseed", None)
+            if reseed is not None:
+                reseed(stream_seed(self.seed, episode, "planner"))
+            self.episode = episode
         self.planner.reset()
         self.last_action = self.first_action
         self.surprises = 0
@@ -99,7 +119,11 @@ class PomdpProcess:
         self.dispatch.on(Reset, self.on_reset)
 
     def on_reset(self, msg: Reset, peer: Peer) -> Message:
-        self.agent.reset()
+        # The coordinator names the episode (0 is one); a reset without a number (a client of
+        # the protocol's own) starts the next.
+        episode = msg.episode if msg.episode is not None else (
+            0 if self.agent.episode is None else self.agent.episode + 1)
+        self.agent.reset(episode)
         self.epoch = msg.epoch
         print(f"\n##### RESET: belief back to the initial belief (episode {msg.episode}, "
               f"epoch {msg.epoch}) #####\n{self._belief_text()}", flush=True)
@@ -139,8 +163,11 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
     """The planner the command line asks for: DESPOT, a saved offline policy, the reactive
     robot, no robot or the exploring robot."""
     if args.planner == "despot":
+        if args.time_per_step == 0 and not args.max_trials:
+            raise ValueError("--time-per-step 0 (no time budget) needs --max-trials > 0")
+        # 0: no time budget, the trials alone bound the search (no clock read in a decision).
         config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.lambda_,
-                              time_per_step=args.time_per_step,
+                              time_per_step=args.time_per_step or math.inf,
                               max_trials=args.max_trials or None)
         return DespotPlanner(model, config, seed=args.seed)
     if args.planner == "policy":
@@ -190,7 +217,7 @@ def main(argv: Optional[list] = None) -> int:
             print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
                   file=sys.stderr, flush=True)
         return 2
-    process = PomdpProcess(RobotAgent(model, planner))
+    process = PomdpProcess(RobotAgent(model, planner, seed=args.seed))
     server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,
                            token=token)
     try:

@@ -104,7 +104,7 @@ def test_a_human_model_file_that_does_not_fit_is_refused(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--time-per-step", "-1"], "argument --time-per-step: must be a number > 0 and <= 60 (s), "
+    (["--time-per-step", "-1"], "argument --time-per-step: must be 0 or a number from 0.001 to 60 (s), "
                                 "got '-1'"),
     (["--seeds", "0,-1"], "argument --seeds: seeds are comma-separated; each must be an "
                           "integer from 0 to 2147483647, got '-1'"),

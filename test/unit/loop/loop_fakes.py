@@ -247,6 +247,7 @@ class FakeWorld(WorldPort):
         self._block_at: Optional[int] = None
         self.blocked = threading.Event()      # a human action is blocked
         self.released = threading.Event()     # an interrupting reset arrived
+        self.episodes: List[int] = []
 
     def block_act(self, n: int) -> None:
         self._block_at = n
@@ -278,9 +279,11 @@ class FakeWorld(WorldPort):
             return snap(*_PREDICATES[self._last], sim_time=round(self._time, 3),
                         holder=self._holder)
 
-    def reset(self, interrupt: bool) -> Outcome:
+    def reset(self, interrupt: bool, episode: int = 0) -> Outcome:
         with self._lock:
             self.calls.append(("reset", interrupt))
+            if not interrupt:
+                self.episodes.append(episode)   # the episodes the world was reset into
         if interrupt:
             self.released.set()
             return Outcome(True, "actions stopped")

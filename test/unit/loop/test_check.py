@@ -74,7 +74,7 @@ def test_without_arguments_every_default(capsys):
                         "got 'abc'"),
     ("planner:=bogus", "hrc.launch: planner:=bogus: must be one of despot, policy, reactive, none, "
      "explore"),
-    ("time_per_step:=-1", "hrc.launch: time_per_step:=-1: must be a number > 0 and <= 60 (s)"),
+    ("time_per_step:=-1", "hrc.launch: time_per_step:=-1: must be 0 or a number from 0.001 to 60 (s)"),
     ("scenarios:=0", "hrc.launch: scenarios:=0: must be an integer from 1 to 100000"),
     ("step_delay:=-1", "hrc.launch: step_delay:=-1: must be a number from 0 to 3600 (s)"),
     ("belt_speed:=-5", "hrc.launch: belt_speed:=-5: must be a number from 0 to 0.5 (m/s)"),

@@ -18,7 +18,7 @@ DEFAULTS = {
     "host": "127.0.0.1", "pomdp_port": 7070, "robot_port": 8080,
     "human_port": 9090, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
     "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
-    "on_episode_end": "wait", "end_on_goal": True, "start_pomdp": True, "planner": "despot",
+    "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "start_pomdp": True, "planner": "despot",
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "read_stdin": True,
 }
@@ -77,10 +77,10 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("step_delay", "1e300", "step_delay:=1e300: must be a number from 0 to 3600 (s)"),
     ("belt_speed", "-5", "belt_speed:=-5: must be a number from 0 to 0.5 (m/s)"),
     ("belt_speed", "0.6", "belt_speed:=0.6: must be a number from 0 to 0.5 (m/s)"),
-    ("time_per_step", "-1", "time_per_step:=-1: must be a number > 0 and <= 60 (s)"),
-    ("time_per_step", "0", "time_per_step:=0: must be a number > 0 and <= 60 (s)"),
-    ("time_per_step", "61", "time_per_step:=61: must be a number > 0 and <= 60 (s)"),
-    ("time_per_step", "nan", "time_per_step:=nan: must be a number > 0 and <= 60 (s), got 'nan'"),
+    ("time_per_step", "-1", "time_per_step:=-1: must be 0 or a number from 0.001 to 60 (s)"),
+    ("time_per_step", "0.0001", "time_per_step:=0.0001: must be 0 or a number from 0.001 to 60 (s)"),
+    ("time_per_step", "61", "time_per_step:=61: must be 0 or a number from 0.001 to 60 (s)"),
+    ("time_per_step", "nan", "time_per_step:=nan: must be 0 or a number from 0.001 to 60 (s), got 'nan'"),
     ("scenarios", "0", "scenarios:=0: must be an integer from 1 to 100000"),
     ("scenarios", "100001", "scenarios:=100001: must be an integer from 1 to 100000"),
     ("depth", "0", "depth:=0: must be an integer from 1 to 1000"),
@@ -309,12 +309,13 @@ def test_add_argument_gives_the_flag_type_default_and_help():
     assert args.pause_when_idle is True
     assert parser.parse_args(["--time-per-step", ""]).time_per_step == 0.1   # empty: default
     help_text = parser.format_help()
-    assert "DESPOT's time budget per decision (default: 0.1 s)" in " ".join(help_text.split())
+    assert "DESPOT's time budget per decision (0: none, " in " ".join(help_text.split())
+    assert "(default: 0.1 s)" in " ".join(help_text.split())
     assert "(default: 8080)" in help_text
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--time-per-step", "-1"], "argument --time-per-step: must be a number > 0 and <= 60 (s), "
+    (["--time-per-step", "-1"], "argument --time-per-step: must be 0 or a number from 0.001 to 60 (s), "
                                 "got '-1'"),
     (["--robot-port", "70000"], "argument --robot-port: must be an integer from 1 to 65535, "
                                 "got '70000'"),
@@ -334,3 +335,25 @@ def test_add_argument_kwargs_win():
     parser = RaisingParser()
     settings.add_argument(parser, "seed", default=5, help="x")
     assert parser.parse_args([]).seed == 5
+
+
+def test_no_time_budget_needs_a_trial_cap():
+    """time_per_step:=0 takes the clock out of DESPOT's decisions (experiments): the trials
+    alone bound them, so there must be some."""
+    assert settings.resolve({"time_per_step": "0", "max_trials": "600"}, environ={})[
+        "time_per_step"] == 0.0
+    with pytest.raises(SettingError, match=r"^time_per_step:=0: 0 \(no time budget\) needs "
+                                           r"max_trials > 0"):
+        settings.resolve({"time_per_step": "0"}, environ={})
+
+
+@pytest.mark.parametrize("text, canonical", [
+    ("live", "live"), ("", "live"), ("2,5-7", "2,5-7"), (" 7 , 0-3,5", "0-3,5,7"), ("4", "4")])
+def test_episodes_is_live_or_a_schedule(text, canonical):
+    assert settings.parse("episodes", text) == canonical
+
+
+@pytest.mark.parametrize("text", ["-1", "a", "3-1", "1,,2", "5000000000"])
+def test_a_bad_episode_schedule_is_one_line(text):
+    assert refusal("episodes", text).startswith(
+        f"episodes:={text}: must be live or episode numbers and ranges, e.g. 2,5-7")
