@@ -106,8 +106,9 @@ def test_a_missing_model_names_the_scenario_and_what_exists(tmp_path):
     with pytest.raises(ModelNotFound) as info:
         load_human_model("does_not_exist")
     text = str(info.value)
-    assert "'does_not_exist'" in text and "known: beginner, distracted, evaluating, expert, " \
-        "humanModel, humanModel_completed, tired" in text
+    from ros_hrc.experiment.zoo import NOT_IN_ZOO, ZOO
+    known = ", ".join(sorted(set(ZOO) | set(NOT_IN_ZOO)))
+    assert "'does_not_exist'" in text and f"known: {known}" in text
     assert isinstance(info.value, HrcError)
     with pytest.raises(ModelNotFound, match="no model file"):
         load_robot_model(str(tmp_path / "gone.pomdp"))

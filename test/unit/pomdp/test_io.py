@@ -17,7 +17,9 @@ TIGER = ROOT / "test" / "fixtures" / "tiger.95.pomdp"
 def test_the_repository_has_the_models_this_suite_converts():
     names = {p.name for p in MODELS}
     assert {"robot.pomdp", "robot.pomdpx", "humanModel.pomdpx"} <= names
-    assert len([p for p in MODELS if p.parent.name == "human"]) == 7
+    from ros_hrc.experiment.zoo import NOT_IN_ZOO, ZOO
+    humans = {p.stem for p in MODELS if p.parent.name == "human"}
+    assert humans == set(ZOO) | set(NOT_IN_ZOO)
 
 
 # -- extension ---------------------------------------------------------------------------------------
