@@ -87,8 +87,9 @@ def command_line(pid: int) -> List[str]:
 
 
 def is_roslaunch(pid: int) -> bool:
-    """Whether process ``pid`` runs roslaunch (``roslaunch ...`` or ``python3 .../roslaunch``)."""
-    return any(os.path.basename(word) == "roslaunch" for word in command_line(pid)[:2])
+    """Whether process ``pid`` runs roslaunch (``roslaunch ...``, ``python3 .../roslaunch``
+    or ``python3 -m roslaunch``)."""
+    return any(os.path.basename(word) == "roslaunch" for word in command_line(pid)[:3])
 
 
 def is_guard(pid: int) -> bool:

@@ -48,7 +48,6 @@ from typing import Callable, Deque, Dict, Iterator, List, Optional, Sequence, Tu
 import numpy as np
 
 from ..errors import SimulationError
-from ..loop import streams
 from .body import ArticulatedBody, Motion
 from .client import PhysicsClient
 from .conveyor import STATIC_GROUP, STATIC_MASK, Conveyor, ConveyorConfig
@@ -165,6 +164,7 @@ class Ticket:
         self.action = action
         self.caller = caller
         self.driver = driver
+        self.submitted_at: Optional[float] = None  # simulated time it was asked for
         self.started_at: Optional[float] = None   # simulated time the motion began
         self.outcome: Optional[Outcome] = None
         self.error: Optional[SimulationError] = None   # raised by wait(): the world failed
@@ -240,10 +240,7 @@ class World:
         self.control_period = self.config.time_step * self.config.substeps
         self.step_count = 0   # physics steps
         self.sim_time = 0.0
-        # The world's draws (a fumbled grasp's miss) come from the stream of (seed, episode,
-        # "world"), episode 0 until reseed() names another (the loop's node does at each reset).
-        self.episode = 0
-        self.rng = streams.generator(self.config.seed, self.episode, "world")
+        self.rng = np.random.default_rng(self.config.seed)
         self._lock = threading.RLock()
         self._waiters = 0
         self._waiters_lock = threading.Lock()
@@ -751,6 +748,7 @@ class World:
                 f"{a}/{x}" for a, xs in known.items() for x in xs))
         ticket = Ticket(agent, action, caller, driver)
         with self._locked():
+            ticket.submitted_at = self.sim_time
             busy = None if driver else self._driven(agent)
             if busy is not None:
                 doing = "resetting" if busy.agent == "world" else f"doing {busy.action}"
@@ -808,16 +806,6 @@ class World:
             raise SimulationError(f"unknown predicate {predicate!r}; known: {', '.join(PREDICATES)}")
         with self._locked():
             return getattr(self.human, predicate)()
-
-    def reseed(self, episode: int) -> None:
-        """Draw from episode ``episode``'s world stream from now on (:mod:`ros_hrc.loop.streams`),
-        from its start: the coordinator's node calls this as it resets the world for that
-        episode, so the episode's draws are the same whichever episodes came before it."""
-        fresh = streams.generator(self.config.seed, episode, "world")
-        with self._locked():
-            # In place: the human holds the same generator.
-            self.rng.bit_generator.state = fresh.bit_generator.state
-            self.episode = episode
 
     def set_belt_speed(self, speed: float) -> None:
         """Change the belt speed (m/s, downstream positive) from the next step on."""
