@@ -48,6 +48,7 @@ from typing import Callable, Deque, Dict, Iterator, List, Optional, Sequence, Tu
 import numpy as np
 
 from ..errors import SimulationError
+from ..loop import streams
 from .body import ArticulatedBody, Motion
 from .client import PhysicsClient
 from .conveyor import STATIC_GROUP, STATIC_MASK, Conveyor, ConveyorConfig
@@ -240,7 +241,10 @@ class World:
         self.control_period = self.config.time_step * self.config.substeps
         self.step_count = 0   # physics steps
         self.sim_time = 0.0
-        self.rng = np.random.default_rng(self.config.seed)
+        # The world's draws (a fumbled grasp's miss) come from the stream of (seed, episode,
+        # "world"), episode 0 until reseed() names another (the loop's node does at each reset).
+        self.episode = 0
+        self.rng = streams.generator(self.config.seed, self.episode, "world")
         self._lock = threading.RLock()
         self._waiters = 0
         self._waiters_lock = threading.Lock()
@@ -806,6 +810,16 @@ class World:
             raise SimulationError(f"unknown predicate {predicate!r}; known: {', '.join(PREDICATES)}")
         with self._locked():
             return getattr(self.human, predicate)()
+
+    def reseed(self, episode: int) -> None:
+        """Draw from episode ``episode``'s world stream from now on (:mod:`ros_hrc.loop.streams`),
+        from its start: the coordinator's node calls this as it resets the world for that
+        episode, so the episode's draws are the same whichever episodes came before it."""
+        fresh = streams.generator(self.config.seed, episode, "world")
+        with self._locked():
+            # In place: the human holds the same generator.
+            self.rng.bit_generator.state = fresh.bit_generator.state
+            self.episode = episode
 
     def set_belt_speed(self, speed: float) -> None:
         """Change the belt speed (m/s, downstream positive) from the next step on."""
