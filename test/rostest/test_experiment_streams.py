@@ -46,18 +46,9 @@ def run_cell(episodes, log_dir):
 
 
 def without_wall_time(row):
-    """The row without wall-time columns, numbers to 9 significant digits: simulated times
-    are differences of the world's clock, which runs on across a cell's episodes, so the
-    same 10.8 s may come out as 10.799999999999999 after other episodes."""
-    return {k: _rounded(v) for k, v in row.items() if k not in WALL_COLUMNS}
-
-
-def _rounded(value):
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return value
-    return f"{number:.9g}"
+    """The row without its wall-time columns (simulated times are rounded to the microsecond
+    by the scorer, so the rest must be identical)."""
+    return {k: v for k, v in row.items() if k not in WALL_COLUMNS}
 
 
 def run_experiment(out):

@@ -110,12 +110,22 @@ def discounted_robot_reward(steps: Sequence, model: Model) -> float:
     return total
 
 
+def sim_duration(steps: Sequence, start_sim_time: float) -> float:
+    """Simulated seconds from the episode's start to the end of its last step, to the
+    microsecond. The world's clock runs on across a cell's episodes, so the difference of two
+    readings carries rounding from the clock's size: unrounded, the same episode played alone
+    and in a grid would differ in the last bits."""
+    if not steps:
+        return 0.0
+    return round(max(0.0, float(steps[-1].sim_time) - float(start_sim_time)), 6)
+
+
 def time_to_success(steps: Sequence, reason: str, start_sim_time: float) -> float:
     """Simulated seconds from the episode's start to the end of the step that succeeded;
     NaN when the episode did not succeed."""
     if reason != "success" or not steps:
         return math.nan
-    return max(0.0, float(steps[-1].sim_time) - float(start_sim_time))
+    return sim_duration(steps, start_sim_time)
 
 
 def wasted_actions(steps: Sequence) -> int:
@@ -180,7 +190,7 @@ def score_episode(key: EpisodeKey, steps: Sequence, reason: str, start_sim_time:
         human_model=human_model, robot_policy=robot_policy, seed=seed, episode=episode,
         success=int(success),
         succeeded_by=holder if success else "none", end_reason=reason, steps=len(steps),
-        sim_seconds=(steps[-1].sim_time - start_sim_time) if steps else 0.0,
+        sim_seconds=sim_duration(steps, start_sim_time),
         time_to_success=time_to_success(steps, reason, start_sim_time),
         alone_success=0, alone_time_to_success=math.nan, outcome=UNPAIRED,
         time_gain=math.nan, wasted_actions=wasted_actions(steps),
