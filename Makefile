@@ -28,9 +28,13 @@ experiment: setup
 	@source env.sh && rosrun ros_hrc hrc_experiment --out results/experiment \
 	    --policies $(EXPERIMENT_POLICIES) --reactive-budgets 1..10 $(ARGS)
 
-# Fit the robot model's T and O to the world (docs/fitting.md); rewrites models/robot/robot_fitted.pomdp.
+# Fit the robot models' T and O to the world on the zoo's fit set (docs/robot_model.md):
+# rewrites models/robot/robot_fitted.pomdp (the authors' rewards) and
+# robot_considerate_fitted.pomdp (the considerate rewards); both fits share one set of episodes.
 fit: setup
-	@source env.sh && rosrun ros_hrc hrc_fit --out models/robot/robot_fitted.pomdp $(ARGS)
+	@source env.sh && rosrun ros_hrc hrc_fit --out models/robot/robot_fitted.pomdp $(ARGS) \
+	    && rosrun ros_hrc hrc_fit --prior robot_considerate \
+	       --out models/robot/robot_considerate_fitted.pomdp $(ARGS)
 
 lint: setup
 	@source env.sh && catkin_lint --strict -W2 .ws/src/ros_hrc

@@ -39,10 +39,10 @@ ROBOT_POLICIES: Dict[str, RobotPolicy] = {
                                          "DESPOT"),
     "pomdp_fitted": RobotPolicy("despot", "robot_fitted", "the same planner on the robot model "
                                                           "fitted to the world (hrc_fit)"),
-    "pomdp_considerate": RobotPolicy("despot", "robot_considerate",
+    "pomdp_considerate": RobotPolicy("despot", "robot_considerate_fitted",
                                      "the same planner on the considerate robot model (success "
                                      "valued once; acting against a warning and pre-empting "
-                                     "costly)"),
+                                     "costly), its T and O fitted to the world (hrc_fit)"),
     "reactive": RobotPolicy("reactive", None, "treats the need for help as observable "
                                               "(robot_policies.py)"),
     "no_robot": RobotPolicy("none", None, "never acts"),

@@ -202,7 +202,7 @@ def test_file_arguments_are_made_absolute_once_for_the_cells(tmp_path, monkeypat
     monkeypatch.chdir(work)
     args = build_parser().parse_args(["--robot-model", "mine/robot.pomdp", "--human-models",
                                       "./mine/tired.pomdpx,expert", "--policies",
-                                      "pomdp,pomdp_fitted", "--seeds", "0", "--episodes", "1",
+                                      "pomdp,pomdp_fitted", "--seeds", "1", "--episodes", "1",
                                       "--out", "results"])
     validate_grid(args)
     cells = plan_cells(args, set())

@@ -117,3 +117,26 @@ def test_hrc_pomdp_policy_refuses_a_model_that_is_not_the_robots(capsys):
     assert len(err.splitlines()) == 1
     assert cli.run(["policy", "expert"]) == 2          # a name looks in models/robot/
     assert "no robot model named 'expert'" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def considerate_fitted():
+    return {row.sequence.name: row
+            for row in policy_table(load_robot_model("robot_considerate_fitted"))}
+
+
+@pytest.mark.parametrize("name", ["warning", "warning_unseen", "failed_then_warning"])
+def test_a_warning_stops_the_shipped_considerate_robot(considerate_fitted, name):
+    """The model the study's pomdp_considerate runs (fitted on the zoo's fit set): after a
+    warning it stops, whatever came before."""
+    assert considerate_fitted[name].last_action == "rStop_all"
+
+
+def test_the_shipped_considerate_robot_fetches_only_after_repeated_failures(considerate_fitted):
+    actions = considerate_fitted["failed_grasps"].actions
+    assert actions[0] == "rIdle" and "rGrasp_obj" in actions
+
+
+def test_the_shipped_considerate_robot_leaves_a_human_who_holds_the_object_alone(
+        considerate_fitted):
+    assert considerate_fitted["holds_object"].last_action == "rIdle"
