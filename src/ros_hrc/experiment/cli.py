@@ -160,8 +160,11 @@ MAX_BUDGETS = 100
 
 
 def budgets_argument(text: str) -> List[int]:
-    """Reactive budgets: ``A..B`` (inclusive) or a comma-separated list, each >= 1."""
+    """Reactive budgets: ``A..B`` (inclusive) or a comma-separated list, each >= 1; ``none``:
+    no sweep (the default)."""
     words = text.strip()
+    if words == "none":
+        return []
     try:
         if ".." in words:
             low, _, high = words.partition("..")
@@ -188,7 +191,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)}")
     p.add_argument("--reactive-budgets", type=budgets_argument, default=[],
                    help="also run the reactive robot with each of these budgets (policies "
-                        "reactive@N), e.g. 1..10 or 2,4,8; the summary names the best")
+                        "reactive@N), e.g. 1..10 or 2,4,8 (none: no sweep, the default); the "
+                        "summary names the best")
     p.add_argument("--seeds", type=_seeds, default=_seeds(DEFAULT_SEEDS),
                    help=f"seeds, comma-separated ({DEFAULT_SEEDS})")
     p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=DEFAULT_EPISODES,
@@ -205,13 +209,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="results directory (relative to the current directory)")
     settings.add_argument(p, "robot_model")
     settings.add_argument(p, "human_choice")
-    settings.add_argument(p, "time_per_step")
     settings.add_argument(p, "max_trials")
     settings.add_argument(p, "reactive_budget")
     settings.add_argument(p, "scenarios")
     settings.add_argument(p, "depth")
     settings.add_argument(p, "lambda", dest="lambda_")
-    p.add_argument("--bag", action="store_true", help="also record /hrc/status as a rosbag")
+    p.add_argument("--bag", action=argparse.BooleanOptionalAction, default=False,
+                   help="also record /hrc/status as a rosbag (default: no)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     return p
 
@@ -357,7 +361,7 @@ def _cell(args: argparse.Namespace, human: str, policy: str, seed: int,
         human_model_file=args.human_files[human],
         robot_model=robot_model_of(policy, args.robot_model),
         human_choice=args.human_choice,
-        time_per_step=args.time_per_step, max_trials=args.max_trials,
+        max_trials=args.max_trials,
         reactive_budget=args.reactive_budget if budget is None else budget,
         scenarios=args.scenarios, depth=args.depth, lambda_=args.lambda_, record_bag=args.bag)
 

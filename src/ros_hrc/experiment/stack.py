@@ -121,7 +121,6 @@ class CellSpec:
     log_dir: str = "."
     robot_model: str = settings.default("robot_model")
     human_choice: str = settings.default("human_choice")
-    time_per_step: float = settings.default("time_per_step")
     max_trials: int = settings.default("max_trials")
     reactive_budget: int = settings.default("reactive_budget")
     scenarios: int = settings.default("scenarios")
@@ -173,7 +172,7 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     time, and /clock would cost every node a thousand messages a second. Nothing for RViz
     (viz:=false): no one watches a cell. The robot's DESPOT is bounded by work, not time:
     ``spec.max_trials`` (or :data:`EXPERIMENT_TRIALS`) trials per decision and no time budget
-    (``spec.time_per_step`` is not used), so a cell gives the same rows on any machine and
+    (a cell has no time option), so a cell gives the same rows on any machine and
     under any load. The coordinator plays exactly the spec's episodes, by their numbers
     (``episodes:=``), each on its own streams (:mod:`ros_hrc.loop.streams`).
     ``spec.extra_args`` (``name:=value``) come last and win."""

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from ros_hrc.experiment.cli import build_parser, main, plan_cells, validate_grid
+from ros_hrc.experiment.cli import (budgets_argument, build_parser, main, names_argument,
+                                    plan_cells, validate_grid)
 from ros_hrc.experiment import stack
 from ros_hrc.experiment.stack import (CellSpec, EpisodeRanges, cell_name, check_launch_settings,
                                       launch_arguments, read_spec, worker_command, write_spec)
@@ -104,8 +105,7 @@ def test_a_human_model_file_that_does_not_fit_is_refused(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--time-per-step", "-1"], "argument --time-per-step: must be 0 or a number from 0.001 to 60 (s), "
-                                "got '-1'"),
+    (["--time-per-step", "0.1"], "unrecognized arguments: --time-per-step 0.1"),
     (["--seeds", "0,-1"], "argument --seeds: seeds are comma-separated; each must be an "
                           "integer from 0 to 2147483647, got '-1'"),
     (["--episodes", "0"], "argument --episodes: must be an integer >= 1, got '0'"),
@@ -123,13 +123,13 @@ def test_a_bad_option_is_one_line(args, message, capsys):
 
 def test_the_grid_takes_its_defaults_from_the_settings():
     args = build_parser().parse_args([])
-    assert args.time_per_step == settings.default("time_per_step") == 0.1
+    assert not hasattr(args, "time_per_step")   # cells are bounded by trials, never by time
     assert (args.max_trials, args.reactive_budget, args.scenarios, args.depth, args.lambda_) == (
         0, 8, 500, 90, 0.1)
     assert args.robot_model == "robot" and args.human_choice == "optimal"
     validate_grid(args)   # the default grid is good
     cell = plan_cells(args, set())[0]
-    assert cell.time_per_step == 0.1 and CellSpec("a", "pomdp", 0, [0]).time_per_step == 0.1
+    assert cell.max_trials == 0    # 0: EXPERIMENT_TRIALS per decision (stack.launch_settings)
 
 
 def test_every_cell_s_launch_arguments_pass_the_launch_s_checks():
@@ -151,7 +151,7 @@ def test_a_cell_runs_in_the_node_module_and_its_spec_travels_in_a_file(tmp_path)
     command = worker_command(path)
     assert command == [sys.executable, "-m", "ros_hrc.nodes.experiment_cell", str(path)]
     assert read_spec(command[3]) == spec
-    assert json.loads(path.read_text())["time_per_step"] == 0.1
+    assert json.loads(path.read_text())["human_model"] == "/data/my model.pomdpx"
     assert cell_name(spec) == "my_model-no_robot-seed2"
     assert cell_name(CellSpec("tired", "pomdp", 0, [0])) == "tired-pomdp-seed0"
     # every other episode recorded: the spec lists ranges, and no command line grows with it
@@ -411,3 +411,19 @@ def test_a_link_that_cannot_bind_fails_its_cell_at_once(tmp_path, fake_ros):
                               f"{out}/logs/tired-no_robot-seed0.log)")
     pid = int(log.read_text().split()[1])
     assert f"SIGINT {pid}" in log.read_text(), "the stack was stopped"
+
+
+def test_experiment_launch_defaults_are_the_command_s_own():
+    """experiment.launch spells hrc_experiment's defaults out (roslaunch lists an argument
+    with an empty default as "Required"): they must stay the command's."""
+    import xml.etree.ElementTree as ET
+    launch = ET.parse(ROOT / "launch" / "experiment.launch").getroot()
+    default = {a.get("name"): a.get("default") for a in launch.iter("arg") if a.get("default")}
+    args = build_parser().parse_args([])
+    assert names_argument(default["human_models"]) == args.human_models
+    assert [int(s) for s in default["seeds"].split(",")] == args.seeds
+    assert (int(default["episodes"]), int(default["step_limit"]), default["human_choice"],
+            int(default["max_trials"]), int(default["reactive_budget"])) == (
+        args.episodes, args.step_limit, args.human_choice, args.max_trials, args.reactive_budget)
+    assert budgets_argument(default["reactive_budgets"]) == list(range(1, 11))
+    assert budgets_argument("none") == []

@@ -145,7 +145,7 @@ def test_rviz_on_a_display_nobody_serves_stops_the_launch():
         "world.launch: rviz:=true: needs a display")
 
 
-@pytest.mark.parametrize("launch", ["hrc.launch", "world.launch"])
+@pytest.mark.parametrize("launch", ["hrc.launch", "world.launch", "experiment.launch"])
 def test_ros_args_lists_every_argument_as_optional_with_its_doc(launch):
     """Before: every argument of hrc.launch was "Required" (an empty default) and the
     derived _mdp_prefix showed as "undocumented"."""
