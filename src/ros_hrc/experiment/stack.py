@@ -189,6 +189,9 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
         "end_on_goal": False, "read_stdin": False,
         "episodes": EpisodeSchedule(EpisodeRanges.of(spec.episodes).spans).text()
         if spec.episodes else "live",
+        # The cell subscribes once the master is up; an episode played before that (the
+        # short ones last a tenth of a second) would be missed and the cell would fail.
+        "wait_for_listener": True,
         "human_choice": spec.human_choice, "time_per_step": 0,
         "max_trials": spec.max_trials or EXPERIMENT_TRIALS,
         "reactive_budget": spec.reactive_budget,

@@ -344,6 +344,9 @@ _TABLE: Iterable[Setting] = (
        "episode numbers to play, in order, e.g. 0-99 or 2,5-7 (experiments: each names its "
        "random streams, so (seed, episode) is the same episode whatever ran before it; an "
        "episode cut short is played again; after the last the loop waits)"),
+    _s("wait_for_listener", "bool", False, "take no step before someone subscribes to "
+       "/hrc/status (an experiment cell, which must see every step of every episode it "
+       "records)"),
     # the robot (POMDP)
     _s("start_pomdp", "bool", True, "start the POMDP process"),
     _s("planner", "choice", "despot", "despot; policy with policy_file; reactive (baseline: "

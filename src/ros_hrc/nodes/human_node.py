@@ -37,7 +37,8 @@ Services offered: /hrc/reset (std_srvs/Trigger: reset everything and wait until 
 a terminal).
 Parameters: ~host, ~port, ~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episode_end,
 ~end_on_goal, ~episodes (the episode numbers to play, e.g. ``0-99`` or ``2,5-7``; ``live``: 1,
-2, 3 ...: see :mod:`ros_hrc.loop.streams`), ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
+2, 3 ...: see :mod:`ros_hrc.loop.streams`), ~wait_for_listener (no step before someone
+subscribes to /hrc/status), ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
 ~service_timeout (s to wait for a service that went away during the run, e.g. a respawning
 hrc_obs; at start-up the node waits however long it takes), ~wait_report_every (s between
 the lines saying what the start-up still waits for), ~action_timeout (s a world or robot
@@ -76,7 +77,7 @@ from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort,
 from ros_hrc.loop.streams import WORLD_EPISODE_PARAM, EpisodeSchedule
 from ros_hrc.msg import Status
 from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, read_config,
-                                  route_python_logging)
+                                  registered_services, route_python_logging)
 from ros_hrc.srv import (Decide, GetWorldState, ResetPlanner, SetHumanState,
                          SetHumanStateResponse)
 
@@ -90,6 +91,7 @@ class HumanNodeConfig:
     max_steps: int = 0
     on_episode_end: str = "wait"
     episodes: str = "live"      # the episode numbers to play (EpisodeSchedule text; live: 1, 2, ...)
+    wait_for_listener: bool = False   # no step before someone subscribes to /hrc/status
     end_on_goal: bool = True
     read_stdin: bool = True
     print_steps: bool = True
@@ -111,6 +113,8 @@ WORLD_SERVICES = ("/hrc/world/reset", "/hrc/world/state") + tuple(
     f"/human/{service}" for service in sorted(
         {s for s in task.HUMAN_ACTION_SERVICES.values() if s} | {"grasp"}))
 PLANNER_SERVICES = ("/hrc/obs/reset_planner", "/hrc/obs/decide")
+#: Stands in the start-up wait for "someone subscribes to /hrc/status" (~wait_for_listener).
+STATUS_LISTENER = "/hrc/status (subscribed)"
 STARTUP_SERVICES = (("the world (hrc_world)", WORLD_SERVICES),
                     ("the robot planner (hrc_obs)", PLANNER_SERVICES))
 
@@ -337,8 +341,15 @@ class HumanNode:
         self.call = TriggerCaller(config.service_timeout)
         # No call reaches the world or the planner before their services are up: the first
         # reset (and so the MDP's step 0) waits, however long the world takes to start.
-        self.startup = ServiceWait(STARTUP_SERVICES, say=lambda text: rospy.loginfo(
-            "hrc_human: %s", text), every=config.wait_report_every)
+        self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)
+        awaited, registered = STARTUP_SERVICES, registered_services
+        if config.wait_for_listener:
+            # An experiment cell records every step: none is taken before it listens.
+            awaited += (("a listener (wait_for_listener)", (STATUS_LISTENER,)),)
+            registered = lambda: registered_services() | (   # noqa: E731
+                {STATUS_LISTENER} if self.status_pub.get_num_connections() else set())
+        self.startup = ServiceWait(awaited, say=lambda text: rospy.loginfo(
+            "hrc_human: %s", text), every=config.wait_report_every, registered=registered)
         # A random first epoch: a respawned node never mints an epoch its predecessor used.
         first_epoch = int.from_bytes(os.urandom(3), "big") << 4
         coordinator = Coordinator(CoordinatorConfig(
@@ -351,7 +362,6 @@ class HumanNode:
         token = launch_token(config)
         self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
                                    send_timeout=config.action_timeout, token=token)
-        self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)
         self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait),
                                  RosPlanner(self.call, self.startup.wait),
                                  LinkExecutor(self.robot, config.action_timeout), LinkMdp(),

@@ -18,7 +18,8 @@ DEFAULTS = {
     "host": "127.0.0.1", "pomdp_port": 7070, "robot_port": 8080,
     "human_port": 9090, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
     "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
-    "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "start_pomdp": True, "planner": "despot",
+    "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "wait_for_listener": False,
+    "start_pomdp": True, "planner": "despot",
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "read_stdin": True,
 }

@@ -165,3 +165,31 @@ def test_a_late_world_is_waited_for_and_step_0_is_carried_out_once(ros, tmp_path
         assert "----- step 0 -----" in out, out
     finally:
         mdp.close()
+
+
+def test_with_wait_for_listener_no_episode_starts_before_someone_listens(ros, tmp_path,
+                                                                         link_token):
+    """Before: an experiment cell subscribed to /hrc/status after the stack had started; an
+    episode of a tenth of a second could be played before it listened, and the cell failed
+    ("the stack played episode 1 where episode 0 was due", about 1 cell in 130)."""
+    env, start = ros
+    token, token_file = link_token
+    human_port, robot_port = free_port(), free_port()
+    start([sys.executable, str(ROOT / "scripts" / "hrc_human"), f"_human_port:={human_port}",
+           f"_robot_port:={robot_port}", "_read_stdin:=false", "_wait_report_every:=1.0",
+           "_wait_for_listener:=true", f"_token_file:={token_file}"], "hrc_human")
+    script = tmp_path / "fake_world.py"
+    script.write_text(FAKE_WORLD)
+    start([sys.executable, str(script)], "world", stdin=subprocess.PIPE)
+    mdp = MessageClient(link_url(human_port), "despot_mdp", connect_timeout=60.0, token=token)
+    try:
+        mdp.connect()
+        assert wait_for_text(tmp_path, "hrc_human", "a listener (wait_for_listener)"), \
+            read(tmp_path, "hrc_human")
+        with pytest.raises(LinkTimeout):
+            mdp.receive(timeout=2.0, match=lambda m: isinstance(m, Reset))
+        start(["rostopic", "echo", "/hrc/status/step"], "listener")
+        reset = mdp.receive(timeout=60.0, match=lambda m: isinstance(m, Reset))
+        assert reset.episode == 1
+    finally:
+        mdp.close()
