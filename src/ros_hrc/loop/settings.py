@@ -315,6 +315,8 @@ _TABLE: Iterable[Setting] = (
        "$ROS_HOME/hrc_snapshots); names are unique per run"),
     _s("camera_rate", "float", 0.0, "rate of /hrc/camera/image, the snapshot renderer's view "
        "(0: off)", minimum=0, maximum=30, unit="Hz"),
+    _s("publish_rate", "float", 10.0, "rate of /hrc/world_state while anyone subscribes "
+       "(wall clock)", minimum=0, maximum=1000, exclusive_minimum=True, unit="Hz"),
     # links
     _s("host", "host", "127.0.0.1",
        "address the websocket servers bind and the clients connect to"),
@@ -430,6 +432,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     if out["time_per_step"] == 0 and out["max_trials"] == 0:
         raise SettingError("time_per_step", values.get("time_per_step", 0),
                            "0 (no time budget) needs max_trials > 0 to bound the decision")
+    if out["rviz"]:
+        out["viz"] = True    # RViz shows what viz publishes
     if out["pause_when_idle"] is None:
         # Manual mode: the world must not run on (the belt carrying the object away) while
         # someone types the human's next state.

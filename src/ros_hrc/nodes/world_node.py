@@ -144,7 +144,7 @@ class WorldNodeConfig:
             gui=setting("gui"), seed=setting("seed"), belt_speed=setting("belt_speed"),
             real_time_factor=pace["real_time_factor"],
             pause_when_idle=pace["pause_when_idle"],
-            publish_rate=float(get_param("~publish_rate", defaults.publish_rate)),
+            publish_rate=setting("publish_rate"),
             action_timeout=float(get_param("~action_timeout", defaults.action_timeout)),
             snapshot_dir=snapshot_dir, model_dir=model_dir,
             use_sim_time=bool(get_param("/use_sim_time", defaults.use_sim_time)),

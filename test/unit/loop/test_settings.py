@@ -15,6 +15,7 @@ DEFAULTS = {
     "human_model": "humanModel", "robot_model": "robot", "mode": "auto", "gui": False,
     "seed": 0, "use_sim_time": False, "real_time_factor": 1.0, "pause_when_idle": None,
     "belt_speed": 0.02, "viz": True, "rviz": False, "snapshot_dir": "", "camera_rate": 0.0,
+    "publish_rate": 10.0,
     "host": "127.0.0.1", "pomdp_port": 7070, "robot_port": 8080,
     "human_port": 9090, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
     "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
