@@ -463,9 +463,11 @@ def test_considerate_robot_transitions_are_the_authors_with_a_warning_column():
 def test_considerate_robot_rewards_say_what_the_task_wants():
     c = robot("robot_considerate")
     r = lambda act, s, s2="S0": step_reward(c, act, s, s2)
-    # success once: +20 on the step into S1, never again while S1 stays S1
+    # success once: +20 on the step into S1 when the human gets the object himself, +6 when
+    # the robot fetches it (tuned on the fit set), never again while S1 stays S1
     assert r("rIdle", "S0", "S1") == 20 and r("rIdle", "S1", "S1") == 0
-    assert r("rStop_all", "S6", "S1") == 25 and r("rGrasp_obj", "S3", "S1") == 19
+    assert r("rStop_all", "S6", "S1") == 25 and r("rPoint_obj", "S3", "S1") == 19
+    assert r("rGrasp_obj", "S3", "S1") == 6 - 1 and r("rGrasp_obj", "S4", "S1") == 6 - 10
     # acting against a warning costs; obeying it pays
     assert r("rGrasp_obj", "S6") == -30 and r("rPoint_obj", "S6") == -30
     assert r("rStop_all", "S6") == 5 and r("rIdle", "S6") == 0

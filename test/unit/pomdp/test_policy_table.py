@@ -132,9 +132,10 @@ def test_a_warning_stops_the_shipped_considerate_robot(considerate_fitted, name)
     assert considerate_fitted[name].last_action == "rStop_all"
 
 
-def test_the_shipped_considerate_robot_fetches_only_after_repeated_failures(considerate_fitted):
-    actions = considerate_fitted["failed_grasps"].actions
-    assert actions[0] == "rIdle" and "rGrasp_obj" in actions
+def test_the_shipped_considerate_robot_lets_a_human_who_keeps_trying_try(considerate_fitted):
+    """A human who keeps attempting may still succeed himself (his success is worth 20 to
+    this model, the robot's 6): the robot does not take over after failed grasps alone."""
+    assert not ACTING & set(considerate_fitted["failed_grasps"].actions)
 
 
 def test_the_shipped_considerate_robot_leaves_a_human_who_holds_the_object_alone(
