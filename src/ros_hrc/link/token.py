@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import Any, Dict, Mapping, Optional, Tuple
 
 from ros_hrc.errors import LinkError
+from ros_hrc.process_tree import parent_of
 
 #: The environment variable naming a token file, for a process run by hand.
 TOKEN_FILE_ENV = "HRC_LINK_TOKEN_FILE"
@@ -270,15 +271,6 @@ def prune_tokens(environ: Optional[Mapping[str, str]] = None) -> int:
     return removed
 
 
-def _parent_of(pid: int) -> Optional[int]:
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            text = f.read()
-        return int(text[text.rindex(b")") + 2:].split()[1])
-    except (OSError, ValueError, IndexError):
-        return None
-
-
 def stop_launch(session: str, environ: Optional[Mapping[str, str]] = None) -> Optional[int]:
     """Stop the launch of ``session`` as Ctrl-C would (SIGINT to its launcher, the roslaunch
     named in the token file), for a process of it that cannot start on the launch's settings:
@@ -297,7 +289,7 @@ def stop_launch(session: str, environ: Optional[Mapping[str, str]] = None) -> Op
     launcher = int(words[1])
     pid: Optional[int] = os.getpid()
     for _ in range(8):          # roslaunch, or an xterm (launch-prefix) under it
-        pid = _parent_of(pid) if pid else None
+        pid = parent_of(pid) if pid else None
         if pid is None or pid <= 1:
             return None
         if pid == launcher:

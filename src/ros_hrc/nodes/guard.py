@@ -44,6 +44,8 @@ import sys
 import time
 from typing import Dict, Iterable, List, Optional, Sequence
 
+from ros_hrc.process_tree import command_line, is_roslaunch, stat_fields
+
 #: Signals the guard passes on to the world: how roslaunch (or a user) stops a node.
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 #: roslaunch's own waits before it escalates (roslaunch.nodeprocess), s.
@@ -60,38 +62,6 @@ _PR_SET_PDEATHSIG = 1
 _POLL = 0.05
 
 
-def _stat(pid: int) -> Optional[List[str]]:
-    """Fields of /proc/<pid>/stat after the command name (state, ppid, pgrp, ...), or None."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            text = f.read()
-    except OSError:
-        return None
-    return text[text.rindex(b")") + 2:].decode("ascii", "replace").split()
-
-
-def parent_of(pid: int) -> Optional[int]:
-    """The parent of process ``pid``, or None when it is gone."""
-    fields = _stat(pid)
-    return int(fields[1]) if fields else None
-
-
-def command_line(pid: int) -> List[str]:
-    """The arguments of process ``pid`` ([] when it is gone)."""
-    try:
-        with open(f"/proc/{pid}/cmdline", "rb") as f:
-            raw = f.read()
-    except OSError:
-        return []
-    return [word.decode("utf-8", "replace") for word in raw.split(b"\0") if word]
-
-
-def is_roslaunch(pid: int) -> bool:
-    """Whether process ``pid`` runs roslaunch (``roslaunch ...``, ``python3 .../roslaunch``
-    or ``python3 -m roslaunch``)."""
-    return any(os.path.basename(word) == "roslaunch" for word in command_line(pid)[:3])
-
-
 def is_guard(pid: int) -> bool:
     """Whether process ``pid`` is a guard waiting for its child (re-executed)."""
     words = command_line(pid)
@@ -100,7 +70,7 @@ def is_guard(pid: int) -> bool:
 
 def _alive(pid: int) -> bool:
     """Running or stopped; a zombie (ended, not yet reaped) is not alive."""
-    fields = _stat(pid)
+    fields = stat_fields(pid)
     return fields is not None and fields[0] != "Z"
 
 
@@ -112,7 +82,7 @@ def children_of(pid: int) -> List[int]:
     """The processes whose parent is ``pid``, alive, oldest first."""
     found = []
     for other in _all_pids():
-        fields = _stat(other)
+        fields = stat_fields(other)
         if fields and int(fields[1]) == pid and fields[0] != "Z":
             found.append(other)
     return sorted(found)
@@ -121,7 +91,7 @@ def children_of(pid: int) -> List[int]:
 def _group_alive(leader: int) -> bool:
     """Whether process group ``leader`` still has a live member."""
     for other in _all_pids():
-        fields = _stat(other)
+        fields = stat_fields(other)
         if fields and int(fields[2]) == leader and fields[0] != "Z":
             return True
     return False
@@ -133,7 +103,7 @@ class _Target:
 
     def __init__(self, pid: int) -> None:
         self.pid = pid
-        fields = _stat(pid)
+        fields = stat_fields(pid)
         self.group = fields is not None and int(fields[2]) == pid
 
     def alive(self) -> bool:
@@ -187,7 +157,7 @@ def stop_launch(launcher: int, guard: int) -> bool:
     except (ProcessLookupError, PermissionError):
         return False
     deadline = time.monotonic() + 2.0   # the stop takes effect at once; be sure before looking
-    while time.monotonic() < deadline and (_stat(launcher) or ["T"])[0] not in ("T", "t"):
+    while time.monotonic() < deadline and (stat_fields(launcher) or ["T"])[0] not in ("T", "t"):
         time.sleep(0.005)
     children = [pid for pid in children_of(launcher) if pid != guard]
     core: Dict[str, List[int]] = {"rosout": [], "master": []}

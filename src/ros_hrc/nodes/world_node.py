@@ -96,7 +96,8 @@ from ros_hrc.loop import settings
 from ros_hrc.loop.display import StepCaption
 from ros_hrc.loop.streams import WORLD_EPISODE_PARAM
 from ros_hrc.msg import Status, WorldState
-from ros_hrc.nodes.guard import is_guard, is_roslaunch, parent_of
+from ros_hrc.nodes.guard import is_guard
+from ros_hrc.process_tree import is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
 from ros_hrc.world import (HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World,
                            WorldConfig)

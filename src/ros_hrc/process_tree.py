@@ -1,0 +1,39 @@
+"""The machine's process tree, read from /proc (no ROS): who is whose parent, what a process
+runs. Shared by the world's guard (hrc_guard), the world node and the solvers, which each need
+to find the roslaunch that started them."""
+from __future__ import annotations
+
+import os
+from typing import List, Optional
+
+
+def stat_fields(pid: int) -> Optional[List[str]]:
+    """Fields of /proc/<pid>/stat after the command name (state, ppid, pgrp, ...), or None."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            text = f.read()
+    except OSError:
+        return None
+    return text[text.rindex(b")") + 2:].decode("ascii", "replace").split()
+
+
+def parent_of(pid: int) -> Optional[int]:
+    """The parent of process ``pid``, or None when it is gone."""
+    fields = stat_fields(pid)
+    return int(fields[1]) if fields else None
+
+
+def command_line(pid: int) -> List[str]:
+    """The arguments of process ``pid`` ([] when it is gone)."""
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            raw = f.read()
+    except OSError:
+        return []
+    return [word.decode("utf-8", "replace") for word in raw.split(b"\0") if word]
+
+
+def is_roslaunch(pid: int) -> bool:
+    """Whether process ``pid`` runs roslaunch (``roslaunch ...``, ``python3 .../roslaunch``
+    or ``python3 -m roslaunch``)."""
+    return any(os.path.basename(word) == "roslaunch" for word in command_line(pid)[:3])
