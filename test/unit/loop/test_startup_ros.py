@@ -21,6 +21,7 @@ ROOT = Path(__file__).resolve().parents[3]
 FAKE_WORLD = textwrap.dedent('''
     """The world's and hrc_obs's services, answering at once; prints each call."""
     import sys
+    import threading
     import rospy
     from std_srvs.srv import Trigger, TriggerResponse
     from ros_hrc.msg import WorldState
@@ -28,9 +29,18 @@ FAKE_WORLD = textwrap.dedent('''
                              ResetPlanner, ResetPlannerResponse)
     from ros_hrc.nodes.human_node import WORLD_SERVICES
 
+    PRINT_LOCK = threading.Lock()
+
+    def say(*parts):
+        # rospy answers each service on its own thread; print() writes its pieces one by
+        # one, so two calls at once could interleave into one garbled line.
+        with PRINT_LOCK:
+            sys.stdout.write(" ".join(str(part) for part in parts) + "\\n")
+            sys.stdout.flush()
+
     def trigger(name):
         def handler(_req):
-            print("called", name, flush=True)
+            say("called", name)
             return TriggerResponse(success=True, message=name + " done")
         return handler
 
@@ -39,11 +49,11 @@ FAKE_WORLD = textwrap.dedent('''
                                                       object_visible=True))
 
     def decide(req):
-        print("called /hrc/obs/decide", req.epoch, req.step, flush=True)
+        say("called /hrc/obs/decide", req.epoch, req.step)
         return DecideResponse(success=True, action="rIdle", belief_states=["S0"], belief=[1.0])
 
     def reset_planner(req):
-        print("called /hrc/obs/reset_planner", req.epoch, flush=True)
+        say("called /hrc/obs/reset_planner", req.epoch)
         return ResetPlannerResponse(success=True, message="belief reset")
 
     rospy.init_node("fake_world", disable_signals=True)
@@ -52,7 +62,7 @@ FAKE_WORLD = textwrap.dedent('''
     keep.append(rospy.Service("/hrc/world/state", GetWorldState, state))
     keep.append(rospy.Service("/hrc/obs/decide", Decide, decide))
     keep.append(rospy.Service("/hrc/obs/reset_planner", ResetPlanner, reset_planner))
-    print("fake world up", flush=True)
+    say("fake world up")
     sys.stdin.read()   # until the test closes our stdin
 ''')
 
