@@ -18,6 +18,8 @@ import operator
 import os
 from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
+from scipy import stats
+
 from ros_hrc.experiment import paired
 from ros_hrc.experiment.episode import ALONE_POLICY, is_reactive, robot_policy
 from ros_hrc.experiment.store import UNPAIRED, EpisodeRow, ensure_parent
@@ -116,7 +118,9 @@ def best_reactive(rows: Iterable[EpisodeRow]) -> Optional[str]:
 #: What one comparison gives (keys of :func:`compare`, each prefixed in the summary).
 COMPARISON_KEYS: Tuple[str, ...] = (
     "policy", "pairs", "success_diff", "success_p", "pre_empted_diff", "pre_empted_p",
-    "time_pairs", "time_median_diff", "time_p")
+    "time_pairs", "time_median_diff", "time_p", "success_q", "pre_empted_q", "time_q")
+#: The tests of a comparison whose p-values are adjusted together (see adjust_for_many_tests).
+TESTS: Tuple[str, ...] = ("success", "pre_empted", "time")
 
 
 def empty_comparison() -> Dict[str, Any]:
@@ -289,7 +293,27 @@ def summarize(rows: Iterable[Union[EpisodeRow, Mapping[str, Any]]],
                 _comparisons(entry, held_out[policy], reactive,
                              held_out.get(reactive, []) if reactive else [])
                 summary.append(entry)
+    adjust_for_many_tests(summary)
     return summary
+
+
+def adjust_for_many_tests(summary: Sequence[Dict[str, Any]]) -> None:
+    """Set each comparison's q-values (``*_q``): its p-values adjusted for the number of tests
+    a summary makes, by Benjamini and Hochberg's false discovery rate
+    (``scipy.stats.false_discovery_control``). A family is one test against one baseline
+    (e.g. McNemar's test of success against the best reactive budget) over every row of the
+    summary, per human and pooled; a q-value below 0.05 keeps the expected share of false
+    discoveries among such claims below 5 %. Rows without the test get NaN."""
+    for prefix in ("vs_reactive", "vs_alone"):
+        for test in TESTS:
+            tested = [e for e in summary if math.isfinite(e.get(f"{prefix}_{test}_p", math.nan))]
+            for e in summary:
+                e[f"{prefix}_{test}_q"] = math.nan
+            if tested:
+                q = stats.false_discovery_control([e[f"{prefix}_{test}_p"] for e in tested],
+                                                  method="bh")
+                for e, value in zip(tested, q):
+                    e[f"{prefix}_{test}_q"] = float(value)
 
 
 def format_ci(mean: float, low: float, high: float, digits: int = 2) -> str:
@@ -365,15 +389,16 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
                 [*_names(e), _markdown_cell(str(e[f"{prefix}_policy"])),
                  str(e[f"{prefix}_pairs"]),
                  _number(e[f"{prefix}_success_diff"], signed=True),
-                 format_p(e[f"{prefix}_success_p"]),
+                 format_p(e[f"{prefix}_success_p"]), format_p(e[f"{prefix}_success_q"]),
                  _number(e[f"{prefix}_pre_empted_diff"], signed=True),
-                 format_p(e[f"{prefix}_pre_empted_p"]),
+                 format_p(e[f"{prefix}_pre_empted_p"]), format_p(e[f"{prefix}_pre_empted_q"]),
                  str(e[f"{prefix}_time_pairs"]),
                  _number(e[f"{prefix}_time_median_diff"], signed=True),
-                 format_p(e[f"{prefix}_time_p"])])
+                 format_p(e[f"{prefix}_time_p"]), format_p(e[f"{prefix}_time_q"])])
     compared = _table(["Human model", "Robot policy", "Against", "Pairs", "Δ success",
-                       "p (McNemar)", "Δ pre-empted", "p (McNemar)", "Pairs both succeed",
-                       "Δ time to success (s, median)", "p (Wilcoxon)"], comparisons, 3)
+                       "p (McNemar)", "q", "Δ pre-empted", "p (McNemar)", "q",
+                       "Pairs both succeed", "Δ time to success (s, median)", "p (Wilcoxon)",
+                       "q"], comparisons, 3)
     best = {}
     for e in summary:
         if e["best_reactive"]:
@@ -417,7 +442,9 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
         "policy's minus the other's (proportions of the pairs; the median of the paired "
         "differences in time, negative: the policy succeeded sooner). p: McNemar's exact "
         "test (two-sided) for success and for pre-emption, Wilcoxon's signed-rank test "
-        "(two-sided) for the time to success over the pairs where both succeeded.",
+        "(two-sided) for the time to success over the pairs where both succeeded. q: the "
+        "p-value adjusted for the many tests of this summary (Benjamini-Hochberg false "
+        "discovery rate over every row's same test against the same kind of baseline).",
         "", "## Best reactive budget", "", best_table, "",
         "Best: the highest success rate, then the lowest pre-emption rate, then the shortest "
         "median time to success, then the smallest budget.",

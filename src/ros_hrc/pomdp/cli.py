@@ -528,24 +528,42 @@ def _register_policy(subparsers) -> None:
                    metavar="N", help=f"DESPOT trials per decision (default {DEFAULT_TRIALS})")
     p.add_argument("--seed", type=_seed, default=0, metavar="K",
                    help="the planner's seed, 0 to 2**64-1 (default 0)")
+    p.add_argument("--sequence", action="append", type=_policy_sequence, metavar="NAME=OBS,...",
+                   help="a sequence of your own, e.g. fails_after_warning=O7,O19,O7,O7 "
+                        "(repeatable; given, only these are run)")
+    p.add_argument("--belief", action="store_true",
+                   help="add the whole belief after each sequence's last observation")
     p.add_argument("--json", action="store_true", help="print one JSON object (rows)")
     p.set_defaults(func=cmd_policy)
+
+
+def _policy_sequence(text: str):
+    from ros_hrc.pomdp.policy_table import parse_sequence
+    try:
+        return parse_sequence(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 @_solver_errors_exit_2
 def cmd_policy(args: argparse.Namespace) -> int:
     """``hrc_pomdp policy MODEL``: the planner's actions after the typical sequences."""
     from ros_hrc.loop.models import load_robot_model
-    from ros_hrc.pomdp.policy_table import despot_config, format_table, policy_table
+    from ros_hrc.pomdp.policy_table import SEQUENCES, despot_config, format_table, policy_table
 
     model = load_robot_model(args.model)
-    rows = policy_table(model, config=despot_config(args.trials), seed=args.seed)
+    sequences = tuple(args.sequence) if args.sequence else SEQUENCES
+    try:
+        rows = policy_table(model, sequences, config=despot_config(args.trials), seed=args.seed)
+    except ValueError as exc:
+        print(f"hrc_pomdp policy: {exc}", file=sys.stderr)
+        return 2
     facts = {"model": args.model, "trials": args.trials, "seed": args.seed,
              "rows": [row.as_dict() for row in rows]}
 
     def print_text(facts: dict) -> None:
         print(f"{args.model}: DESPOT, {args.trials} trials per decision, seed {args.seed}")
-        print(format_table(rows))
+        print(format_table(rows, with_belief=args.belief))
 
     return emit(facts, args.json, print_text)
 

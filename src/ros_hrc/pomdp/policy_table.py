@@ -22,7 +22,7 @@ from __future__ import annotations
 import logging
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -78,6 +78,7 @@ class PolicyRow:
     needs_help: float            # belief mass on S2..S5 after the last observation
     warned: float                # belief mass on S6 after the last observation
     zero_probability: List[str] = field(default_factory=list)  # observations it called impossible
+    belief: Dict[str, float] = field(default_factory=dict)  # the whole belief after the last one
 
     @property
     def last_action(self) -> str:
@@ -87,7 +88,8 @@ class PolicyRow:
         return {"name": self.sequence.name, "observations": list(self.sequence.observations),
                 "what": self.sequence.what, "actions": self.actions,
                 "last_action": self.last_action, "needs_help": self.needs_help,
-                "warned": self.warned, "zero_probability": self.zero_probability}
+                "warned": self.warned, "zero_probability": self.zero_probability,
+                "belief": self.belief}
 
 
 def despot_config(trials: int = DEFAULT_TRIALS, scenarios: int = 500, depth: int = 90,
@@ -119,7 +121,8 @@ def run_sequence(model: Model, sequence: ObservationSequence, config: DespotConf
     belief = belief / belief.sum()
     return PolicyRow(sequence, actions,
                      needs_help=_mass(model, belief, sorted(task.NEEDS_HELP_STATES)),
-                     warned=_mass(model, belief, ["S6"]), zero_probability=impossible)
+                     warned=_mass(model, belief, ["S6"]), zero_probability=impossible,
+                     belief={s: float(p) for s, p in zip(model.states, belief)})
 
 
 @contextmanager
@@ -154,14 +157,40 @@ def policy_table(model: Model, sequences: Sequence[ObservationSequence] = SEQUEN
         return [run_sequence(model, seq, config, seed, tables) for seq in sequences]
 
 
-def format_table(rows: Sequence[PolicyRow]) -> str:
-    """The rows as a Markdown table: sequence, observations, actions, P(needs help), P(S6)."""
-    lines = ["| sequence | observations | planner's actions (after each) | P(needs help) | "
-             "P(warned) |", "|---|---|---|---|---|"]
+def parse_sequence(text: str) -> ObservationSequence:
+    """A sequence a user names on the command line, ``NAME=O7,O7,O19`` (commas or spaces);
+    ValueError saying what is wrong. Its observations are checked against the model later
+    (:func:`check_sequences`)."""
+    name, sep, observations = text.partition("=")
+    name = name.strip()
+    words = observations.replace(",", " ").split()
+    if not sep or not name or not words:
+        raise ValueError(f"sequence {text!r}: expected NAME=OBS,OBS,... (e.g. "
+                         f"fails_after_warning=O7,O19,O7,O7)")
+    return ObservationSequence(name, tuple(words), "given on the command line")
+
+
+def format_belief(belief: Dict[str, float], smallest: float = 0.005) -> str:
+    """The states the belief gives at least ``smallest``, as ``S2 0.15, S3 0.75``."""
+    return ", ".join(f"{state} {p:.2f}" for state, p in belief.items() if p >= smallest)
+
+
+def format_table(rows: Sequence[PolicyRow], with_belief: bool = False) -> str:
+    """The rows as a Markdown table: sequence, observations, actions, P(needs help), P(S6),
+    and with ``with_belief`` the whole belief after the last observation."""
+    head = ("| sequence | observations | planner's actions (after each) | P(needs help) | "
+            "P(warned) |")
+    rule = "|---|---|---|---|---|"
+    if with_belief:
+        head += " belief after the last |"
+        rule += "---|"
+    lines = [head, rule]
     for row in rows:
         note = (f" (impossible: {' '.join(row.zero_probability)})" if row.zero_probability
                 else "")
-        lines.append(f"| {row.sequence.name} | {' '.join(row.sequence.observations)} | "
-                     f"{' '.join(row.actions)}{note} | {row.needs_help:.2f} | "
-                     f"{row.warned:.2f} |")
+        line = (f"| {row.sequence.name} | {' '.join(row.sequence.observations)} | "
+                f"{' '.join(row.actions)}{note} | {row.needs_help:.2f} | {row.warned:.2f} |")
+        if with_belief:
+            line += f" {format_belief(row.belief)} |"
+        lines.append(line)
     return "\n".join(lines)

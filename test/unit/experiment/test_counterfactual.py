@@ -16,7 +16,7 @@ from ros_hrc.experiment.episode import (against_warning, pair, pair_alone, robot
                                         score_episode, step_rows, wasted_actions)
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256, read_fitted_on
 from ros_hrc.experiment.stack import launch_arguments
-from ros_hrc.experiment.statistics import POOLED, best_reactive, summarize
+from ros_hrc.experiment.statistics import POOLED, best_reactive, markdown, summarize
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp.io import load_model
@@ -346,3 +346,27 @@ def test_a_budget_sweep_names_its_policies_and_launches_each_budget(tmp_path):
         robot_policy("reactive@0")
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--reactive-budgets", "0..3"])
+
+
+def test_q_values_adjust_each_test_over_the_summary_by_benjamini_hochberg():
+    """Against values worked by hand: p = 0.01, 0.04, 0.03 of one family give BH q-values
+    min over the larger ranks of p·m/rank: 0.03, 0.04, 0.04."""
+    from ros_hrc.experiment.statistics import adjust_for_many_tests
+    summary = [{"vs_reactive_success_p": p, "vs_reactive_pre_empted_p": math.nan,
+                "vs_reactive_time_p": 0.5, "vs_alone_success_p": 0.2,
+                "vs_alone_pre_empted_p": 1.0, "vs_alone_time_p": math.nan}
+               for p in (0.01, 0.04, 0.03)]
+    adjust_for_many_tests(summary)
+    assert [e["vs_reactive_success_q"] for e in summary] == pytest.approx([0.03, 0.04, 0.04])
+    assert all(math.isnan(e["vs_reactive_pre_empted_q"]) for e in summary)
+    assert [e["vs_reactive_time_q"] for e in summary] == pytest.approx([0.5] * 3)
+    assert [e["vs_alone_pre_empted_q"] for e in summary] == pytest.approx([1.0] * 3)
+
+
+def test_the_summary_gives_every_comparison_its_q_value():
+    summary = summarize(stream_rows())
+    compared = [e for e in summary if e["vs_reactive_policy"]]
+    assert compared
+    for e in compared:
+        assert e["vs_reactive_success_q"] >= e["vs_reactive_success_p"]
+    assert "| q |" in markdown(summary)

@@ -141,3 +141,51 @@ def test_the_shipped_considerate_robot_lets_a_human_who_keeps_trying_try(conside
 def test_the_shipped_considerate_robot_leaves_a_human_who_holds_the_object_alone(
         considerate_fitted):
     assert considerate_fitted["holds_object"].last_action == "rIdle"
+
+
+def test_hrc_pomdp_policy_runs_the_users_own_sequences_and_shows_the_belief(capsys):
+    """What a researcher asks of a model: what does it do after *this* history, and what
+    does it then believe? Given sequences replace the typical ones."""
+    assert cli.run(["policy", "robot_considerate_fitted", "--belief",
+                    "--sequence", "two_failures=O7,O7", "--sequence", "warned=O19"]) == 0
+    out = capsys.readouterr().out
+    table = [line for line in out.splitlines() if line.startswith("| ")]
+    assert table[0].endswith("| belief after the last |")
+    assert [line.split(" | ")[0] for line in table[1:]] == ["| two_failures", "| warned"]
+    assert cli.run(["policy", "robot_considerate_fitted", "--json",
+                    "--sequence", "two_failures=O7 O7"]) == 0
+    row, = json.loads(capsys.readouterr().out)["rows"]
+    assert row["observations"] == ["O7", "O7"] and len(row["actions"]) == 2
+    assert sum(row["belief"].values()) == pytest.approx(1.0)
+    assert row["needs_help"] == pytest.approx(sum(row["belief"][s] for s in
+                                                  ("S2", "S3", "S4", "S5")))
+
+
+@pytest.mark.parametrize("words, what", [
+    (["--sequence", "no_observations="], "expected NAME=OBS"),
+    (["--sequence", "O7,O7"], "expected NAME=OBS"),
+    (["--sequence", "typo=O7,O99"], "observation O99 is not one of the model's"),
+])
+def test_a_bad_sequence_of_ones_own_is_one_line_and_exit_2(capsys, words, what):
+    assert cli.run(["policy", "robot_considerate_fitted"] + words) == 2
+    err = capsys.readouterr().err
+    assert what in err
+    assert err.strip().splitlines()[-1].startswith("hrc_pomdp policy")
+
+
+def test_a_warning_resets_the_shipped_considerate_robots_count_of_failures(capsys):
+    """Recorded, not endorsed (README, "The study": why it loses on the persistent failer).
+    Eight failed grasps in a row and the robot believes the human failed more than once (S3)
+    and fetches; a warning between them sends its belief back towards a first failure (S2),
+    after which fit-set humans mostly succeed alone, so it waits. Its seven states have no
+    count of failures, and the fit set's only warner restarts fresh after warning."""
+    rows = {row.sequence.name: row for row in policy_table(
+        load_robot_model("robot_considerate_fitted"),
+        [ObservationSequence("failed_grasps", ("O7",) * 8, ""),
+         ObservationSequence("fails_warns_twice",
+                             ("O7", "O7", "O19", "O7", "O7", "O19", "O7", "O7", "O7"), "")],
+        config=despot_config(500))}
+    assert "rGrasp_obj" in rows["failed_grasps"].actions
+    assert rows["failed_grasps"].belief["S3"] > 0.8
+    assert not ACTING & set(rows["fails_warns_twice"].actions)
+    assert rows["fails_warns_twice"].belief["S2"] > 0.3
