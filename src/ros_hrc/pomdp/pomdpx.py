@@ -19,7 +19,12 @@ What is read
   positions of one size) or ``uniform``; ``<ValueTable>`` holds numbers. Later entries
   override earlier ones.
 * Rewards may depend on the action and on previous *and* next state variables
-  (the seed's human model rewards ``R(action, state_1)``).
+  (the seed's human model rewards ``R(action, state_1)``), and on observation variables: the
+  flat ``R(s, a, s')`` is then the expectation over the observation given (a, s'),
+  Σ_o O(o | s', a) R(a, s, s', o), as SARSOP reads it.
+* Malformed XML is reported at expat's line, in words where expat only says "invalid
+  token": a comment opened inside another one, ``--`` inside a comment. A word of a table that
+  is not a number is reported at its own line (a table may span many).
 
 How a factored file becomes one flat model
 ------------------------------------------
@@ -67,6 +72,7 @@ is not kept: read back, the start is no longer conditioned on them.
 """
 from __future__ import annotations
 
+import itertools
 import re
 from dataclasses import dataclass, field
 from functools import reduce
@@ -145,10 +151,37 @@ def _parse_xml(text: Union[str, bytes], source: str):
                                                   "entity declarations and external references "
                                                   "are not allowed") from None
     except ParseError as exc:
-        line = exc.position[0] if getattr(exc, "position", None) else None
+        position = getattr(exc, "position", None)
+        line = position[0] if position else None
         what = re.sub(r": line \d+, column \d+$", "", str(exc))
+        hint = _xml_error_hint(text, *position) if position else None
         raise ModelFormatError(source, str(line) if line else None,
-                               f"malformed XML: {what}") from None
+                               f"malformed XML: {hint or what}") from None
+
+
+def _xml_error_hint(text: Union[str, bytes], line: int, column: int) -> Optional[str]:
+    """What is wrong at expat's error position, in words, for the mistakes expat only calls an
+    "invalid token": a comment opened inside another one (XML comments do not nest; SARSOP's
+    reader accepts them) and ``--`` inside a comment. None when it is something else."""
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", errors="replace")
+    lines = text.split("\n")
+    if not 1 <= line <= len(lines):
+        return None
+    offset = sum(len(l) + 1 for l in lines[:line - 1]) + column
+    # expat stops right after the "--" it refuses.
+    if text[max(0, offset - 2):offset] != "--":
+        return None
+    opened = text.rfind("<!--", 0, offset - 2)
+    if opened < 0 or text.find("-->", opened + 4, offset - 2) >= 0:
+        return None                 # not inside a comment
+    opened_line = text.count("\n", 0, opened) + 1
+    if text[max(0, offset - 4):offset] == "<!--":
+        return (f"a comment is opened inside another comment (the one opened on line "
+                f"{opened_line}): XML comments do not nest; close the first with '-->' "
+                f"before opening another")
+    return (f"'--' inside a comment (opened on line {opened_line}): XML does not allow two "
+            f"hyphens in a row within a comment")
 
 
 def _local(tag: str) -> str:
@@ -341,6 +374,18 @@ class _Reader:
         where = str(line) if line else (f"<{_local(elem.tag)}>" if elem is not None else None)
         raise ModelFormatError(self.source, where, what)
 
+    def fail_at_word(self, elem, k: int, what: str):
+        """Fail naming the line of the ``k``-th word of ``elem``'s text (a table's numbers
+        may span many lines below its tag)."""
+        line = getattr(elem, "line", None)
+        text = elem.text or ""
+        if line:
+            words = re.finditer(r"\S+", text)
+            start = next((m.start() for i, m in enumerate(words) if i == k), 0)
+            line += text.count("\n", 0, start)
+            raise ModelFormatError(self.source, str(line), what)
+        self.fail(elem, what)
+
     def _one(self, parent, tag: str, required: bool = True):
         found = _kids(parent, tag)
         if len(found) > 1:
@@ -463,7 +508,8 @@ class _Reader:
     _VAR_ROLES = {"initial": ("prev", "curr"), "transition": ("curr",), "observation": ("obs",),
                   "reward": ("reward",)}
     _PARENT_ROLES = {"initial": ("prev", "curr"), "transition": ("action", "prev"),
-                     "observation": ("action", "curr"), "reward": ("action", "prev", "curr")}
+                     "observation": ("action", "curr"),
+                     "reward": ("action", "prev", "curr", "obs")}
 
     def _factors(self, elem, tag: str, kind: str) -> List[_Factor]:
         out = []
@@ -574,14 +620,18 @@ class _Reader:
             try:
                 values = np.array(words, dtype=float)
             except ValueError:
-                bad = next(w for w in words if not _is_number(w))
-                self.fail(vt, f"<{value_tag}> expected numbers, found {bad!r}")
+                k = next(i for i, w in enumerate(words) if not _is_number(w))
+                allowed = "numbers" if not probabilities else \
+                    "numbers, or 'identity' or 'uniform' alone"
+                self.fail_at_word(vt, k, f"<{value_tag}> expected numbers, found "
+                                         f"{words[k]!r}, which is not a number (it holds "
+                                         f"{allowed})")
             if values.size != need:
                 self.fail(vt, f"<{value_tag}> has {values.size} number(s); "
                               f"<Instance>{' '.join(tokens)}</Instance> needs {need}")
             if not np.all(np.isfinite(values)):
-                bad = words[int(np.flatnonzero(~np.isfinite(values))[0])]
-                self.fail(vt, f"<{value_tag}> has a non-finite number {bad!r}")
+                k = int(np.flatnonzero(~np.isfinite(values))[0])
+                self.fail_at_word(vt, k, f"<{value_tag}> has a non-finite number {words[k]!r}")
             if not probabilities and values.size:
                 problem = reward_bound_problem(float(np.abs(values).max()), self.discount)
                 if problem:
@@ -703,7 +753,7 @@ class _Reader:
             prev_digits = [d[rows] for d in digits]
             curr_digits = [d[cols] for d in digits]
             for f in rewards:
-                vals += f.table.gather(self._flat(f, f.parents, a, prev_digits, curr_digits))
+                vals += self._reward_values(f, obs_f, a, prev_digits, curr_digits)
             m = sp.csr_matrix((vals, (rows, cols)), shape=(S, S))
             m.eliminate_zeros()
             R.append(m)
@@ -761,9 +811,40 @@ class _Reader:
                        f"building T, O and R ({S} states; {sum(t_nnz)}, {sum(o_nnz)} and "
                        f"{sum(r_nnz)} non-zeros)")
 
+    def _reward_values(self, f: _Factor, obs_f: List[_Factor], action: int, prev_digits,
+                       curr_digits) -> np.ndarray:
+        """One <Func>'s reward at each (s, s') cell for ``action``. A reward that depends on
+        observation variables is their expectation given (action, s'), as SARSOP reads it:
+        Σ_o Π_i P(o_i | action, s') f(..., o) (the observation variables are independent given
+        them, each with its own table)."""
+        seen = [v for v in f.parents if v.role == "obs"]
+        if not seen:
+            return f.table.gather(self._flat(f, f.parents, action, prev_digits, curr_digits))
+        if not obs_f:
+            raise ModelFormatError(self.source, str(f.line), f"{f.label}: a reward conditioned "
+                                   f"on the observation {seen[0].name!r} needs observations, "
+                                   "but every state variable is fully observable (the "
+                                   "<ObsFunction> is ignored)")
+        # P(o_v = k | action, s') for each cell, per observation variable the reward reads.
+        probs = []
+        for v in seen:
+            g = obs_f[v.index]
+            probs.append([g.table.gather(self._flat(g, g.axes, action, prev_digits, curr_digits,
+                                                    {v.index: k})) for k in range(v.size)])
+        total = np.zeros(len(curr_digits[0]) if curr_digits else 1)
+        for combo in itertools.product(*(range(v.size) for v in seen)):
+            weight = reduce(np.multiply, (probs[i][k] for i, k in enumerate(combo)))
+            if not np.any(weight):
+                continue
+            chosen = {v.index: k for v, k in zip(seen, combo)}
+            total += weight * f.table.gather(self._flat(f, f.parents, action, prev_digits,
+                                                        curr_digits, chosen))
+        return total
+
     def _flat(self, factor: _Factor, axes: List[_Var], action: Optional[int], prev_digits,
-              curr_digits) -> np.ndarray:
-        """Flat index into the table over ``axes`` for each state (or state pair).
+              curr_digits, observed: Optional[Dict[int, int]] = None) -> np.ndarray:
+        """Flat index into the table over ``axes`` for each state (or state pair), with
+        ``observed`` giving the value of each observation variable (by its index) it has.
 
         Given only the parents, it indexes rows of the table reshaped to (parent
         configurations, values of the variable).
@@ -778,6 +859,8 @@ class _Reader:
                 value = prev_digits[v.index]
             elif v.role == "curr":
                 value = curr_digits[v.index]
+            elif v.role == "obs" and observed is not None and v.index in observed:
+                value = observed[v.index]
             else:
                 raise ModelFormatError(self.source, str(factor.line), f"{factor.label}: "
                                        f"{v.name} ({v.role}) cannot be used here")
