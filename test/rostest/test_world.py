@@ -25,7 +25,8 @@ TABLE_3_2 = [
     "/human/is_a2", "/human/is_h4", "/human/reset", "/robot/point_to_obj", "/robot/grasp",
     "/robot/cancel_action", "/robot/reset",
 ]
-EXTRA = ["/human/idle", "/hrc/world/snapshot"]
+EXTRA = ["/human/idle", "/hrc/world/snapshot",
+         "/robot/grasp_planning"]   # the fabric task's graspPlanning
 WAIT = 60.0
 
 
@@ -123,6 +124,23 @@ class WorldServices(WorldTestBase):
         self.assertTrue(ok, message)
         self.assertEqual(self.state().holder, "robot")
         self.assertFalse(self.call("/human/is_ho")[0])
+
+    def test_grasp_planning_waits_over_the_object_then_a_grasp_takes_it(self):
+        """The fabric task's graspPlanning: the open gripper goes over where the belt brings
+        the object, and holds; nothing is grasped; a grasp then takes it."""
+        ok, message = self.call("/robot/grasp_planning")
+        self.assertFalse(ok)                # at the start the object is far from the robot
+        self.assertIn("out of reach", message)
+        self.call("/human/walk_away")
+        self.call("/human/look_around")     # the belt brings the object towards the robot
+        ok, message = self.call("/robot/grasp_planning")
+        self.assertTrue(ok, message)
+        self.assertIn("ready to grasp", message)
+        state = self.state()
+        self.assertEqual((state.robot_action, state.holder), ("grasp_planning", "none"))
+        ok, message = self.call("/robot/grasp")
+        self.assertTrue(ok, message)
+        self.assertEqual(self.state().holder, "robot")
 
     def test_point_then_cancel_then_reset(self):
         ok, message = self.call("/robot/point_to_obj")

@@ -12,11 +12,14 @@ it runs another caller's call for that agent gets ``success=false``, ``busy: the
 doing grasp for /hrc_human, ...`` at once (docs/world.md, "Who is served first"). The caller
 is the node named in the call's connection header.
 
-Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapshot):
+Services (names as in the seed's Table 3.2, plus ``/human/idle``, ``/robot/grasp_planning``
+and the snapshot):
   /human/walk_away, /human/look_around, /human/warn_robot, /human/attempt_grasp, /human/grasp,
   /human/reset (human and object back to the start), /human/idle (relax and do nothing: the
   MDP's idle action), /human/is_ov, /human/is_oir, /human/is_ho, /human/is_a0, /human/is_a2,
   /human/is_h4, /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset,
+  /robot/grasp_planning (the open gripper to the pre-grasp pose over where the belt brings
+  the object, no grasp: the fabric task's graspPlanning),
   /hrc/world/snapshot (writes a PNG of the scene; ``message`` is its path)
   /hrc/world/reset (human, robot and object back at their start at once, interrupting any
                     action under way: the coordinator's reset; the world's random stream
@@ -25,7 +28,9 @@ Services (names as in the seed's Table 3.2, plus ``/human/idle`` and the snapsho
   /hrc/world/state (ros_hrc/GetWorldState: the state now, as /hrc/world_state publishes it)
 
 Topics published:
-  /hrc/world_state (ros_hrc/WorldState)  object pose, holder, both agents' actions, predicates,
+  /hrc/world_state (ros_hrc/WorldState)  object pose, holder, whether it left the belt (the
+                                         task's end: nobody took it before the belt's end),
+                                         both agents' actions, predicates,
                                          at ~publish_rate Hz of wall-clock time, while anyone
                                          subscribes
   /clock (rosgraph_msgs/Clock)           the world's simulated time, when /use_sim_time is true

@@ -1,16 +1,19 @@
-"""The PR2-like robot: points at the object, grasps it with the right gripper, stops, resets.
+"""The PR2-like robot: points at the object, plans a grasp, grasps it with the right gripper,
+stops, resets.
 
 The right arm is solved in closed form (shoulder pan, then a planar shoulder-lift / elbow /
 wrist chain with the roll joints at 0), with link lengths measured from the URDF at load time.
 The robot plans before it moves: a grasp of an object out of reach fails with the distance,
 after a reach that stops short (the arm stretched towards the object, then back), so that a
 watcher sees the attempt; it never closes the gripper on nothing, unlike the human, who tries.
+Planning a grasp (FABRIC's fifth robot action, ``graspPlanning``) is the grasp's first half
+alone: the open gripper goes to the pre-grasp pose over where the object will be, and waits.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Dict, Optional, Sequence, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -61,11 +64,15 @@ class Robot(ArticulatedBody):
 
     def __init__(self, client: PhysicsClient, urdf_path: str, config: RobotConfig,
                  control_period: float, work_object: WorkObject,
-                 split_visuals: Optional[bool] = None) -> None:
+                 split_visuals: Optional[bool] = None,
+                 predict: Optional[Callable[[float], np.ndarray]] = None) -> None:
         super().__init__(client, urdf_path, (*config.position, 0.0), config.facing, control_period,
                          split_visuals)
         self.config = config
         self.object = work_object
+        #: ``predict(seconds)``: where the object will be then, if nobody touches it (the world
+        #: knows the belt); without it the robot assumes the object stays where it is.
+        self.predict = predict or (lambda _seconds: self.object.position())
         self.set_collision_group(ROBOT_GROUP, 1)
         # Arm geometry from the URDF in its zero pose (arm straight forwards).
         pan, _ = self.link_frame("r_shoulder_pan_link")
@@ -80,6 +87,14 @@ class Robot(ArticulatedBody):
         self.activity = "idle"
         self.moving = False
         self.teleport(_REST)
+
+    @property
+    def plan_lead(self) -> float:
+        """How far ahead a planned grasp aims, s: the planning motion's own duration, so the
+        open gripper arrives over the object as the belt brings it there, and a grasp begun
+        next starts from the pre-grasp pose over the object (the grasp plans on where the
+        object is when it starts)."""
+        return self.config.reach_time
 
     @property
     def reach(self) -> float:
@@ -241,6 +256,39 @@ class Robot(ArticulatedBody):
         if self.object.holder == "human":
             return Outcome(False, "missed: the human took the object first")
         return Outcome(False, f"missed: the gripper closed {gap:.2f} m from the object")
+
+    def grasp_planning(self) -> Motion:
+        """Open the right gripper over where the object will be (the pre-grasp pose, ``approach``
+        back along the gripper from it) and hold there: no grasp. Where the object will be
+        is :meth:`predict` ``plan_lead`` seconds ahead (the belt carries it; it stops at the
+        belt's end); out of reach there, where it is now; out of reach both, the arm stretches
+        towards the predicted position and the plan fails with the distance."""
+        self.activity = "grasp_planning"
+        c = self.config
+        if self.object.holder != NOBODY:
+            return Outcome(False, f"cannot plan a grasp: the {self.object.holder} holds the object")
+        lead = self.plan_lead
+        predicted = np.asarray(self.predict(lead), float)
+        target, where = predicted, f"where it will be in {lead:.1f} s"
+        pitch = self.plan_grasp(target)
+        if pitch is None:
+            target, where = self.object.position(), "where it is (its predicted place is out of reach)"
+            pitch = self.plan_grasp(target)
+        opened = {f: 0.045 for f in _FINGERS}
+        if pitch is None:
+            distance = self.shoulder_distance(predicted)
+            yield from self.move({**self.point_pose(predicted, gap=c.approach), **opened},
+                                 c.reach_time)
+            return Outcome(False, f"cannot plan a grasp: the object's predicted place, x = "
+                                  f"{predicted[0]:+.2f} m in {lead:.1f} s, is out of reach, "
+                                  f"{distance:.2f} m from the right shoulder (the arm reaches "
+                                  f"{self.reach:.2f} m)")
+        pregrasp = target - c.approach * self._gripper_direction(target, pitch)
+        pose = self.solve_tool(pregrasp, pitch)   # plan_grasp checked it is reachable
+        yield from self.move({**pose, **opened, **self.look_at(target)}, c.reach_time)
+        return Outcome(True, f"gripper open {c.approach:.2f} m back from the object's place at "
+                             f"x = {target[0]:+.2f} m ({where}), pitched "
+                             f"{math.degrees(-pitch):.0f} deg down: ready to grasp")
 
     def _lift_pose(self, grasped_at: np.ndarray, pitch: float) -> Optional[Dict[str, float]]:
         """Arm joints holding the object ``lift_height`` above where it was taken (or as high as

@@ -61,9 +61,10 @@ from .window import WINDOW_TITLE, WindowClosed, bullet_windows, name_window, scr
 
 LOG = logging.getLogger(__name__)
 
-#: Actions each agent knows (the seed's Table 3.2, plus the human's ``idle``).
+#: Actions each agent knows (the seed's Table 3.2, plus the human's ``idle`` and the robot's
+#: ``grasp_planning``, FABRIC's graspPlanning: the open gripper over the object, no grasp).
 HUMAN_ACTIONS = ("walk_away", "look_around", "warn_robot", "attempt_grasp", "grasp", "idle", "reset")
-ROBOT_ACTIONS = ("point_to_obj", "grasp", "cancel_action", "reset")
+ROBOT_ACTIONS = ("point_to_obj", "grasp", "cancel_action", "reset", "grasp_planning")
 #: The human predicates (seed Table 3.2), answered by :meth:`World.query`.
 PREDICATES = ("is_ov", "is_oir", "is_ho", "is_a0", "is_a2", "is_h4")
 #: Requests that take effect at once and interrupt the agent's motion and queue.
@@ -294,7 +295,7 @@ class World:
         self.human = Human(c, str(self.model_dir / "human.urdf"), cfg.human, self.control_period,
                            self.object, self.rng, cfg.split_visuals)
         self.robot = Robot(c, str(self.model_dir / "pr2_like.urdf"), cfg.robot, self.control_period,
-                           self.object, cfg.split_visuals)
+                           self.object, cfg.split_visuals, self._predicted_object)
         self._channels: Dict[str, _Channel] = {"human": _Channel(self.human), "robot": _Channel(self.robot)}
 
     @staticmethod
@@ -825,6 +826,24 @@ class World:
         """Change the belt speed (m/s, downstream positive) from the next step on."""
         with self._locked():
             self.conveyor.speed = float(speed)
+
+    def predict_object(self, seconds: float) -> np.ndarray:
+        """Where the object will be in ``seconds`` of simulated time if nobody touches it: the
+        belt carries it at its speed and the end stop holds it; held or off the belt, it is
+        where it is."""
+        with self._locked():
+            return self._predicted_object(seconds)
+
+    def _predicted_object(self, seconds: float) -> np.ndarray:
+        # (Under the lock: the robot asks from inside its motion, on the stepping thread.)
+        position = self.object.position()
+        if self.object.holder != "none" or not self.conveyor.is_on_belt(position):
+            return position
+        half = self.object.config.size / 2
+        x = position[0] + self.conveyor.speed * max(0.0, seconds)
+        x = min(x, max(position[0], self.conveyor.stop_x - half))   # the stop holds it
+        x = max(x, min(position[0], self.config.conveyor.start_x + half))
+        return np.array([x, position[1], position[2]])
 
     def state(self) -> dict:
         """A snapshot of the world as plain data (JSON-ready)."""

@@ -46,3 +46,18 @@ def test_reset_puts_the_object_back_at_the_start(world):
     world.advance(2.0)
     world.reset()
     assert np.allclose(world.object.position(), world.object.start_position, atol=2e-3)
+
+
+def test_the_object_at_the_belts_end_is_reported_as_left_the_belt():
+    """The task's end (FABRIC's GlobalFail, the seed's missed object): world.state() (and so
+    /hrc/world_state's object_left_belt) says the object left the belt once nobody took it
+    before the belt's end, not before, and never while someone holds it."""
+    with World(WorldConfig(belt_speed=0.6)) as world:
+        assert not world.state()["object"]["left_belt"]
+        world.advance(2.0)
+        assert not world.state()["object"]["left_belt"]   # past the human, still on its way
+        world.advance(2.0)
+        state = world.state()["object"]
+        assert state["left_belt"] and state["holder"] == "none" and state["on_belt"]
+        assert world.run("robot", "grasp").success          # the robot takes it from the end
+        assert not world.state()["object"]["left_belt"]

@@ -89,3 +89,62 @@ def test_a_refused_grasp_reaches_towards_the_object_and_stops_short(world):
     assert max(path) > 0.2   # a reach a person sees, not a twitch
     assert np.linalg.norm(world.robot.tool_position() - start) < 0.01   # back at rest
     assert world.object.holder == "none"
+
+
+# -- planning a grasp (FABRIC's graspPlanning: /robot/grasp_planning) --------------------------
+def _pregrasp_gap(world):
+    return world.robot.tool_position() - world.object.position()
+
+
+def test_grasp_planning_opens_the_gripper_over_where_the_belt_brings_the_object():
+    with World(WorldConfig(belt_speed=0.05, work_object=ObjectConfig(start=(0.0, 0.0)))) as w:
+        predicted = w.predict_object(w.robot.plan_lead)
+        assert predicted[0] == pytest.approx(w.object.position()[0] + 0.05 * w.robot.plan_lead)
+        outcome = w.run("robot", "grasp_planning")
+        assert outcome.success and "ready to grasp" in outcome.message, outcome.message
+        assert outcome.duration == pytest.approx(w.robot.config.reach_time, abs=1 / 60)
+        # the belt brought the object where it was predicted, under the open gripper
+        assert np.allclose(w.object.position(), predicted, atol=0.01)
+        gap = _pregrasp_gap(w)
+        assert np.linalg.norm(gap) == pytest.approx(w.robot.config.approach, abs=0.01)
+        assert gap[2] > 0.05                      # above it
+        assert w.robot.commanded["r_gripper_l_finger_joint"] > 0.04   # open
+        assert w.object.holder == "none"          # no grasp
+        assert w.state()["robot"]["action"] == "grasp_planning"
+        assert w.run("robot", "grasp").success    # a grasp goes on from the pre-grasp pose
+
+
+def test_grasp_planning_aims_at_the_end_stop_where_the_belt_stops_the_object():
+    with World(WorldConfig(belt_speed=0.2, work_object=ObjectConfig(start=(0.6, 0.0)))) as w:
+        stop = w.conveyor.stop_x - w.object.config.size / 2
+        assert w.predict_object(10.0)[0] == pytest.approx(stop)
+        outcome = w.run("robot", "grasp_planning")
+        assert outcome.success, outcome.message
+        assert w.robot.tool_position()[0] == pytest.approx(stop, abs=0.01)   # straight above
+        assert _pregrasp_gap(w)[2] == pytest.approx(w.robot.config.approach, abs=0.01)
+
+
+def test_grasp_planning_out_of_reach_stretches_towards_the_object_and_says_so(world):
+    start = world.robot.tool_position()
+    outcome = world.run("robot", "grasp_planning")
+    assert not outcome.success and "out of reach" in outcome.message, outcome.message
+    assert world.object.holder == "none"
+    target = world.predict_object(0.0)
+    assert np.linalg.norm(world.robot.tool_position() - target) < \
+        np.linalg.norm(start - target) - 0.2
+
+
+@pytest.mark.parametrize("holder", ["human", "robot"])
+def test_grasp_planning_is_refused_while_someone_holds_the_object(holder):
+    with World(WorldConfig(belt_speed=0.0, work_object=ObjectConfig(start=(0.0, 0.0)))) as w:
+        assert w.run(holder, "grasp").success          # both reach it there
+        outcome = w.run("robot", "grasp_planning")
+        assert not outcome.success and f"the {holder} holds the object" in outcome.message
+        assert w.object.holder == holder
+
+
+def test_cancel_stops_a_grasp_planning_mid_way(near_robot):
+    ticket = near_robot.submit("robot", "grasp_planning")
+    near_robot.advance(0.4)
+    assert near_robot.run("robot", "cancel_action").success
+    assert ticket.done() and "interrupted" in ticket.outcome.message
