@@ -4,5 +4,6 @@ from setuptools import setup
 
 setup(**generate_distutils_setup(packages=['ros_hrc', 'ros_hrc.pomdp', 'ros_hrc.world',
                                            'ros_hrc.link', 'ros_hrc.loop', 'ros_hrc.nodes',
-                                           'ros_hrc.processes', 'ros_hrc.experiment'],
+                                           'ros_hrc.processes', 'ros_hrc.experiment',
+                                           'ros_hrc.tasks'],
                                  package_dir={'': 'src'}))

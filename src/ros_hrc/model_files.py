@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Optional
 
 #: models/ of the package (the source tree; the devel space uses it in place).
 MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
@@ -28,15 +29,17 @@ def names_a_file(name_or_path: str) -> bool:
             or str(name_or_path).startswith("~"))
 
 
-def resolve_model(name_or_path: str, kind: str) -> Path:
-    """The absolute model file for a scenario name or a path (see :func:`user_path`);
-    FileNotFoundError lists what exists."""
+def resolve_model(name_or_path: str, kind: str, folder: Optional[Path] = None) -> Path:
+    """The absolute model file for a scenario name or a path (see :func:`user_path`); a name
+    is looked up in ``folder`` (default ``models/<kind>``: the seed task's; a task names its
+    own, :attr:`ros_hrc.tasks.definition.Task.model_dirs`). FileNotFoundError lists what
+    exists."""
     candidate = user_path(name_or_path)
     if names_a_file(name_or_path):
         if candidate.is_file():
             return candidate
         raise FileNotFoundError(f"no model file {name_or_path} (looked for {candidate})")
-    folder = MODELS_DIR / kind
+    folder = Path(folder) if folder is not None else MODELS_DIR / kind
     for suffix in (".pomdpx", ".pomdp"):
         path = folder / f"{name_or_path}{suffix}"
         if path.is_file():

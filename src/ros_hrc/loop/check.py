@@ -81,14 +81,16 @@ def parse_words(words: Sequence[str]) -> Dict[str, str]:
 
 def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None,
                  given: Optional[Mapping[str, str]] = None) -> None:
-    """Load both models and check them against the task's tables (and the policy file against
-    the robot model for planner:=policy). The start-up line of each model named by position
+    """Load both models and check them against the tables of the chosen task (``task``; a
+    model of another task is refused, naming the task it fits), and the policy file against
+    the robot model for planner:=policy. The start-up line of each model named by position
     is appended to ``notes``. An error names the argument as typed (``given``, the words'
     values) and the file it looked for."""
     given = given or {}
 
     def typed(name: str) -> str:
-        return str(given.get(name) or config[name]).strip()
+        text = str(given.get(name) or "").strip()
+        return str(config[name]).strip() if text in ("", settings.AUTO_WORD) else text
 
     from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model,
                                      positional_mapping_line)
@@ -98,7 +100,7 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
         try:
             # As typed: this runs where it was typed, so it names the same file as the
             # resolved path, and a refusal shows both.
-            loaded[name] = load(typed(name))
+            loaded[name] = load(typed(name), config.get("task"))
         except ModelNotFound as exc:
             raise CheckError(f"{name}:={typed(name)}: {exc}") from None
         line = positional_mapping_line(loaded[name])

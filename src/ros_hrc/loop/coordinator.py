@@ -39,6 +39,13 @@ limit, the goal); a reset before that (a failed step, a process that restarted) 
 episode again from its start, so every scheduled episode is played whole, on its own streams.
 After the schedule's last episode ended the loop waits: no reset starts another.
 
+**The task.** What the loop knows of the collaboration task (the human's states and
+actions, the world service of each action, the bits -> observation map, the robot's true
+state, the observation noise) is the configuration's :class:`~ros_hrc.tasks.definition.Task`
+(the seed's by default); the coordinator names none. A task with observation noise draws it
+from the stream of (``seed``, episode, "observation") (:mod:`ros_hrc.loop.streams`),
+restarted at each episode's start, so an episode's noise is its own whatever ran before it.
+
 **Failures.** A call that fails (a fault: the service or process is gone, or answered
 nonsense) fails its step visibly (the report's ``fault``), and the loop recovers by a reset,
 retried every ``retry_delay`` seconds until it succeeds (a respawned process comes back). A
@@ -50,8 +57,9 @@ import itertools
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
-from ros_hrc.loop import task
-from ros_hrc.loop.streams import EpisodeSchedule
+from ros_hrc.loop.streams import EpisodeSchedule, generator
+from ros_hrc.tasks.definition import Task
+from ros_hrc.tasks.seed import SEED
 
 # -- what comes back from the interfaces --------------------------------------------------------
 
@@ -236,6 +244,8 @@ class StepReport:
     human_observation: str = ""
     observation_bits: int = 0
     robot_observation: str = ""
+    #: What the task's observation noise did to the robot's observation ("" when nothing).
+    observation_noise: str = ""
     robot_state: str = ""
     robot_action: str = ""
     robot_result: str = ""
@@ -310,11 +320,14 @@ class CoordinatorConfig:
     step's call is out, say every this many seconds what the step waits for.
     ``world_call_timeout``: a step whose call to the world (the human's action, a snapshot)
     has not come back after this many seconds fails, naming the call. ``episodes``: the
-    episode numbers to play, in order (None: 1, 2, 3 ...; see the module docstring)."""
+    episode numbers to play, in order (None: 1, 2, 3 ...; see the module docstring).
+    ``task``: the collaboration task (the seed's by default); ``goal_state`` None is the
+    task's goal. ``seed``: the run's seed, whose (seed, episode) stream the task's
+    observation noise draws from."""
 
     max_steps: int = 0
     end_on_goal: bool = True
-    goal_state: str = "success"
+    goal_state: Optional[str] = None
     on_episode_end: str = "wait"
     retry_delay: float = RETRY_DELAY
     max_retry_delay: float = MAX_RETRY_DELAY
@@ -323,8 +336,12 @@ class CoordinatorConfig:
     wait_note_every: float = WAIT_NOTE_EVERY
     world_call_timeout: float = WORLD_CALL_TIMEOUT
     episodes: Optional[EpisodeSchedule] = None
+    task: Task = SEED
+    seed: int = 0
 
     def __post_init__(self) -> None:
+        if self.goal_state is None:
+            object.__setattr__(self, "goal_state", self.task.goal_state)
         if self.on_episode_end not in EPISODE_END_POLICIES:
             raise ValueError(f"on_episode_end must be one of {', '.join(EPISODE_END_POLICIES)}, "
                              f"not {self.on_episode_end!r}")
@@ -354,7 +371,9 @@ class Coordinator:
         self.episode = 0
         self.seat: Any = None
         self.expected_step = 0
-        self.tracker = task.RobotStateTracker()
+        self.task = self.config.task
+        self.tracker = self.task.new_tracker()
+        self._noise_rng = None          # the episode's observation-noise stream
         self._next_epoch = self.config.first_epoch
         self._ids = itertools.count(1)
         self._effects: List[Effect] = []
@@ -472,15 +491,15 @@ class Coordinator:
             return refuse(NOT_READY, f"the loop is {self.phase}, not ready for a step")
         if request.step != self.expected_step:
             return refuse(INVALID, f"expected step {self.expected_step}, not {request.step}")
-        if request.state not in task.HUMAN_STATES:
+        if request.state not in self.task.human_states:
             return refuse(INVALID, f"unknown human state {request.state!r}")
         try:
-            service = task.human_service_for(request.action, request.state)
+            service = self.task.human_service_for(request.action, request.state)
         except ValueError as exc:
             return refuse(INVALID, str(exc))
         report = StepReport(epoch=self.epoch, episode=self.episode, step=request.step,
                             human_action=request.action, human_state=request.state,
-                            human_state_index=task.HUMAN_STATES.index(request.state),
+                            human_state_index=self.task.human_states.index(request.state),
                             human_reward=request.reward,
                             episode_start_time=self._episode_start_time)
         self._step = _StepContext(request, peer, report)
@@ -518,17 +537,18 @@ class Coordinator:
                 ctx.stage = "observe"
                 self._call(ObserveWorld, call.step, purpose="observe")
             elif isinstance(call, ObserveWorld) and call.purpose == "observe":
-                raw = task.bits_from_predicates(result.predicates)
-                bits = task.legal_bits(raw)
-                report.human_observation = task.predicates_text(result.predicates)
+                raw = self.task.raw_bits(result)
+                if self.task.noise is not None:
+                    raw, report.observation_noise = self.task.noise(raw, self._noise_rng)
+                bits, report.robot_observation = self.task.observation_of(raw)
+                report.human_observation = self.task.predicates_text(result.predicates)
                 report.observation_bits = bits
-                report.robot_observation = task.observation_name(bits)
                 report.robot_state = self.tracker.update(report.human_state, report.human_action)
                 ctx.stage = "decide"
                 self._call(Decide, call.step, observation=report.robot_observation, bits=raw,
                            state=report.robot_state)
             elif isinstance(call, Decide):
-                if result.action not in task.ROBOT_ACTION_SERVICES:
+                if result.action not in self.task.robot_action_services:
                     return self._fail_step(f"the robot planner answered an unknown action "
                                            f"{result.action!r}")
                 report.robot_action = result.action
@@ -538,7 +558,7 @@ class Coordinator:
                 report.surprise = result.surprise
                 report.rule = result.rule
                 ctx.stage = "robot"
-                if task.ROBOT_ACTION_SERVICES[result.action] is None:
+                if self.task.robot_action_services[result.action] is None:
                     report.robot_result = "the robot stays idle and keeps observing"
                     ctx.stage = "outcome"
                     self._call(ObserveWorld, call.step, purpose="outcome")
@@ -757,6 +777,8 @@ class Coordinator:
                                       f"{result!r}")
         self._episode_start_time = float(result.sim_time)
         self.episode = self._next_episode()
+        if self.task.noise is not None:
+            self._noise_rng = generator(self.config.seed, self.episode, "observation")
         self._started_any = True
         self._episode_done = False
         self.phase = READY

@@ -34,6 +34,7 @@ import re
 from dataclasses import dataclass
 from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
+from ros_hrc import tasks
 from ros_hrc.errors import HrcError
 from ros_hrc.loop.streams import LIVE, EpisodeSchedule
 from ros_hrc.model_files import names_a_file, user_path
@@ -225,10 +226,13 @@ class Setting:
         return value.strip()
 
     def _parse_model(self, value: Any) -> str:
-        """A scenario name as it is; a path made absolute (:func:`user_path`)."""
+        """A scenario name as it is; a path made absolute (:func:`user_path`); ``auto``: the
+        default task's model (:func:`resolve` gives the chosen task's)."""
         if not isinstance(value, str) or any(c in value for c in "\n\r\0"):
             raise self._refuse(value)
         text = value.strip()
+        if text == AUTO_WORD:
+            return self.default
         return str(user_path(text)) if names_a_file(text) else text
 
     def _parse_host(self, value: Any) -> str:
@@ -289,9 +293,14 @@ def _port(name: str, default: int, doc: str) -> Setting:
 _TABLE: Iterable[Setting] = (
     # what runs
     _s("human_model", "model", "humanModel",
-       "human scenario (humanModel, expert, beginner, tired, distracted) or a .pomdpx path"),
+       "human scenario (humanModel, expert, beginner, tired, distracted) or a .pomdpx path; "
+       "auto (or empty): the task's default (seed: humanModel)"),
     _s("robot_model", "model", "robot",
-       "robot POMDP name in models/robot/ or a .pomdp/.pomdpx path"),
+       "robot POMDP name in models/robot/ or a .pomdp/.pomdpx path; auto (or empty): the "
+       "task's default (seed: robot)"),
+    _s("task", "choice", tasks.DEFAULT_TASK, "the collaboration task (docs/tasks.md): seed (the "
+       "manual's) or fabric (the seed authors' successor: a human who reacts to the robot)",
+       choices=tasks.TASK_NAMES),
     _s("mode", "choice", "auto", "auto: the MDP picks the human's next state; manual: you type "
        "it (or call /hrc/set_human_state)", choices=("auto", "manual")),
     _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
@@ -404,7 +413,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     """Every setting, in table order: the given ones parsed, the others their defaults, then
     the checks that involve several (distinct ports, policy_file with planner:=policy) and the
     automatic ones (pause_when_idle: when real_time_factor is 0 or in manual mode; mdp_xterm:
-    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default).
+    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default). A model
+    not given (or given empty or ``auto``) is the task's default (:mod:`ros_hrc.tasks`).
 
     Raises SettingError on the first problem; unknown names are refused, all of them named.
     """
@@ -416,6 +426,16 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
         raise SettingError(", ".join(unknown), "",
                            f"no such arguments; known: {', '.join(SETTINGS)}")
     out = {name: setting.parse(values.get(name)) for name, setting in SETTINGS.items()}
+    task = tasks.get(out["task"])
+    for name, kind in (("human_model", "human"), ("robot_model", "robot")):
+        given = values.get(name)
+        if given is None or (isinstance(given, str) and given.strip() in ("", AUTO_WORD)):
+            out[name] = task.default_model(kind)
+    if out["planner"] == "reactive" and task.name != tasks.DEFAULT_TASK:
+        raise SettingError("planner", values.get("planner"),
+                           f"the reactive robot reads the seed task's observations; task "
+                           f"{task.name} has none of its own yet (use despot, policy, none "
+                           "or explore)")
     seen: Dict[int, str] = {}
     for name in PORTS:
         port = out[name]

@@ -16,7 +16,9 @@ Who draws: the human MDP process (``despot_mdp``) reseeds its agent from the ``h
 each episode's reset, the robot process (``despot_pomdp``) its planner from ``planner``, and the
 world (``hrc_world``) its generator (the walk-away's heading) from ``world``; each learns the
 episode's number at that reset, from the coordinator (``reset.episode``; the world through the
-``/hrc/world/episode`` parameter). The number is the study's: a live launch plays episodes 1,
+``/hrc/world/episode`` parameter). A task with observation noise (:mod:`ros_hrc.tasks`) draws
+it in the coordinator from ``observation``, restarted at each episode's start. The number is
+the study's: a live launch plays episodes 1,
 2, 3 ...; an experiment cell plays the episodes it was asked for (:class:`EpisodeSchedule`,
 the launch argument ``episodes``), in order, so that (seed, episode) is the same episode
 whichever others ran before it.
@@ -35,7 +37,7 @@ __all__ = ["ROLES", "MAX_SEED", "MAX_EPISODE", "stream", "generator", "stream_se
 
 #: Who draws from a stream. Appending a role keeps every existing stream as it was; reordering
 #: or renaming one changes the streams of every recorded run, so don't.
-ROLES: Tuple[str, ...] = ("human", "world", "planner")
+ROLES: Tuple[str, ...] = ("human", "world", "planner", "observation")
 
 #: The ROS parameter the coordinator's node (hrc_human) sets to the episode that starts just
 #: before it resets the world (``/hrc/world/reset``, a Trigger); hrc_world reads it there.

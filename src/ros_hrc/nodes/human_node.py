@@ -35,7 +35,9 @@ Topics: /hrc/status (ros_hrc/Status), one message per step.
 Services offered: /hrc/reset (std_srvs/Trigger: reset everything and wait until it is done),
 /hrc/set_human_state (ros_hrc/SetHumanState: the human's next state, for manual mode without
 a terminal).
-Parameters: ~host, ~port, ~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episode_end,
+Parameters: ~task (the collaboration task, ros_hrc.tasks: seed or fabric), ~seed (the run's
+seed: the task's observation noise draws from its (seed, episode) streams), ~host, ~port,
+~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episode_end,
 ~end_on_goal, ~episodes (the episode numbers to play, e.g. ``0-99`` or ``2,5-7``; ``live``: 1,
 2, 3 ...: see :mod:`ros_hrc.loop.streams`), ~wait_for_listener (no step before someone
 subscribes to /hrc/status), ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
@@ -66,7 +68,7 @@ from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, Action,
                                    reply_error)
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
-from ros_hrc.loop import task
+from ros_hrc import tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
                                       WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig,
                                       Decision, MdpRefused, MdpReset, MdpStepDone, Outcome,
@@ -84,6 +86,8 @@ from ros_hrc.srv import (Decide, GetWorldState, ResetPlanner, SetHumanState,
 
 @dataclass
 class HumanNodeConfig:
+    task: str = tasks.DEFAULT_TASK
+    seed: int = 0
     host: str = "127.0.0.1"
     human_port: int = 9090
     robot_port: int = 8080
@@ -108,21 +112,34 @@ class HumanNodeConfig:
     token_file: str = ""        # or the token's file, for a node started by hand
 
 
-#: What the loop calls, by who offers it: the node waits for all of them before the first reset.
-WORLD_SERVICES = ("/hrc/world/reset", "/hrc/world/state") + tuple(
-    f"/human/{service}" for service in sorted(
-        {s for s in task.HUMAN_ACTION_SERVICES.values() if s} | {"grasp"}))
+def world_services(task: tasks.Task) -> Tuple[str, ...]:
+    """The world's services the loop calls for ``task``: its reset, its snapshot and every
+    /human/* service of the task's human actions."""
+    return ("/hrc/world/reset", "/hrc/world/state") + tuple(
+        f"/human/{service}" for service in task.human_world_services())
+
+
+def startup_services(task: tasks.Task) -> Tuple[Tuple[str, Tuple[str, ...]], ...]:
+    """What the loop calls, by who offers it: the node waits for all of them before the
+    first reset."""
+    return (("the world (hrc_world)", world_services(task)),
+            ("the robot planner (hrc_obs)", PLANNER_SERVICES))
+
+
 PLANNER_SERVICES = ("/hrc/obs/reset_planner", "/hrc/obs/decide")
+#: The seed task's (the default's): what the node waits for before the first reset.
+WORLD_SERVICES = world_services(tasks.get(tasks.DEFAULT_TASK))
+STARTUP_SERVICES = startup_services(tasks.get(tasks.DEFAULT_TASK))
 #: Stands in the start-up wait for "someone subscribes to /hrc/status" (~wait_for_listener).
 STATUS_LISTENER = "/hrc/status (subscribed)"
-STARTUP_SERVICES = (("the world (hrc_world)", WORLD_SERVICES),
-                    ("the robot planner (hrc_obs)", PLANNER_SERVICES))
 
 
 # -- what the terminal shows ----------------------------------------------------------------------
 
-def format_step(status: Status) -> str:
-    """The block the ROS terminal prints for one step."""
+def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
+    """The block the ROS terminal prints for one step (``task``: whose bits the robot's
+    observation shows; the default task's when not given)."""
+    task = task or tasks.get(tasks.DEFAULT_TASK)
     lines = [f"------------------------------ step {status.step} ------------------------------",
              f"human action      : {status.human_action}"]
     if status.fault and not status.robot_observation:
@@ -281,16 +298,21 @@ class LinkMdp(MdpPort):
 class Terminal(ReportPort):
     """Steps to the terminal and /hrc/status; the coordinator's lines to rosout."""
 
-    def __init__(self, publisher: rospy.Publisher, mode: str, print_steps: bool) -> None:
+    def __init__(self, publisher: rospy.Publisher, mode: str, print_steps: bool,
+                 task: Optional[tasks.Task] = None) -> None:
         self.publisher = publisher
         self.mode = mode
         self.print_steps = print_steps
+        self.task = task
 
     def step(self, report: StepReport) -> None:
         status = status_message(report, self.mode)
         self.publisher.publish(status)
         if self.print_steps:
-            print(format_step(status), flush=True)
+            text = format_step(status, self.task)
+            if report.observation_noise:
+                text += f"\nobservation noise : {report.observation_noise}"
+            print(text, flush=True)
 
     def note(self, level: str, text: str) -> None:
         if text.startswith("RESET"):
@@ -338,11 +360,12 @@ class HumanNode:
 
     def __init__(self, config: HumanNodeConfig) -> None:
         self.config = config
+        self.task = tasks.get(config.task)
         self.call = TriggerCaller(config.service_timeout)
         # No call reaches the world or the planner before their services are up: the first
         # reset (and so the MDP's step 0) waits, however long the world takes to start.
         self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)
-        awaited, registered = STARTUP_SERVICES, registered_services
+        awaited, registered = startup_services(self.task), registered_services
         if config.wait_for_listener:
             # An experiment cell records every step: none is taken before it listens.
             awaited += (("a listener (wait_for_listener)", (STATUS_LISTENER,)),)
@@ -358,14 +381,16 @@ class HumanNode:
             reset_join_window=config.reset_join_window,
             wait_note_every=config.wait_note_every,
             world_call_timeout=config.world_call_timeout,
-            episodes=EpisodeSchedule.parse(config.episodes)))
+            episodes=EpisodeSchedule.parse(config.episodes), task=self.task,
+            seed=config.seed))
         token = launch_token(config)
         self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
                                    send_timeout=config.action_timeout, token=token)
         self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait),
                                  RosPlanner(self.call, self.startup.wait),
                                  LinkExecutor(self.robot, config.action_timeout), LinkMdp(),
-                                 Terminal(self.status_pub, config.mode, config.print_steps))
+                                 Terminal(self.status_pub, config.mode, config.print_steps,
+                                          self.task))
         table = DispatchTable("hrc_human")
         table.on(Step, self._on_step)
         table.on(Reset, self._on_reset)

@@ -1,8 +1,8 @@
 """hrc_obs: the observer's link to the robot planner, an adapter of the loop's coordinator.
 
 The coordinator (in hrc_human) builds the robot's observation from one snapshot of the world
-(:mod:`ros_hrc.loop.task`: predicate bits, the nearest legal observation, the robot model's
-true state) and asks this node for the planner's decision. This node is the websocket client
+(the task's, :mod:`ros_hrc.tasks`: predicate bits, the observation they map to, the robot
+model's true state) and asks this node for the planner's decision. This node is the websocket client
 of the POMDP process (``~pomdp_port``, 7070 by default): it sends the ``observation`` (with
 the epoch and a correlation id) and returns the ``decision`` that answers it. It keeps no loop
 state: a planner that was restarted refuses an observation of an epoch it was not reset into,

@@ -2,9 +2,10 @@
 
 A websocket server (``~robot_port``, 8080 by default, bound to ``~host``). The coordinator
 (in hrc_human) connects and, once the planner has decided, sends the ``action`` to carry out;
-this node carries it out through the world's /robot/* services (``rIdle`` moves nothing;
-``rPoint_obj`` /robot/point_to_obj, ``rGrasp_obj`` /robot/grasp, ``rStop_all``
-/robot/cancel_action) and answers with an ``ack`` saying what happened (``success`` false: the
+this node carries it out through the world's /robot/* service the task names for it
+(:attr:`ros_hrc.tasks.definition.Task.robot_action_services`; the seed's: ``rIdle`` moves
+nothing, ``rPoint_obj`` /robot/point_to_obj, ``rGrasp_obj`` /robot/grasp, ``rStop_all``
+/robot/cancel_action; fabric's ``graspPlanning`` /robot/grasp_planning) and answers with an ``ack`` saying what happened (``success`` false: the
 world refused, e.g. out of reach). When the world cannot be reached the answer is an
 ``error``: a fault, which fails the step. A ``reset`` calls /robot/reset. No loop state here.
 
@@ -17,9 +18,11 @@ connection while one is served gets ``seat_taken`` and is closed. An ``action`` 
 epoch, checked in the one place stale things are dropped): one without is refused
 ``invalid``. So no token holder can move the robot but the coordinator.
 
-Parameters: ~host (127.0.0.1), ~robot_port (8080), ~service_timeout (30 s to wait for the world),
+Parameters: ~task (seed), ~host (127.0.0.1), ~robot_port (8080), ~service_timeout (30 s to wait
+for the world),
 ~link_session (hrc.launch's session: the link token's file) or ~token_file (by hand).
-Services used: /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset.
+Services used: /robot/point_to_obj, /robot/grasp, /robot/cancel_action, /robot/reset (and
+/robot/grasp_planning with task:=fabric).
 """
 from __future__ import annotations
 
@@ -33,7 +36,7 @@ from ros_hrc.link.protocol import (ERR_FAILED, ERR_INVALID, ERR_REFUSED, ERR_SEA
                                    Action, DispatchTable, Message, Reset, reply_error)
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageServer, Peer
-from ros_hrc.loop import task
+from ros_hrc import tasks
 from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
                                   route_python_logging)
 
@@ -44,6 +47,7 @@ COORDINATOR = "hrc_human"
 
 @dataclass
 class RobotNodeConfig:
+    task: str = tasks.DEFAULT_TASK
     host: str = "127.0.0.1"
     robot_port: int = 8080
     service_timeout: float = 30.0
@@ -56,6 +60,7 @@ class RobotNode:
 
     def __init__(self, config: RobotNodeConfig) -> None:
         self.config = config
+        self.services = tasks.get(config.task).robot_action_services
         self.call = TriggerCaller(config.service_timeout)
         table = DispatchTable("hrc_robot")
         table.on(Action, self.on_action)
@@ -95,10 +100,10 @@ class RobotNode:
         refused, reply = self._refusal(msg, peer)
         if refused:
             return reply
-        if msg.action not in task.ROBOT_ACTION_SERVICES:
+        if msg.action not in self.services:
             return reply_error(msg, f"unknown robot action {msg.action!r}; known: "
-                                    f"{', '.join(task.ROBOT_ACTION_SERVICES)}", ERR_INVALID)
-        service = task.ROBOT_ACTION_SERVICES[msg.action]
+                                    f"{', '.join(self.services)}", ERR_INVALID)
+        service = self.services[msg.action]
         if service is None:
             ok, result = True, "the robot stays idle and keeps observing"
         else:

@@ -41,6 +41,7 @@ import threading
 import time
 from typing import Optional, TextIO, Tuple
 
+from ros_hrc import tasks
 from ros_hrc.command_line import parse_launch_options, ranged_number
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Error, Message, NextState, Reset, Step,
@@ -366,6 +367,7 @@ def _isatty(stream: TextIO) -> bool:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=NAME, description="The simulated human: an MDP agent "
                                 "linked to the human node by websocket.")
+    settings.add_argument(p, "task")
     settings.add_argument(p, "human_model", "--model")
     settings.add_argument(p, "host")
     settings.add_argument(p, "human_port", "--port")
@@ -388,7 +390,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Optional[list] = None) -> int:
     args = parse_launch_options(build_parser(), argv)
     try:
-        model = load_human_model(args.human_model)
+        task = tasks.get(args.task)
+        model = load_human_model(args.human_model, task)
         agent = HumanAgent(model, HumanAgentConfig(choice=args.human_choice, temperature=args.temperature,
                                                    manual_share=args.manual_share, seed=args.seed))
         token = launch_token(args)

@@ -1,9 +1,10 @@
 """despot_pomdp: the robot's decision process (no ROS; it speaks only websocket).
 
-It loads the robot POMDP (checked against the task's states, actions and observations) and
-keeps the robot's belief. It is a websocket **server** on port 7070 for the observer
+It loads the robot POMDP (checked against the states, actions and observations of the task,
+``--task``: :mod:`ros_hrc.tasks`) and keeps the robot's belief. It is a websocket **server** on port 7070 for the observer
 (``hrc_obs``). For each ``observation``: update the belief with the robot's previous action
-and the observation (``rIdle`` before the first step: the robot starts idle), plan (DESPOT by
+and the observation (the task's idle action before the first step, ``rIdle`` for the seed:
+the robot starts idle), plan (DESPOT by
 default, a saved offline policy, or a baseline robot of ``ros_hrc.robot_policies``: the
 reactive robot or no robot, which keep the belief but decide without it), and answer with a
 ``decision``. The coordinator has the robot carry it out (hrc_robot), not this process.
@@ -38,6 +39,7 @@ from typing import Optional
 
 import numpy as np
 
+from ros_hrc import tasks
 from ros_hrc.command_line import parse_launch_options
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, DispatchTable,
@@ -178,7 +180,8 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
     if args.planner == "reactive":
         return ReactivePlanner(model, ReactiveConfig(budget=args.reactive_budget), seed=args.seed)
     if args.planner == "none":
-        return NoRobotPlanner(model, NoRobotConfig(), seed=args.seed)
+        idle = tasks.get(getattr(args, "task", tasks.DEFAULT_TASK)).robot_idle_action
+        return NoRobotPlanner(model, NoRobotConfig(idle_action=idle), seed=args.seed)
     if args.planner == "explore":
         return ExplorePlanner(model, seed=args.seed)
     raise ValueError(f"unknown planner {args.planner!r}: "
@@ -188,6 +191,7 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=NAME, description="The robot's POMDP planner: a websocket "
                                 "server answering each observation with a decision.")
+    settings.add_argument(p, "task")
     settings.add_argument(p, "robot_model", "--model")
     settings.add_argument(p, "host")
     settings.add_argument(p, "pomdp_port", "--port")
@@ -207,7 +211,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Optional[list] = None) -> int:
     args = parse_launch_options(build_parser(), argv)
     try:
-        model = load_robot_model(args.robot_model)
+        task = tasks.get(args.task)
+        model = load_robot_model(args.robot_model, task)
         planner = build_planner(model, args)
         token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
@@ -217,7 +222,8 @@ def main(argv: Optional[list] = None) -> int:
             print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
                   file=sys.stderr, flush=True)
         return 2
-    process = PomdpProcess(RobotAgent(model, planner, seed=args.seed))
+    process = PomdpProcess(RobotAgent(model, planner, first_action=task.robot_idle_action,
+                                      seed=args.seed))
     server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,
                            token=token)
     try:

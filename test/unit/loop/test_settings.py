@@ -12,7 +12,8 @@ from ros_hrc.loop.settings import SETTINGS, Setting, SettingError
 LAUNCH = Path(__file__).resolve().parents[3] / "launch" / "hrc.launch"
 
 DEFAULTS = {
-    "human_model": "humanModel", "robot_model": "robot", "mode": "auto", "gui": False,
+    "task": "seed", "human_model": "humanModel", "robot_model": "robot", "mode": "auto",
+    "gui": False,
     "seed": 0, "use_sim_time": False, "real_time_factor": 1.0, "pause_when_idle": None,
     "belt_speed": 0.02, "viz": True, "rviz": False, "snapshot_dir": "", "camera_rate": 0.0,
     "publish_rate": 10.0,
