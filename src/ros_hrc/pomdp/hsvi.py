@@ -10,16 +10,25 @@ Two bounds on the optimal value function V* are kept and tightened along sampled
 
 A trial starts at the initial belief (a root: see mixed observability below) and descends,
 taking the action with the best upper bound and the observation with the largest weighted excess
-gap, until the gap at depth t is below ``precision / γ^t``; it then backs both bounds up along the
-path, deepest first. The solver stops when the gap at the start is below ``precision`` or the
-time is up, and returns the lower-bound vectors as a ``Policy``. Both bounds are valid at every
-moment (anytime).
+gap, until the gap at depth t is below ``target / γ^t``; it then backs both bounds up along the
+path, deepest first. The target is a fraction ``TRIAL_ZETA`` of the gap at the root, never below
+``precision`` (HSVI2's and SARSOP's dynamic target): trials stay shallow while the bounds are
+loose and go deeper as they close. The solver stops when the gap at the start is below
+``precision`` (the exact rule) or the time is up, and returns the lower-bound vectors as a
+``Policy``. Both bounds are valid at every moment (anytime).
 
-Our addition to HSVI2: after each trial, synchronous sweeps back both bounds up at once at every
-belief the trials have met and at their one-step successors, for as long as a sweep narrows the
-gap at the start by 1 % or more. Trials find the beliefs that matter; sweeps, which cost about one
-backup each in numpy, propagate values around them. On Tiger this turns ~6000 sequential
-backups into a few dozen batched ones.
+The beliefs the trials visit form SARSOP's tree of reachable beliefs: each node keeps its
+successors under every action and observation, and the upper bound at them and at itself,
+cached between visits. A cached value is brought up to date with the points added since
+(the sawtooth is a minimum over points, and the solver logs every point it adds), not
+recomputed over all of them; every cached value is a valid bound whatever happens later, since
+V* does not change. A model whose successors are too large to keep (``KEEP_SUCCESSORS``) has no
+tree and computes them at each visit.
+
+Sweeps, our addition to HSVI2: synchronous backups of both bounds at once at the heaviest
+beliefs the trials have met and at their one-step successors. They run only when the trials
+stall (their rate of narrowing the gap, over the last few, falls to the last sweep's; zero
+before any sweep) and go on while they narrow it faster than the trials did.
 
 Mixed observability (POMDPX ``fullyObs`` variables, ``Model.observed_key``): the fully observed
 values are seen before the first action, so the value to bound is Σ_k P(k) V*(b_k) over the
@@ -33,8 +42,9 @@ A fully observable model is an MDP: ``solve`` then runs value iteration instead.
 Time and memory: ``solve``'s timeout counts from the call, so building the tables and the MDP
 bounds (blind policies, QMDP or the fast informed bound) is inside it; every stage stops at the
 deadline with bounds that are still valid (each iterate of those bounds is one). Memory is
-O(non-zeros of T + A·Z·S) plus the stored vectors (alpha vectors, upper-bound points, beliefs,
-the current trial's path: S numbers each), never an S x S array for a large model. With
+O(non-zeros of T + A·Z·S) plus the stored vectors (alpha vectors, upper-bound points and their
+log, beliefs, the current trial's path: S numbers each; a tree node's A·Z successors, within
+``TREE_NUMBERS``), never an S x S array for a large model. With
 ``memory_limit`` the solver refuses, before building anything, a model whose tables and working
 arrays would not fit (:class:`~ros_hrc.pomdp.memory.MemoryLimitError`), and stops, as at a
 timeout, when its stored vectors would outgrow the rest of the budget (after pruning once);
@@ -45,8 +55,9 @@ from __future__ import annotations
 import hashlib
 import math
 import time
+from collections import deque
 from dataclasses import dataclass
-from typing import Callable, Iterator, List, Optional, Tuple
+from typing import Callable, Deque, Iterator, List, Optional, Tuple
 
 import numpy as np
 
@@ -73,6 +84,12 @@ SWEEP_CHUNK = 4_000_000
 #: while they are at most this many numbers; larger ones are computed again in the backup.
 KEEP_SUCCESSORS = 1_000_000
 
+#: Numbers (8 bytes each) the belief tree may keep: its nodes' successors (64 MB).
+TREE_NUMBERS = 8_000_000
+
+#: A trial's target gap is this fraction of the root's gap (never below the precision).
+TRIAL_ZETA = 0.95
+
 #: Fewest stored vectors (beliefs, points, alpha vectors) the memory budget must leave room for.
 MIN_VECTORS = 64
 
@@ -87,6 +104,14 @@ class SolveProgress:
     upper: float
     n_alphas: int
     n_points: int
+
+
+def _log_rate(gap_before: float, gap_after: float, seconds: float) -> float:
+    """How fast the gap narrowed: ln(before / after) per second. The gap shrinks about
+    geometrically, so this rate stays comparable as the gap closes (a difference would not)."""
+    if gap_after >= gap_before or gap_before <= 0.0:
+        return 0.0
+    return math.log(gap_before / max(gap_after, 1e-300)) / max(seconds, 1e-9)
 
 
 def _check_size(model: Model) -> None:
@@ -200,7 +225,7 @@ class _LowerBound:
 class _UpperBound:
     """Corner values and (belief, value) points, evaluated by sawtooth interpolation."""
 
-    def __init__(self, corner: np.ndarray) -> None:
+    def __init__(self, corner: np.ndarray, log: bool = False) -> None:
         self.corner = corner.astype(float)
         S = corner.size
         self.points = np.empty((0, S))
@@ -208,6 +233,55 @@ class _UpperBound:
         self.excess = np.empty(0)          # value minus the corner interpolation (<= 0 when useful)
         self.inv_t = np.empty((S, 0))      # 1/points (inf off the support), state-major
         self._pruned_size = 0
+        # Every point ever added, in order (pruning does not touch it), so that a cached value
+        # is brought up to date with the points added since, not recomputed over all points.
+        # Cached values stay valid upper bounds whatever happens later (V* does not change);
+        # ``epoch`` counts corner changes, after which caches are recomputed to benefit.
+        self.log = log
+        self.epoch = 0
+        self.log_n = 0
+        self._log_points = np.empty((16 if log else 0, S))
+        self._log_inv_t = np.empty((S, 16 if log else 0))
+        self._log_vals = np.empty(16 if log else 0)
+
+    def _append_log(self, B: np.ndarray, values: np.ndarray) -> None:
+        k = values.size
+        need = self.log_n + k
+        if need > self._log_vals.size:
+            cap = max(need, 2 * self._log_vals.size)
+            S = self.corner.size
+            points, inv_t, vals = np.empty((cap, S)), np.empty((S, cap)), np.empty(cap)
+            points[:self.log_n] = self._log_points[:self.log_n]
+            inv_t[:, :self.log_n] = self._log_inv_t[:, :self.log_n]
+            vals[:self.log_n] = self._log_vals[:self.log_n]
+            self._log_points, self._log_inv_t, self._log_vals = points, inv_t, vals
+        self._log_points[self.log_n:need] = B
+        with np.errstate(divide="ignore"):
+            self._log_inv_t[:, self.log_n:need] = (1.0 / B).T
+        self._log_vals[self.log_n:need] = values
+        self.log_n = need
+
+    def cached_values(self, X: np.ndarray, cache: Optional["_Cached"]) -> "_Cached":
+        """The upper bound at the rows of X, from ``cache`` (the same rows' values, an earlier
+        call's result) brought up to date with the points added since; a fresh evaluation when
+        there is no cache, the corners have changed or there are more new points than live
+        ones. Each value is a minimum of valid bounds, so it is one too."""
+        if cache is None:
+            return _Cached(self.values(X), X @ self.corner, self.log_n, self.epoch)
+        if cache.epoch != self.epoch or self.log_n - cache.seen > self.vals.size:
+            # Afresh, but never above the cached values (valid too): a bound that went up
+            # where pruning dropped a point could send trials round in circles.
+            np.minimum(cache.vals, self.values(X), out=cache.vals)
+            cache.base, cache.seen, cache.epoch = X @ self.corner, self.log_n, self.epoch
+            return cache
+        if self.log_n > cache.seen:
+            lo = cache.seen
+            excess = self._log_vals[lo:self.log_n] - self._log_points[lo:self.log_n] @ self.corner
+            tents = cache.base[:, None] + self.ratios(X, self._log_inv_t[:, lo:self.log_n]) \
+                * excess[None, :]
+            np.minimum(cache.vals, tents.min(axis=1), out=cache.vals)
+            cache.seen = self.log_n
+        return cache
 
     def _set(self, points: np.ndarray, vals: np.ndarray) -> None:
         self.points, self.vals = points, vals
@@ -260,9 +334,12 @@ class _UpperBound:
             idx = B[vertex].argmax(axis=1)
             np.minimum.at(self.corner, idx, values[vertex])
             self.excess = self.vals - self.points @ self.corner
+            self.epoch += 1
             B, values = B[~vertex], values[~vertex]
         if values.size == 0:
             return
+        if self.log:
+            self._append_log(B, values)
         points, vals = self.points, self.vals
         if values.size == 1 and vals.size:
             # Points at which the new point alone gives a bound at least as low are redundant;
@@ -301,6 +378,37 @@ class _UpperBound:
         self._pruned_size = self.vals.size
 
 
+@dataclass
+class _Cached:
+    """Upper-bound values at some beliefs, as of ``seen`` logged points and corner ``epoch``;
+    ``base`` is the corner interpolation at them."""
+
+    vals: np.ndarray
+    base: np.ndarray
+    seen: int
+    epoch: int
+
+
+class _Node:
+    """A belief of the trials' tree (SARSOP's reachable belief tree): its successors under
+    every action and observation, computed once, and the upper bound there and at itself,
+    cached between visits (:meth:`_UpperBound.cached_values`)."""
+
+    __slots__ = ("b", "p", "B", "flat", "succ_up", "own_up")
+
+    def __init__(self, b: np.ndarray, p: np.ndarray, B: np.ndarray) -> None:
+        self.b, self.p, self.B = b, p, B
+        self.flat = B.reshape(-1, B.shape[-1])
+        self.succ_up: Optional[_Cached] = None
+        self.own_up: Optional[_Cached] = None
+
+
+def _belief_key(b: np.ndarray) -> bytes:
+    """A digest of the rounded belief, not its bytes: the key of a 50,000-state belief would
+    otherwise take as much memory as the belief."""
+    return hashlib.blake2b(np.round(b, 10).tobytes(), digest_size=16).digest()
+
+
 class _BeliefSet:
     """Distinct beliefs met by the trials and the sweeps, each with a reach weight.
 
@@ -325,9 +433,7 @@ class _BeliefSet:
         B = np.atleast_2d(B)
         weights = np.broadcast_to(np.asarray(weights, dtype=float), (B.shape[0],))
         for b, w in zip(B, weights):
-            # A digest of the rounded belief, not its bytes: the key of a 50,000-state belief
-            # would otherwise take as much memory as the belief.
-            key = hashlib.blake2b(np.round(b, 10).tobytes(), digest_size=16).digest()
+            key = _belief_key(b)
             i = self._keys.get(key)
             if i is None:
                 if self.capacity is not None and len(self._rows) >= self.capacity:
@@ -401,7 +507,15 @@ class HsviSolver:
         blind = mdp.blind_lower_bound(model, deadline=deadline)
         self.lower = _LowerBound(blind.copy(), np.arange(model.n_actions))
         fib = mdp.fast_informed_bound(model, deadline=deadline)
-        self.upper = _UpperBound(fib.max(axis=0))
+        # The belief tree keeps every node's successors and cached bounds while they take at
+        # most TREE_NUMBERS numbers (a small model's whole tree); a model whose successors are
+        # too large to keep has no tree.
+        self.keep_successors = self.t.A * self.t.Z * self.t.S <= KEEP_SUCCESSORS
+        self.tree: dict = {}
+        self.tree_budget = TREE_NUMBERS if self.keep_successors else 0
+        # A node costs its successors (A·Z rows of S) and a few (A, Z) arrays, in vectors of S.
+        self.node_vectors = self.t.A * self.t.Z + -(-4 * self.t.A * self.t.Z // self.t.S) + 1
+        self.upper = _UpperBound(fib.max(axis=0), log=self.tree_budget > 0)
         for root in self.roots:
             self.upper.add(root, float((fib @ root).max()))
         capacity = None if self.max_vectors is None else max(len(self.roots),
@@ -409,9 +523,9 @@ class HsviSolver:
         self.beliefs = _BeliefSet(self.t.S, capacity)
         for w, root in zip(self.root_weights, self.roots):
             self.beliefs.add(root, w)
-        self.keep_successors = self.t.A * self.t.Z * self.t.S <= KEEP_SUCCESSORS
         self.trials = 0
         self.sweeps = 0
+        self.sweep_seconds = 0.0
         self.backups = 0
         self.memory_limit_reached = False
         self.seconds = time.perf_counter() - began
@@ -420,7 +534,8 @@ class HsviSolver:
     def _vectors_in_use(self) -> int:
         """Stored vectors of S numbers, with the copies their updates make: a point is kept
         with its reciprocal and copied when points are added; alpha vectors are copied too."""
-        return len(self.beliefs) + 4 * self.upper.vals.size + 2 * self.lower.actions.size
+        return (len(self.beliefs) + 4 * self.upper.vals.size + 2 * self.lower.actions.size
+                + 2 * self.upper.log_n + len(self.tree) * self.node_vectors)
 
     def _room(self, vectors: int) -> bool:
         """Whether ``vectors`` more fit in the memory budget."""
@@ -451,12 +566,38 @@ class HsviSolver:
         """The lower and upper bounds at each root."""
         return self.lower.values(self.roots), self.upper.values(self.roots)
 
-    def _q_upper(self, b: np.ndarray, p: np.ndarray,
-                 B: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-        """Upper-bound Q values at b (A,) and the successors' upper bounds (A, Z)."""
-        A, Z, S = B.shape
-        ub = self.upper.values(B.reshape(A * Z, S)).reshape(A, Z)
-        return self.t.R @ b + self.t.gamma * (p * ub).sum(axis=1), ub
+    # -- the belief tree ------------------------------------------------------------------------
+    def _node(self, b: np.ndarray) -> _Node:
+        """The tree's node at belief b (made, with its successors, on the first visit). Nodes
+        are kept while the tree's budget lasts; past it (and for models whose successors are
+        too large to keep) a node lives for one trial and its successors are computed again."""
+        key = _belief_key(b) if self.tree_budget > 0 else None
+        node = self.tree.get(key) if key is not None else None
+        if node is not None:
+            return node
+        p, B = self.t.successors(b)
+        node = _Node(b, p, B)
+        if key is not None and self._room(self.node_vectors):
+            self.tree[key] = node
+            self.tree_budget -= B.size
+        return node
+
+    def _expand(self, node: _Node) -> None:
+        if node.B is None:
+            node.p, node.B = self.t.successors(node.b)
+            node.flat = node.B.reshape(-1, self.t.S)
+
+    def _q_upper_node(self, node: _Node) -> Tuple[np.ndarray, np.ndarray]:
+        """Upper-bound Q values at the node (A,) and its successors' upper bounds (A, Z),
+        the cached ones brought up to date."""
+        self._expand(node)
+        node.succ_up = self.upper.cached_values(node.flat, node.succ_up)
+        ub = node.succ_up.vals.reshape(self.t.A, self.t.Z)
+        return self.t.R @ node.b + self.t.gamma * (node.p * ub).sum(axis=1), ub
+
+    def _own_upper(self, node: _Node) -> float:
+        node.own_up = self.upper.cached_values(node.b[None], node.own_up)
+        return float(node.own_up.vals[0])
 
     # -- one trial -----------------------------------------------------------------------------
     def _trial(self, precision: float, deadline: float) -> None:
@@ -465,48 +606,63 @@ class HsviSolver:
         # the gaps is above ``precision``, some root's gap is, and this picks one of those.
         lo, up = self._root_bounds()
         k = int(np.argmax(self.root_weights * (up - lo - precision)))
-        b = self.roots[k]
-        width = precision
-        path: List[Tuple[np.ndarray, Optional[np.ndarray], Optional[np.ndarray], float]] = []
+        # The trial's target is a fraction ZETA of the root's gap, never below the precision
+        # (HSVI2's and SARSOP's dynamic target): early trials stay shallow, where the bounds
+        # are loose everywhere, and go deeper as the gap closes. The solver still stops only
+        # at a gap <= precision.
+        width = max(precision, TRIAL_ZETA * float(up[k] - lo[k]))
+        node = self._node(self.roots[k])
+        path: List[Tuple[_Node, float]] = []
         weight = float(self.root_weights[k])
         step_cost = self._step_cost()
+        link: Optional[Tuple[_Node, int]] = None     # the node's entry in its parent's cache
         while True:
-            p, B = self.t.successors(b)
-            q_up, ub_succ = self._q_upper(b, p, B)
-            lo_b = float(self.lower.values(b[None])[0])
+            lo_b = float(self.lower.values(node.b[None])[0])
             # The stored bound, not the one-step lookahead: stopping on a gap that no stored point
             # records would leave the parent's backup unchanged and repeat the same trial forever.
-            up_b = float(self.upper.values(b[None])[0])
+            up_b = self._own_upper(node)
+            if link is not None:
+                # The node's own cache and its parent's may hold different valid bounds for
+                # the same belief: both take the lower, so the parent's backup sees the value
+                # the trial stops on (else it could repeat the same trial forever).
+                parent, i = link
+                up_b = min(up_b, float(parent.succ_up.vals[i]))
+                node.own_up.vals[0] = parent.succ_up.vals[i] = up_b
+            q_up, ub_succ = self._q_upper_node(node)
             if up_b - lo_b <= width or gamma == 0.0:
                 break
-            # A large model's successors are computed again in the backup rather than kept.
-            path.append((b, p, B, weight) if self.keep_successors else (b, None, None, weight))
+            path.append((node, weight))
             a = int(np.argmax(q_up))
             width /= gamma
-            lo_succ = self.lower.values(B[a])
-            score = p[a] * (ub_succ[a] - lo_succ - width)
+            lo_succ = self.lower.values(node.B[a])
+            score = node.p[a] * (ub_succ[a] - lo_succ - width)
             z = int(np.argmax(score))
-            if p[a, z] <= 0.0 or time.perf_counter() > deadline:
+            p_az = float(node.p[a, z])
+            if p_az <= 0.0 or time.perf_counter() > deadline:
                 break
             if not self._room((len(path) + 1) * step_cost):
                 break                          # a deeper path would not fit in the budget
-            b = B[a, z]
-            weight *= gamma * p[a, z]
-        for b, p, B, weight in reversed(path):
-            if p is None:
-                p, B = self.t.successors(b)
-            self._backup(b, p, B)
-            self.beliefs.add(b, weight)
+            child = node.B[a, z]
+            if not self.keep_successors:
+                node.p = node.B = node.flat = None    # computed again in the backup
+            link = (node, a * self.t.Z + z)
+            node = self._node(child)
+            weight *= gamma * p_az
+        for node, weight in reversed(path):
+            self._backup(node)
+            self.beliefs.add(node.b, weight)
             if time.perf_counter() > deadline:
                 break                          # the deeper backups are done; all stay valid
         self.trials += 1
 
-    def _backup(self, b: np.ndarray, p: np.ndarray, B: np.ndarray) -> None:
-        """Point-based backup of both bounds at b."""
+    def _backup(self, node: _Node) -> None:
+        """Point-based backup of both bounds at the node's belief."""
         t = self.t
+        self._expand(node)
+        b, B = node.b, node.B
         A, Z, S = B.shape
         # Lower: the best vector at each successor, pulled back through O and T.
-        best = self.lower.best(B.reshape(A * Z, S)).reshape(A, Z)
+        best = self.lower.best(node.flat).reshape(A, Z)
         chosen = self.lower.alphas[best]                                 # (A, Z, S')
         w = np.einsum("azs,azs->as", t.OT, chosen)
         cand = t.R + t.gamma * t.back(w)                                 # (A, S)
@@ -515,10 +671,12 @@ class HsviSolver:
         if vals[a] > float(self.lower.values(b[None])[0]) + _TINY:
             self.lower.add(cand[a], a)
         # Upper: one-step lookahead over the current upper bound.
-        q_up, _ = self._q_upper(b, p, B)
+        q_up, _ = self._q_upper_node(node)
         new_up = float(q_up.max())
-        if new_up < float(self.upper.values(b[None])[0]) - _TINY:
+        if new_up < self._own_upper(node) - _TINY:
             self.upper.add(b, new_up)
+        if not self.keep_successors:
+            node.p = node.B = node.flat = None
         self.backups += 1
 
     # -- sweeps --------------------------------------------------------------------------------
@@ -611,22 +769,28 @@ class HsviSolver:
         self.backups += done
         self.sweeps += 1
 
-    def _sweeps(self, precision: float, deadline: float, max_sweeps: int = 10_000) -> None:
-        """Sweep while it pays: while the gap at the start shrinks by at least half of what exact
-        value iteration would achieve per sweep (a factor γ). The first sweeps after a trial
-        always run: each also adds a level of successors to the belief set."""
+    def _sweeps(self, precision: float, deadline: float, rate_to_beat: float,
+                max_sweeps: int = 10_000) -> float:
+        """Sweep while it pays: while a sweep narrows the gap at the start faster per second
+        (:func:`_log_rate`) than the trials have lately (``rate_to_beat``); at most
+        ``max_sweeps``. Returns the last sweep's rate."""
         lo, up = self.bounds()
-        wanted = 0.5 * (1.0 - self.t.gamma)
-        for k in range(max_sweeps):
+        rate = 0.0
+        for _ in range(max_sweeps):
             if up - lo <= precision or time.perf_counter() > deadline:
-                return
+                break
             if not self._room(self._sweep_growth()):
-                return
+                break
+            began = time.perf_counter()
             self._sweep(deadline)
             new_lo, new_up = self.bounds()
-            if k >= 2 and (up - lo) - (new_up - new_lo) < wanted * (up - lo):
-                return
+            spent = time.perf_counter() - began
+            rate = _log_rate(up - lo, new_up - new_lo, spent)
+            self.sweep_seconds += spent
             lo, up = new_lo, new_up
+            if rate <= rate_to_beat:
+                break
+        return rate
 
     def _prune(self) -> None:
         self.upper.prune()
@@ -658,18 +822,31 @@ class HsviSolver:
         deadline = start + timeout if timeout is not None else float("inf")
         lo, up = self.bounds()
         trials = 0
+        # Trials and sweeps share the time by how fast each narrows the gap at the start
+        # (_log_rate): the trials' rate over their last few (one trial's gain is lumpy), a
+        # sweep's own rate. Trials go first; sweeps run when the trials' rate falls to the
+        # last sweep's (0 before any: only when trials stall), and go on while they are faster.
+        recent: Deque[Tuple[float, float]] = deque(maxlen=8)
+        sweep_rate = 0.0
         while up - lo > precision and time.perf_counter() < deadline:
             if max_trials is not None and trials >= max_trials:
                 break
             if self._out_of_memory():
                 break
-            self._sweeps(precision, deadline)
-            lo, up = self.bounds()
+            if len(recent) == recent.maxlen:
+                trial_rate = sum(g for g, _ in recent) / max(sum(d for _, d in recent), 1e-9)
+                if sweep_rate >= trial_rate:
+                    sweep_rate = self._sweeps(precision, deadline, trial_rate)
+                    recent.clear()             # the trials' rate after the sweeps is new
+                    lo, up = self.bounds()
             if up - lo <= precision or time.perf_counter() > deadline:
                 break
+            began, gap = time.perf_counter(), up - lo
             self._trial(precision, deadline)
             trials += 1
             lo, up = self.bounds()
+            spent = time.perf_counter() - began
+            recent.append((_log_rate(gap, up - lo, spent) * spent, spent))
             if progress is not None:
                 progress(SolveProgress(self.seconds + time.perf_counter() - start, self.trials,
                                        lo, up, self.lower.actions.size, self.upper.vals.size))
