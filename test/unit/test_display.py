@@ -133,3 +133,12 @@ def test_rviz_shows_the_caption_and_a_reset_clears_the_last_episode():
     caption = StepCaption()
     assert is_reset_caption("\n".join(caption.reset()))
     assert not is_reset_caption("\n".join(caption.action_started("human", "grasp")))
+
+
+def test_fabric_s_grasp_planning_has_words_of_its_own():
+    caption = StepCaption()
+    caption.reset()
+    caption.action_started("human", "attempt_grasp")
+    caption.action_finished("human", "attempt_grasp", False, "missed")
+    assert caption.action_started("robot", "grasp_planning")[2] == \
+        "robot: plans a grasp over the object ..."

@@ -65,7 +65,8 @@ def belief_bars(status) -> List[BeliefBar]:
 _ACTION_WORDS = {"walk_away": "walks away", "look_around": "looks around",
                  "warn_robot": "warns the robot", "attempt_grasp": "tries to grasp the object",
                  "grasp": "reaches for the object", "idle": "stays idle", "reset": "resets",
-                 "point_to_obj": "points at the object", "cancel_action": "stops"}
+                 "point_to_obj": "points at the object", "cancel_action": "stops",
+                 "grasp_planning": "plans a grasp over the object"}
 
 
 #: How a caption after a reset begins its only line (after the episode's number).
