@@ -96,7 +96,7 @@ WEIGHTS: Dict[str, float] = {
 
 #: The message types of the protocol.
 MESSAGE_TYPES: Tuple[str, ...] = ("hello", "step", "observation", "decision", "action", "reset",
-                                  "next_state", "ack", "error")
+                                  "next_state", "ack", "error", "reaction")
 
 _HUMAN_ACTIONS = ("graspAttempt", "lookAround", "idle", "walkAway", "warnRobot")
 _HUMAN_STATES = ("task_assigned", "success", "failed_to_grasp", "no_attention", "evaluating",
@@ -449,6 +449,14 @@ class FrameGenerator:
                 o.append(("episode", self._small_int()))
         elif t == "next_state":
             o.append(("state", r.choice((None, 0, 3, 7))))
+        elif t == "reaction":
+            o += [("step", self._small_int()), ("state", self._name(_HUMAN_STATES))]
+            if r.random() < 0.5:
+                o.append(("state_index", r.randrange(8)))
+            if r.random() < 0.4:
+                o.append(("rule", r.choice(("robot_grasped", "robot_pointed", "model"))))
+            if r.random() < 0.3:
+                o.append(("reward", r.choice((-1.0, 0.0, 4.0))))
         elif t == "ack":
             o.append(("step", self._small_int()))
             if r.random() < 0.5:
@@ -733,6 +741,8 @@ class FrameGenerator:
             "reset": [("episode", -1), ("episode", 2 ** 32), ("reason", ""),
                       ("reason", "r" * 1025)],
             "next_state": [("state", 256), ("state", 255), ("state", -1), ("state", 8)],
+            "reaction": [("step", -1), ("state", ""), ("state_index", 256), ("rule", "r" * 129),
+                         ("reward", 1e309)],
             "ack": [("step", -1), ("of", ""), ("result", "r" * 1025), ("result", ""),
                     ("episode", 2 ** 32), ("end_reason", "")],
             "error": [("message", ""), ("message", "m" * 1025), ("code", ""),

@@ -19,7 +19,7 @@ def test_pomdp_world_and_link_import_without_ros():
     # inside a worker (ros_hrc.nodes.experiment_cell), once it knows its own master.
     rooms = ("ros_hrc.pomdp", "ros_hrc.world", "ros_hrc.link", "ros_hrc.errors",
              "ros_hrc.robot_policies", "ros_hrc.tasks", "ros_hrc.tasks.seed",
-             "ros_hrc.loop.task", "ros_hrc.loop.settings",
+             "ros_hrc.tasks.fabric", "ros_hrc.loop.task", "ros_hrc.loop.settings",
              "ros_hrc.loop.models", "ros_hrc.loop.check", "ros_hrc.experiment.store",
              "ros_hrc.experiment.statistics", "ros_hrc.experiment.plots",
              "ros_hrc.experiment.episode", "ros_hrc.experiment.stack",

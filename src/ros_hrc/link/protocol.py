@@ -11,6 +11,9 @@ One text frame carries one JSON object with a ``"type"``. Message types and thei
                                                            the server's own hello
     step         step, action, state, reward?, state_index?, belief? {state: p}, manual?
                                                            MDP -> human node (9090)
+    reaction     step, state, state_index?, rule?, reward?, manual?
+                                                           MDP -> human node: a human who hears
+                                                           the robot, his state after it acted
     observation  step, observation, bits, state            observer -> POMDP (7070)
     decision     step, action, belief [p...], belief_states?, decision_ms?, surprise?, rule?
                                                            POMDP -> observer: answers observation
@@ -62,8 +65,9 @@ MAX_MESSAGE_BYTES = 64 * 1024
 #: A belief must sum to one within this; it tolerates beliefs printed with 6 significant
 #: digits by a foreign (e.g. C++) solver, and still catches an unnormalised one.
 BELIEF_TOLERANCE = 1e-4
-#: Bit patterns of an observation (DESIGN §4: six bits).
-MAX_BITS = 63
+#: Bit patterns of an observation: the seed's six bits (DESIGN §4) and a seventh, 64 (the
+#: object left the belt), that a task may observe (``fabric``: the authors' "failure" bit).
+MAX_BITS = 127
 #: Largest ``epoch`` / ``id`` / ``reply_to``: 2**53 - 1, the largest integer every JSON reader
 #: (a double) holds exactly.
 MAX_ENVELOPE_INT = 2 ** 53 - 1
@@ -470,9 +474,39 @@ class Step(Message):
 
 
 @dataclass(frozen=True)
+class Reaction(Message):
+    """MDP -> human node, after the ``ack`` of step ``step``, from a human who hears the robot
+    (a task with reaction rules, :mod:`ros_hrc.tasks`): the ``state`` he is in after the
+    robot's action (the step's ``state`` was the one he acted in). Optional: its number
+    ``state_index``, the ``rule`` of the task that chose it, the step's ``reward`` and
+    ``manual`` (the state was typed). Not answered unless refused (an ``error``)."""
+
+    TYPE: ClassVar[str] = "reaction"
+    step: int
+    state: str
+    state_index: Optional[int] = None
+    rule: Optional[str] = None
+    reward: Optional[float] = None
+    manual: Optional[bool] = None
+
+    def _validate(self, check: _Checker) -> None:
+        self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
+        self._set("state", check.text("state", self.state))
+        if self.state_index is not None:
+            self._set("state_index", check.integer("state_index", self.state_index,
+                                                   maximum=MAX_STATE_INDEX))
+        if self.rule is not None:
+            self._set("rule", check.text("rule", self.rule))
+        if self.reward is not None:
+            self._set("reward", check.number("reward", self.reward))
+        if self.manual is not None:
+            self._set("manual", check.flag("manual", self.manual))
+
+
+@dataclass(frozen=True)
 class Observation(Message):
     """Observer -> POMDP: the robot's observation after step ``step`` (its name, e.g. ``O35``,
-    and the raw predicate ``bits`` 0..63, which may differ when the pattern was mapped to the
+    and the raw predicate ``bits`` 0..127, which may differ when the pattern was mapped to the
     nearest legal one) and the robot model's true ``state`` (e.g. ``S2``, for reporting).
     Answered with a :class:`Decision` (or an :class:`Error`)."""
 
@@ -638,8 +672,8 @@ class Error(Message):
 
 #: Wire name -> message class.
 MESSAGE_TYPES: Dict[str, Type[Message]] = {
-    cls.TYPE: cls for cls in (Hello, Step, Observation, Decision, Action, Reset, NextState, Ack,
-                              Error)
+    cls.TYPE: cls for cls in (Hello, Step, Reaction, Observation, Decision, Action, Reset,
+                              NextState, Ack, Error)
 }
 #: The types that answer a request (what :func:`is_reply_to` can match).
 REPLY_TYPES: Tuple[Type[Message], ...] = (Ack, Error, Decision)

@@ -22,6 +22,14 @@ One step, in this order (observe -> decide -> act)::
     MDP step(epoch, n, action, state) -> ActHuman -> ObserveWorld -> Decide -> ActRobot
         -> ObserveWorld (the outcome) -> StepReport published, MdpStepDone, episode end?
 
+A human who hears the robot (a task with reaction rules) steps with the state he acts in
+(a grasp's outcome drawn first); his answer is ``MdpStepDone`` (the robot's action, the end),
+and only his reaction (:meth:`Coordinator.reaction_received`: his state after the robot
+acted) completes the step: the report shows that state, labelled, and is published then::
+
+    ... -> ObserveWorld (the outcome) -> MdpStepDone -> the MDP's reaction -> StepReport
+        published, episode end?
+
 **The epoch.** Every reset mints a new epoch, and every call carries the epoch it was made in.
 :meth:`Coordinator.call_done` is the one place where anything from an older epoch is dropped.
 A reset first waits for the calls still out (a world action under way is interrupted by an
@@ -96,6 +104,20 @@ class Decision:
 class Fault:
     """A call failed: the interface could not be reached or answered nonsense."""
     message: str
+
+
+@dataclass(frozen=True)
+class ReactionRequest:
+    """The seated MDP's reaction to step ``step`` of epoch ``epoch`` (a human who hears the
+    robot): his ``state`` after the robot acted, chosen by ``rule``; the step's ``reward``;
+    ``manual``: typed. ``reply`` as for :class:`StepRequest`."""
+    epoch: Optional[int]
+    step: int
+    state: str
+    rule: str = ""
+    reward: float = 0.0
+    manual: bool = False
+    reply: Any = None
 
 
 @dataclass(frozen=True)
@@ -191,13 +213,15 @@ class MdpStepDone:
 
 @dataclass(frozen=True)
 class MdpRefused:
-    """Answer the MDP's step: not carried out (``code`` as in the protocol's error codes)."""
+    """Answer the MDP's step (or, ``in_reply_to`` "reaction", its reaction): not carried out
+    (``code`` as in the protocol's error codes)."""
     peer: Any
     reply: Any
     epoch: Optional[int]
     step: int
     code: str
     message: str
+    in_reply_to: str = "step"
 
 
 @dataclass(frozen=True)
@@ -238,6 +262,9 @@ class StepReport:
     human_action: str
     human_state: str
     human_state_index: int = 0
+    #: A human who hears the robot: the rule that chose ``human_state`` after the robot acted
+    #: (``human_state`` is then that state; the step's request carried the one he acted in).
+    reaction: str = ""
     human_reward: float = 0.0
     human_result: str = ""
     human_acted: bool = True
@@ -323,7 +350,8 @@ class CoordinatorConfig:
     episode numbers to play, in order (None: 1, 2, 3 ...; see the module docstring).
     ``task``: the collaboration task (the seed's by default); ``goal_state`` None is the
     task's goal. ``seed``: the run's seed, whose (seed, episode) stream the task's
-    observation noise draws from."""
+    observation noise draws from. ``human_model``: the human model's name or path, for the
+    task's labels of the robot's true state (fabric: a tired human's)."""
 
     max_steps: int = 0
     end_on_goal: bool = True
@@ -338,6 +366,7 @@ class CoordinatorConfig:
     episodes: Optional[EpisodeSchedule] = None
     task: Task = SEED
     seed: int = 0
+    human_model: str = ""
 
     def __post_init__(self) -> None:
         if self.goal_state is None:
@@ -358,7 +387,9 @@ class _StepContext:
     request: StepRequest
     peer: Any
     report: StepReport
-    stage: str = "human"   # human -> observe -> decide -> robot -> outcome
+    stage: str = "human"   # human -> observe -> decide -> robot -> outcome (-> react)
+    played_out: bool = False   # (react) no episode of the schedule is left after this one
+    react_timer: Optional[int] = None
 
 
 class Coordinator:
@@ -372,8 +403,9 @@ class Coordinator:
         self.seat: Any = None
         self.expected_step = 0
         self.task = self.config.task
-        self.tracker = self.task.new_tracker()
-        self._noise_rng = None          # the episode's observation-noise stream
+        self.tracker = self.task.new_tracker(self.config.human_model)
+        self._observation_map = self.task.observation_map()
+        self._noise_rng = None          # the episode's "observation" stream (noise, labels)
         self._next_epoch = self.config.first_epoch
         self._ids = itertools.count(1)
         self._effects: List[Effect] = []
@@ -397,6 +429,7 @@ class Coordinator:
         self._reset_asked = ""          # how the reset under way was asked for from outside
         self._last_reset_text = ""
         self._wait_timers: Dict[int, Tuple[int, float]] = {}   # timer -> (call id, waited s)
+        self._react_waits: Tuple[Optional[int], float] = (None, 0.0)   # (timer, waited s)
         self.dropped = 0                # results of an older epoch, dropped
 
     # -- output -------------------------------------------------------------------------------
@@ -506,6 +539,45 @@ class Coordinator:
         self.phase = STEPPING
         self._call(ActHuman, request.step, service=service)
 
+    def reaction_received(self, peer: Any, request: ReactionRequest) -> None:
+        """A human who hears the robot tells his state after the robot acted in the step
+        answered last: the step's report takes it (and its label) and the step is complete.
+        A reaction from another client, of another epoch or for no step awaiting one is
+        refused (the loop goes on); one naming a state the task does not have fails the step."""
+        def refuse(code: str, message: str) -> None:
+            self._emit(MdpRefused(peer, request.reply, request.epoch, request.step, code,
+                                  message, in_reply_to="reaction"))
+
+        ctx = self._step
+        if peer != self.seat:
+            return refuse(SEAT_TAKEN, "another MDP process is being served")
+        if request.epoch != self.epoch or self.epoch is None:
+            return refuse(STALE, f"epoch {request.epoch} is over (the loop was reset)")
+        if ctx is None or ctx.stage != "react" or request.step != ctx.request.step:
+            awaited = f"step {ctx.request.step} awaits one" if ctx is not None and \
+                ctx.stage == "react" else "no step awaits one"
+            return refuse(INVALID, f"no reaction expected for step {request.step} ({awaited})")
+        if request.state not in self.task.human_states:
+            refuse(INVALID, f"unknown human state {request.state!r}")
+            return self._fail_step(f"the human's reaction names an unknown state "
+                                   f"{request.state!r}", answered=True)
+        report = ctx.report
+        report.human_state = request.state
+        report.human_state_index = self.task.human_states.index(request.state)
+        report.human_reward = request.reward
+        report.reaction = "manual" if request.manual else (request.rule or "?")
+        report.robot_state = self.tracker.update(request.state, report.human_action)
+        self._step = None
+        self.expected_step = report.step + 1
+        self._emit(PublishStep(report))
+        self._after_step(report, report.end_reason, ctx.played_out)
+
+    def _arm_react_timer(self, ctx: _StepContext, waited: float = 0.0) -> None:
+        every = self.config.wait_note_every
+        ctx.react_timer = next(self._ids)
+        self._react_waits = (ctx.react_timer, waited + every)
+        self._emit(Timer(ctx.react_timer, every))
+
     # -- answers --------------------------------------------------------------------------------
     def call_done(self, call_id: int, result: Any) -> None:
         """A call came back with its result (or a :class:`Fault`). The one place where
@@ -540,10 +612,16 @@ class Coordinator:
                 raw = self.task.raw_bits(result)
                 if self.task.noise is not None:
                     raw, report.observation_noise = self.task.noise(raw, self._noise_rng)
-                bits, report.robot_observation = self.task.observation_of(raw)
+                bits, report.robot_observation = self._observation_map(raw)
                 report.human_observation = self.task.predicates_text(result.predicates)
                 report.observation_bits = bits
-                report.robot_state = self.tracker.update(report.human_state, report.human_action)
+                if self.task.reacts:
+                    # His state after this step follows the robot's action: labelled then.
+                    # The planner's log gets the true state as he acts.
+                    report.robot_state = self.tracker.label
+                else:
+                    report.robot_state = self.tracker.update(report.human_state,
+                                                             report.human_action)
                 ctx.stage = "decide"
                 self._call(Decide, call.step, observation=report.robot_observation, bits=raw,
                            state=report.robot_state)
@@ -579,13 +657,16 @@ class Coordinator:
             self._fail_step(f"{_what(call)} answered nonsense: {exc}")
 
     def _finish_step(self) -> None:
-        ctx, self._step = self._step, None
+        ctx = self._step
         report = ctx.report
         reason = "" if self._episode_ended else self._end_reason(report)
         report.episode_over = bool(reason)
         report.end_reason = reason
-        self.expected_step = report.step + 1
-        self._emit(PublishStep(report))
+        reacts = self.task.reacts
+        if not reacts:
+            self._step = None
+            self.expected_step = report.step + 1
+            self._emit(PublishStep(report))
         if reason:
             self._episode_done = True
         # No episode of the schedule is left after this one: the loop stops here.
@@ -596,6 +677,15 @@ class Coordinator:
         self._emit(MdpStepDone(ctx.peer, ctx.request.reply, self.epoch, report.step,
                                report.robot_action, report.robot_acted, report.robot_result,
                                self.episode, stops, reason))
+        if reacts:
+            # The step is complete when the human tells his state after the robot acted.
+            ctx.stage, ctx.played_out = "react", played_out
+            self._arm_react_timer(ctx)
+            return
+        self._after_step(report, reason, played_out)
+
+    def _after_step(self, report: StepReport, reason: str, played_out: bool) -> None:
+        """The step is complete: ready for the next, or the episode's end as configured."""
         self.phase = READY
         if not reason:
             return
@@ -624,13 +714,16 @@ class Coordinator:
             return "step_limit"
         return ""
 
-    def _fail_step(self, why: str) -> None:
+    def _fail_step(self, why: str, answered: bool = False) -> None:
+        """The step failed: published with its fault, refused to the MDP (unless it was
+        ``answered`` already: a reacting human's step), the loop recovers by a reset."""
         ctx, self._step = self._step, None
         report = ctx.report
         report.fault = why
         self._emit(PublishStep(report))
-        self._emit(MdpRefused(ctx.peer, ctx.request.reply, self.epoch, report.step, FAILED,
-                              f"step {report.step} failed: {why}"))
+        if not answered:
+            self._emit(MdpRefused(ctx.peer, ctx.request.reply, self.epoch, report.step, FAILED,
+                                  f"step {report.step} failed: {why}"))
         self.phase = BROKEN
         self._note("error", f"step {report.step} failed: {why}; the loop starts again "
                             "from a reset")
@@ -662,6 +755,13 @@ class Coordinator:
         (or fail it when the world has not answered in time), or close a reset to joiners."""
         if timer_id in self._wait_timers:
             return self._step_waits(*self._wait_timers.pop(timer_id))
+        ctx = self._step
+        if ctx is not None and ctx.stage == "react" and timer_id == ctx.react_timer:
+            waited = self._react_waits[1]
+            self._note("warn", f"step {ctx.request.step} waits for the human's reaction to the "
+                               f"robot's {ctx.report.robot_action} (the MDP process: in manual "
+                               f"mode, a state to be typed): {waited:g} s so far")
+            return self._arm_react_timer(ctx, waited)
         if timer_id == self._join_timer:
             self._join_timer = None
             return
@@ -724,9 +824,10 @@ class Coordinator:
         self._episode_ended = False
         if self._step is not None:
             ctx, self._step = self._step, None
-            self._emit(MdpRefused(ctx.peer, ctx.request.reply, ctx.request.epoch,
-                                  ctx.request.step, STALE,
-                                  f"step {ctx.request.step} was interrupted by a reset"))
+            if ctx.stage != "react":   # (a reacting human's step was answered already)
+                self._emit(MdpRefused(ctx.peer, ctx.request.reply, ctx.request.epoch,
+                                      ctx.request.step, STALE,
+                                      f"step {ctx.request.step} was interrupted by a reset"))
         if any(isinstance(c, (ActHuman, ActRobot)) for c in self._outstanding.values()):
             # Stop the motions under way now, so the calls waiting on them come back soon.
             self._call(ResetWorld, None, interrupt=True)
@@ -777,8 +878,11 @@ class Coordinator:
                                       f"{result!r}")
         self._episode_start_time = float(result.sim_time)
         self.episode = self._next_episode()
-        if self.task.noise is not None:
-            self._noise_rng = generator(self.config.seed, self.episode, "observation")
+        self._observation_map = self.task.observation_map()
+        self._noise_rng = generator(self.config.seed, self.episode, "observation")
+        begin = getattr(self.tracker, "begin_episode", None)
+        if begin is not None:
+            begin(self._noise_rng)
         self._started_any = True
         self._episode_done = False
         self.phase = READY

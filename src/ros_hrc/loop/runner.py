@@ -26,9 +26,9 @@ from typing import Any, Callable, Optional, Tuple
 from ros_hrc.errors import HrcError
 from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Call, Coordinator, Decide, Decision,
                                       Fault, MdpRefused, MdpReset, MdpStepDone, Note,
-                                      ObserveWorld, Outcome, PublishStep, ResetDone,
-                                      ResetPlanner, ResetWorld, SeatRefused, Snapshot,
-                                      STEP_TIMINGS, StepReport, StepRequest, Timer)
+                                      ObserveWorld, Outcome, PublishStep, ReactionRequest,
+                                      ResetDone, ResetPlanner, ResetWorld, SeatRefused,
+                                      Snapshot, STEP_TIMINGS, StepReport, StepRequest, Timer)
 
 _log = logging.getLogger("ros_hrc.loop")
 
@@ -103,7 +103,8 @@ class _ResetAnswer:
 
 class LoopRunner:
     """One coordinator, one event thread, a pool for blocking calls. Thread-safe entry points:
-    :meth:`mdp_connected`, :meth:`mdp_disconnected`, :meth:`step_requested`, :meth:`reset`."""
+    :meth:`mdp_connected`, :meth:`mdp_disconnected`, :meth:`step_requested`,
+    :meth:`reaction_received`, :meth:`reset`."""
 
     def __init__(self, coordinator: Coordinator, world: WorldPort, planner: PlannerPort,
                  executor: ExecutorPort, mdp: MdpPort, reports: Optional[ReportPort] = None,
@@ -159,6 +160,9 @@ class LoopRunner:
             self._step_started, self._timings = arrived, {}
             self.coordinator.step_requested(peer, request)
         self.post(event)
+
+    def reaction_received(self, peer: Any, request: ReactionRequest) -> None:
+        self.post(lambda: self.coordinator.reaction_received(peer, request))
 
     def reset(self, reason: str, timeout: Optional[float] = None) -> Tuple[bool, str]:
         """Ask for a reset and wait for its answer: (success, message)."""

@@ -6,7 +6,9 @@ what it asks, through four adapters:
 * the **human MDP**: a websocket server (``~port``, 9090 by default, bound to ``~host``). The
   first client is the served MDP; a second one is refused with one line and disconnected.
   ``step`` messages go to the coordinator; its answers go back as ``ack`` / ``error``, and a
-  ``reset`` (with the new epoch) starts each episode.
+  ``reset`` (with the new epoch) starts each episode. A human who hears the robot (a task
+  with reaction rules) answers each ``ack`` with a ``reaction`` (his state after the robot
+  acted), which completes the step.
 * the **world**: ``/human/<action>`` (the seed's Table 3.2), ``/hrc/world/state`` (one
   atomic snapshot: the six predicates and where the object is) and ``/hrc/world/reset``,
   after setting ``/hrc/world/episode`` to the episode that starts (the world reseeds its
@@ -64,16 +66,16 @@ from std_srvs.srv import Trigger, TriggerResponse
 
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, Action, DispatchTable,
-                                   Error, Message, MessageError, NextState, Reset, Step,
-                                   reply_error)
+                                   Error, Message, MessageError, NextState, Reaction, Reset,
+                                   Step, reply_error)
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
                                       WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig,
                                       Decision, MdpRefused, MdpReset, MdpStepDone, Outcome,
-                                      SeatRefused, Snapshot, STEP_TIMINGS, StepReport,
-                                      StepRequest)
+                                      ReactionRequest, SeatRefused, Snapshot, STEP_TIMINGS,
+                                      StepReport, StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.loop.streams import WORLD_EPISODE_PARAM, EpisodeSchedule
@@ -286,7 +288,8 @@ class LinkMdp(MdpPort):
                              reply_to=effect.reply))
 
     def refused(self, effect: MdpRefused) -> None:
-        effect.peer.send(Error(message=effect.message, code=effect.code, in_reply_to=Step.TYPE,
+        effect.peer.send(Error(message=effect.message, code=effect.code,
+                               in_reply_to=effect.in_reply_to,
                                step=effect.step, epoch=effect.epoch, reply_to=effect.reply))
 
     def refuse_seat(self, effect: SeatRefused) -> None:
@@ -310,6 +313,8 @@ class Terminal(ReportPort):
         self.publisher.publish(status)
         if self.print_steps:
             text = format_step(status, self.task)
+            if report.reaction:
+                text += f"\nhuman reaction    : {report.reaction} (to the robot's action)"
             if report.observation_noise:
                 text += f"\nobservation noise : {report.observation_noise}"
             print(text, flush=True)
@@ -393,6 +398,7 @@ class HumanNode:
                                           self.task))
         table = DispatchTable("hrc_human")
         table.on(Step, self._on_step)
+        table.on(Reaction, self._on_reaction)
         table.on(Reset, self._on_reset)
         table.on(Ack, self._on_answer)
         table.on(Error, self._on_answer)
@@ -421,6 +427,11 @@ class HumanNode:
         self.runner.step_requested(peer, StepRequest(
             epoch=msg.epoch, step=msg.step, action=msg.action, state=msg.state,
             reward=msg.reward or 0.0, reply=msg.id))
+
+    def _on_reaction(self, msg: Reaction, peer: Peer) -> None:
+        self.runner.reaction_received(peer, ReactionRequest(
+            epoch=msg.epoch, step=msg.step, state=msg.state, rule=msg.rule or "",
+            reward=msg.reward or 0.0, manual=bool(msg.manual), reply=msg.id))
 
     def _on_reset(self, msg: Reset, peer: Peer) -> Message:
         if peer is not self.runner.coordinator.seat:

@@ -1,12 +1,22 @@
 """despot_mdp: the simulated human's process (no ROS; it speaks only websocket).
 
-It loads a human MDP (checked against the task's states and actions), and is a client of the
-human node (``ws://127.0.0.1:9090``), where the loop's coordinator serves one MDP at a time
-(a second one is refused: this process then says so and exits with status 3). Each episode
+It loads a human MDP (checked against the states and actions of the task, ``--task``:
+:mod:`ros_hrc.tasks`), and is a client of the human node (``ws://127.0.0.1:9090``), where
+the loop's coordinator serves one MDP at a time (a second one is refused: this process then
+says so and exits with status 3). Each episode
 starts with the coordinator's ``reset`` (its epoch and number). Each step it picks the
 human's action, decides the next state (sampled from the model in ``auto`` mode; asked in
 ``manual`` mode, as the seed's MDP terminal does), sends a ``step`` message, and waits for its
 answer (which carries the robot's action) before the next.
+
+**A human who hears the robot** (a task with reaction rules: ``fabric``): the step carries the
+state he acts in (for a grasp its outcome, drawn before the robot acts); the step's answer
+(``ack``) carries the robot's action, and from it, and the step's end if it ended the task,
+the task's rules give his next state, which he sends back (``reaction``): it completes the
+step, whose report (``/hrc/status``) shows it. The terminal prints the robot's action and the rule
+applied (``- Robot answered: grasp ...`` / ``- Reaction: the robot grasped:
+RobotInterfered``). In manual mode the prompt comes then, after the robot acted: the typed
+state is his next state (the rules are not applied); anything else lets them choose.
 
 Manual mode asks ``Please enter the next state [integer from 0 to 7, press any non-int key
 for autogen]``: an integer gives that state (with ``--manual-share`` of the belief), anything
@@ -44,8 +54,8 @@ from typing import Optional, TextIO, Tuple
 from ros_hrc import tasks
 from ros_hrc.command_line import parse_launch_options, ranged_number
 from ros_hrc.errors import HrcError, LinkError
-from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Error, Message, NextState, Reset, Step,
-                                   is_reply_to, reply_error)
+from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Error, Message, NextState,
+                                   Reaction, Reset, Step, is_reply_to, reply_error)
 from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc.loop import settings
@@ -285,6 +295,8 @@ class MdpProcess:
     def one_step(self) -> bool:
         """One step; True when the loop now waits for a reset (the episode is over, or the
         step was not carried out)."""
+        if self.agent.reacts:
+            return self.one_reacting_step()
         agent = self.agent
         action = agent.choose_action()
         self.print(f"\n-----Round {self.episode} Step {agent.step}-----")
@@ -317,6 +329,72 @@ class MdpProcess:
                                 "when the next episode asks for it")
             return True
         self.print(f"- Robot answered: {reply.action or '?'} ({reply.result or ''})")
+        if reply.end_reason:
+            self.print(f"\n===== Episode {self.episode} over ({reply.end_reason}) after "
+                       f"{agent.step} steps: discounted / undiscounted = "
+                       f"{agent.discounted:g} / {agent.undiscounted:g} =====")
+        if reply.episode_over:
+            self.print("The next episode starts with the next reset (with on_episode_end:=wait: "
+                       "press Enter in the ROS terminal or call /hrc/reset).")
+            self._refuse_states(f"episode {self.episode} is over ({reply.end_reason or 'ended'})"
+                                ": no next state until the next episode; reset first (Enter "
+                                "in the roslaunch terminal or `rosservice call /hrc/reset`)")
+            return True
+        return False
+
+    def one_reacting_step(self) -> bool:
+        """One step of a human who hears the robot (module docstring): act, send the state he
+        acts in, wait for the robot's action, react to it."""
+        agent = self.agent
+        action = agent.choose_action()
+        self.print(f"\n-----Round {self.episode} Step {agent.step}-----")
+        self.print(f"Agent Took: a{action}:{agent.model.actions[action]}, in the State: "
+                   f"[{self.state_var}:{agent.state_name}]")
+        before = agent.state_name
+        shown = agent.act(action)
+        if shown != before:
+            self.print(f"- Outcome of his {agent.model.actions[action]}, drawn before the robot "
+                       f"acts: [{self.state_var}:{shown}]")
+        msg = Step(step=agent.step, action=agent.model.actions[action], state=shown,
+                   state_index=agent.model.states.index(shown), belief=agent.belief_dict(),
+                   epoch=self.epoch, id=next(self._ids))
+        try:
+            self.client.send(msg)
+        except LinkError as exc:
+            self.print(f"(link trouble: {exc}; waiting for a reset)")
+            return True
+        reply = self._wait_reply(msg)
+        if reply is None:
+            self.print(f"- World: no answer in {self.args.reply_timeout:g} s; waiting for a reset")
+            return True
+        if isinstance(reply, Error):
+            self.print(f"- World: step refused: {reply.message}; waiting for a reset")
+            self._refuse_states("the step was refused and the loop resets; give the state "
+                                "when the next episode asks for it")
+            return True
+        robot_action = reply.action or ""
+        self.print(f"- Robot answered: {robot_action or '?'} ({reply.result or ''})")
+        manual_state = None
+        if self.mode == "manual" and not reply.episode_over:
+            manual_state = self._ask_next_state()
+        result = agent.react(robot_action, reply.end_reason or "", manual_state)
+        try:
+            self.client.send(Reaction(step=result.step, state=result.state,
+                                      state_index=result.state_index, rule=result.rule,
+                                      reward=result.reward, manual=result.manual or None,
+                                      epoch=self.epoch, id=next(self._ids)))
+        except LinkError as exc:
+            self.print(f"(link trouble: {exc}; waiting for a reset)")
+            return True
+        self.print("== RESULTS ==")
+        self.print(f"- Reaction: {result.reaction}" + ("" if result.manual else
+                                                        f" (rule {result.rule})"))
+        self.print(f"- Resulting State:[{self.state_var}:{result.state}]")
+        self.print(f"- Reward = {result.reward:g}")
+        self.print(f"- Accumulated rewards:\n  discounted / undiscounted = "
+                   f"{result.discounted:g} / {result.undiscounted:g}")
+        belief = "\n".join(f"[{self.state_var}:{s}] = {p:g}" for s, p in result.belief.items())
+        self.print(f"- Agent's belief:\n{belief}")
         if reply.end_reason:
             self.print(f"\n===== Episode {self.episode} over ({reply.end_reason}) after "
                        f"{agent.step} steps: discounted / undiscounted = "
@@ -393,7 +471,8 @@ def main(argv: Optional[list] = None) -> int:
         task = tasks.get(args.task)
         model = load_human_model(args.human_model, task)
         agent = HumanAgent(model, HumanAgentConfig(choice=args.human_choice, temperature=args.temperature,
-                                                   manual_share=args.manual_share, seed=args.seed))
+                                                   manual_share=args.manual_share, seed=args.seed),
+                           reaction=task.reaction)
         token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
@@ -409,8 +488,10 @@ def main(argv: Optional[list] = None) -> int:
     mapping = positional_mapping_line(model)
     if mapping:
         print(f"{NAME}: {mapping}", file=sys.stderr, flush=True)
+    reacts = "; he reacts to the robot" if task.reacts else ""
     print(f"{NAME}: {model.source or args.human_model}: {model.n_states} states, "
-          f"{model.n_actions} actions, {args.mode} mode; connecting to {client.url}", flush=True)
+          f"{model.n_actions} actions, {args.mode} mode, task {task.name}{reacts}; connecting "
+          f"to {client.url}", flush=True)
     code = 0
     try:
         client.connect()

@@ -1,11 +1,11 @@
 """despot_pomdp: the robot's decision process (no ROS; it speaks only websocket).
 
 It loads the robot POMDP (checked against the states, actions and observations of the task,
-``--task``: :mod:`ros_hrc.tasks`) and keeps the robot's belief. It is a websocket **server** on port 7070 for the observer
-(``hrc_obs``). For each ``observation``: update the belief with the robot's previous action
-and the observation (the task's idle action before the first step, ``rIdle`` for the seed:
-the robot starts idle), plan (DESPOT by
-default, a saved offline policy, or a baseline robot of ``ros_hrc.robot_policies``: the
+``--task``: :mod:`ros_hrc.tasks`) and keeps the robot's belief. It is a websocket **server**
+on port 7070 for the observer (``hrc_obs``). For each ``observation``: update the belief with
+the robot's previous action and the observation (the task's idle action before the first
+step, ``rIdle`` for the seed: the robot starts idle), plan (DESPOT by default, a saved
+offline policy, or a baseline robot of ``ros_hrc.robot_policies``: the
 reactive robot or no robot, which keep the belief but decide without it), and answer with a
 ``decision``. The coordinator has the robot carry it out (hrc_robot), not this process.
 A ``reset`` puts the belief back to the model's initial belief (and the reactive robot's step

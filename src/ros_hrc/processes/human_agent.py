@@ -7,17 +7,26 @@ given by the user (manual). A manually given state gets ``manual_share`` of the 
 states in proportion to what the model predicted, uniformly when it predicted none of them;
 so a typed state is followed, yet the agent's next choice stays a little sceptical.
 
+**A human who hears the robot** (a task with reaction rules, :mod:`ros_hrc.tasks`): one
+step is two calls. :meth:`HumanAgent.act` takes the action in the current state and returns
+the state the step shows (a grasp's outcome is drawn then, before the robot acts);
+:meth:`HumanAgent.react`, once the robot's action is known, moves to the next state by the
+task's rules, or to a typed state. Every draw is from the model's row as the task's rules
+shape it (:meth:`~ros_hrc.tasks.definition.ReactionRules.row`), renormalised over the states
+they allow (a rejected draw drawn again), from the agent's own random stream.
+
 No ROS and no websocket here: the process in :mod:`ros_hrc.processes.despot_mdp` drives it.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
 from ros_hrc.pomdp.mdp import value_iteration
 from ros_hrc.pomdp.model import Model
+from ros_hrc.tasks.definition import ReactionRules
 
 ACTION_CHOICES = ("optimal", "softmax", "random")
 
@@ -55,17 +64,25 @@ class HumanStep:
     discounted: float
     undiscounted: float
     belief: Dict[str, float] = field(default_factory=dict)
+    #: A reacting human: the robot's action he heard, the rule that chose his next state
+    #: (``manual`` for a typed one) and what it says.
+    robot_action: str = ""
+    rule: str = ""
+    reaction: str = ""
 
 
 class HumanAgent:
     """An MDP human with a belief over its own state (one-hot unless a state was typed)."""
 
-    def __init__(self, model: Model, config: Optional[HumanAgentConfig] = None) -> None:
+    def __init__(self, model: Model, config: Optional[HumanAgentConfig] = None,
+                 reaction: Optional[ReactionRules] = None) -> None:
         if not model.fully_observable:
             raise ValueError(f"{model.source or model.name}: the human model must be an MDP "
                              "(all state variables fullyObs=\"true\")")
         self.model = model
         self.config = config or HumanAgentConfig()
+        #: The task's reaction rules (None: he does not hear the robot, as the seed's human).
+        self.reaction = reaction
         self.solution = value_iteration(model)
         self._dense_T = model.dense_T
         self._rewards = [r.toarray() for r in model.R]
@@ -81,10 +98,17 @@ class HumanAgent:
         self.step = 0
         self.discounted = 0.0
         self.undiscounted = 0.0
+        self._acting: Optional[Tuple[int, int, str]] = None   # (state, action, shown state)
 
     @property
     def state_name(self) -> str:
         return self.model.states[self.state]
+
+    @property
+    def reacts(self) -> bool:
+        """Whether he chooses his next state after the robot acted (:meth:`act`, then
+        :meth:`react`) rather than with his action (:meth:`advance`)."""
+        return self.reaction is not None
 
     # -- acting ----------------------------------------------------------------------
     def choose_action(self) -> int:
@@ -121,6 +145,66 @@ class HumanAgent:
                            state_index=next_state, manual=manual_state is not None,
                            reward=reward, discounted=self.discounted,
                            undiscounted=self.undiscounted, belief=self.belief_dict())
+        self.step += 1
+        return result
+
+    # -- a human who hears the robot --------------------------------------------------------
+    def draw(self, state: str, action: str) -> str:
+        """A next state from the model's row T(. | state, action), shaped by the task's rules
+        and restricted to the states they allow; the state itself when they allow none."""
+        names = self.model.states
+        s, a = names.index(state), self.model.actions.index(action)
+        row = np.asarray(self.reaction.row(self._dense_T[a, s], names), dtype=float)
+        allowed = np.array([self.reaction.allowed(state, action, n) for n in names])
+        weights = np.where(allowed, np.clip(row, 0.0, None), 0.0)
+        if weights.sum() <= 0.0:
+            return state
+        return names[int(self.rng.choice(len(names), p=weights / weights.sum()))]
+
+    def act(self, action: int) -> str:
+        """A reacting human takes ``action`` in his state: the state the step shows (for a
+        grasp its outcome, drawn now, before the robot acts)."""
+        if self.reaction is None:
+            raise ValueError("act/react are for a human who reacts to the robot; this one "
+                             "steps with advance()")
+        name = self.model.actions[action]
+        shown = self.reaction.acting_state(self.state_name, name, self.draw)
+        self._acting = (self.state, action, shown)
+        return shown
+
+    def react(self, robot_action: str, end_reason: str = "",
+              manual_state: Optional[int] = None) -> HumanStep:
+        """After the robot did ``robot_action`` (``end_reason``: the loop's, when the step
+        ended the episode), move to the next state by the task's reaction rules, or to
+        ``manual_state`` when one was typed."""
+        if self._acting is None:
+            raise ValueError("react() comes after act()")
+        before, action, shown = self._acting
+        self._acting = None
+        names = self.model.states
+        n = self.model.n_states
+        if manual_state is not None:
+            if not 0 <= manual_state < n:
+                raise ValueError(f"state must be an integer from 0 to {n - 1}, not {manual_state}")
+            next_state, rule, text = int(manual_state), "manual", "typed"
+            predicted = self._dense_T[action, names.index(shown)]
+            self.belief = self._manual_belief(next_state, predicted)
+        else:
+            reaction = self.reaction.next_state(shown, self.model.actions[action], robot_action,
+                                                end_reason or "", self.draw)
+            next_state, rule, text = names.index(reaction.state), reaction.rule, reaction.text
+            self.belief = np.zeros(n)
+            self.belief[next_state] = 1.0
+        reward = float(self._rewards[action][before, next_state])
+        self.discounted += self.model.discount ** self.step * reward
+        self.undiscounted += reward
+        self.state = next_state
+        result = HumanStep(step=self.step, action=self.model.actions[action],
+                           previous_state=names[before], state=self.state_name,
+                           state_index=next_state, manual=manual_state is not None,
+                           reward=reward, discounted=self.discounted,
+                           undiscounted=self.undiscounted, belief=self.belief_dict(),
+                           robot_action=robot_action, rule=rule, reaction=text)
         self.step += 1
         return result
 

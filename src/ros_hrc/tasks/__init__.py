@@ -19,6 +19,7 @@ __all__ = ["Task", "TASK_NAMES", "DEFAULT_TASK", "get", "UnknownTask"]
 #: Every task, by name -> the module that defines it (as ``TASK``), in the order of the docs.
 _MODULES: Dict[str, str] = {
     "seed": "ros_hrc.tasks.seed",
+    "fabric": "ros_hrc.tasks.fabric",
 }
 TASK_NAMES: Tuple[str, ...] = tuple(_MODULES)
 DEFAULT_TASK = "seed"

@@ -7,10 +7,12 @@ knows the task by name:
   world service (``/human/<service>``) carries out each action;
 * the robot: its model's states, actions and observations, and which ``/robot/<service>``
   carries out each action (``None``: it stays idle and keeps observing);
-* the world's bits -> the robot's observation (:class:`Observations`), from one snapshot
-  (:attr:`Task.raw_bits`), with the task's observation noise (:attr:`Task.noise`);
+* the world's bits -> the robot's observation (:class:`Observations`; per episode a map,
+  :meth:`Task.observation_map`, which may remember the episode's previous observation), from
+  one snapshot (:attr:`Task.raw_bits`), with the task's observation noise (:attr:`Task.noise`);
 * the robot model's true state, labelled from the human's state and its history
-  (:attr:`Task.new_tracker`; reported and scored, never shown to the robot);
+  (:attr:`Task.new_tracker`, given the human model's name; reported and scored, never shown
+  to the robot);
 * success and failure: the human's goal state (``end_on_goal``) and the states in which
   the human "needs help" (for scoring intrusions);
 * the human's reaction to the robot (:class:`ReactionRules`; ``None``: he does not react);
@@ -27,7 +29,8 @@ from pathlib import Path
 from typing import (Any, Callable, Dict, FrozenSet, Iterable, Mapping, Optional, Protocol,
                     Sequence, Tuple)
 
-__all__ = ["Task", "Observations", "Tracker", "Reaction", "ReactionRules", "Draw", "Noise"]
+__all__ = ["Task", "Observations", "ObservationMap", "NearestObservation", "Tracker",
+           "Reaction", "ReactionRules", "Draw", "Noise"]
 
 
 class Tracker(Protocol):
@@ -41,6 +44,10 @@ class Tracker(Protocol):
     def update(self, human_state: str, human_action: Optional[str] = None) -> str:
         """Account for the human's state (reached by ``human_action``; None: not known) and
         return the robot's true state."""
+
+    # Optional: ``begin_episode(rng)``, called at each episode's start with the episode's
+    # "observation" stream (:mod:`ros_hrc.loop.streams`), before any noise is drawn from it,
+    # for what the labels take as given per episode (fabric: does this human trust the robot).
 
 
 #: ``draw(state, action)``: a next state drawn from the human model's row T(. | state,
@@ -84,6 +91,17 @@ class ReactionRules(Protocol):
     def allowed(self, state: str, action: str, next_state: str) -> bool:
         """Whether a draw from the model's row may give ``next_state`` (the others are
         drawn again, i.e. the row is renormalised over the allowed ones)."""
+
+    def row(self, probabilities: Sequence[float], states: Sequence[str]) -> Sequence[float]:
+        """The model's row T(. | state, action) as the draw uses it (over ``states``)."""
+
+
+class ObservationMap(Protocol):
+    """One episode's bits -> observation map: ``map(raw)`` is (the bit pattern the robot's
+    observation stands for, the observation's name)."""
+
+    def __call__(self, raw: int) -> Tuple[int, str]:
+        ...
 
 
 class Observations:
@@ -155,6 +173,17 @@ class Observations:
         return "+".join(n for b, n in self.bit_names if bits & b) or "nothing"
 
 
+class NearestObservation:
+    """The stateless map: raw bits -> the nearest listed pattern and its observation."""
+
+    def __init__(self, observations: Observations) -> None:
+        self.observations = observations
+
+    def __call__(self, raw: int) -> Tuple[int, str]:
+        pattern = self.observations.nearest(raw)
+        return pattern, self.observations.name_of(pattern)
+
+
 @dataclass(frozen=True)
 class Task:
     """One collaboration task: see the module docstring for what each part is."""
@@ -184,8 +213,11 @@ class Task:
     predicate_bits: Mapping[str, int]
     #: The raw bits of one world snapshot (``.predicates``, ``.holder``, ``.left_belt``).
     raw_bits: Callable[[Any], int]
-    #: A new labeller of the robot's true state (one per loop; reset per episode).
-    new_tracker: Callable[[], Tracker]
+    #: A new labeller of the robot's true state for a human model (its name or path; one
+    #: per loop, reset per episode).
+    new_tracker: Callable[[str], Tracker]
+    #: A new episode's bits -> observation map (None: :class:`NearestObservation`).
+    new_observation_map: Optional[Callable[[Observations], ObservationMap]] = None
     # -- the human's reaction and the robot's noise
     reaction: Optional[ReactionRules] = None
     noise: Optional[Noise] = None
@@ -240,16 +272,10 @@ class Task:
         return tuple(self.robot_action_services)
 
     # -- observing ------------------------------------------------------------------------------
-    def observe(self, snapshot: Any) -> Tuple[int, int, str]:
-        """The snapshot's (raw bits, the listed pattern they map to, its observation)."""
-        raw = self.raw_bits(snapshot)
-        pattern = self.observations.nearest(raw)
-        return raw, pattern, self.observations.name_of(pattern)
-
-    def observation_of(self, raw: int) -> Tuple[int, str]:
-        """(the listed pattern, its observation) of raw bits (e.g. after noise)."""
-        pattern = self.observations.nearest(raw)
-        return pattern, self.observations.name_of(pattern)
+    def observation_map(self) -> ObservationMap:
+        """A fresh bits -> observation map, for one episode."""
+        make = self.new_observation_map or NearestObservation
+        return make(self.observations)
 
     def predicates_text(self, predicates: Mapping[str, bool]) -> str:
         """The predicates as the step block prints them, e.g. ``ov=1 oir=1 a0=0 ...``."""

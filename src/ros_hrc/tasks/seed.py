@@ -206,7 +206,7 @@ SEED = Task(
     observations=OBSERVATIONS,
     predicate_bits=PREDICATE_BITS,
     raw_bits=snapshot_bits,
-    new_tracker=RobotStateTracker,
+    new_tracker=lambda human_model="": RobotStateTracker(),
     reaction=None,
     noise=None,
     default_human_model="humanModel",

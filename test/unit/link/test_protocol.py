@@ -9,14 +9,16 @@ import pytest
 from ros_hrc.errors import LinkError, ProtocolError
 from ros_hrc.link.protocol import (BELIEF_TOLERANCE, ERR_INVALID, MAX_MESSAGE_BYTES,
                                    MESSAGE_TYPES, Ack, Action, Decision, Error, Hello,
-                                   MessageError, NextState, Observation, Reset, Step, decode,
-                                   encode, error_message, error_reply, from_dict)
+                                   MessageError, NextState, Observation, Reaction, Reset, Step,
+                                   decode, encode, error_message, error_reply, from_dict)
 
 # One message of each type, with every optional field set, and one with none of them.
 FULL_MESSAGES = [
     Hello(who="despot_mdp", version=2, id=1),
     Step(step=3, action="idle", state="evaluating", reward=-1.5, state_index=4,
          belief={"evaluating": 0.8, "tired": 0.2}, manual=True, epoch=2, id=17),
+    Reaction(step=3, state="RobotInterfered", state_index=8, rule="robot_grasped", reward=-1.0,
+             manual=False, epoch=2, id=21),
     Observation(step=3, observation="O35", bits=35, state="S2", epoch=2, id=18),
     Decision(step=3, action="rPoint_obj", belief=[0.1, 0.2, 0.7],
              belief_states=["S0", "S1", "S2"], decision_ms=12.5, surprise=False,
@@ -33,6 +35,7 @@ FULL_MESSAGES = [
 MINIMAL_MESSAGES = [
     Hello(who="hrc_obs"),
     Step(3, "idle", "evaluating"),
+    Reaction(3, "Evaluating"),
     Observation(0, "O0", 0, "S0"),
     Decision(0, "rIdle", [1.0]),
     Action(0, "rIdle"),
@@ -147,8 +150,10 @@ MALFORMED = [
     ("step belief not an object", _frame(**{**STEP, "belief": [1.0]}), "must be an object"),
     ("step belief not summing to 1", _frame(**{**STEP, "belief": {"a": 0.5}}), "must sum to 1"),
     ("negative state_index", _frame(**{**STEP, "state_index": -2}), '"state_index" must be in 0..255'),
-    ("bits above 63", _frame(**{**OBSERVATION, "bits": 64}), '"bits" must be in 0..63, got 64'),
-    ("negative bits", _frame(**{**OBSERVATION, "bits": -1}), '"bits" must be in 0..63'),
+    # 127: the seed's six bits and a task's seventh (64, the object left the belt: fabric)
+    ("bits above 127", _frame(**{**OBSERVATION, "bits": 128}),
+     '"bits" must be in 0..127, got 128'),
+    ("negative bits", _frame(**{**OBSERVATION, "bits": -1}), '"bits" must be in 0..127'),
     ("belief not an array", _frame(**{**ACTION, "belief": 1.0}), "array of probabilities"),
     ("empty belief", _frame(**{**ACTION, "belief": []}), '"belief" must not be empty'),
     ("belief entry not a number", _frame(**{**ACTION, "belief": ["x", 1]}),
@@ -233,7 +238,7 @@ def test_from_dict_validates_an_already_parsed_object():
 
 def test_error_reply_answers_a_rejected_message_with_its_type_step_and_reason():
     with pytest.raises(MessageError) as caught:
-        decode(_frame(**{**OBSERVATION, "step": 5, "bits": 99}))
+        decode(_frame(**{**OBSERVATION, "step": 5, "bits": 199}))
     reply = decode(error_reply(caught.value))
     assert reply == Error(message=caught.value.reason, in_reply_to="observation", step=5,
                           code=ERR_INVALID)

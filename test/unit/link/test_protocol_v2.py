@@ -19,6 +19,7 @@ from ros_hrc.link.protocol import (ERR_BUSY, ERR_FAILED, ERR_INVALID, ERR_REFUSE
 BASE = {
     "hello": {"who": "x"},
     "step": {"step": 1, "action": "idle", "state": "tired"},
+    "reaction": {"step": 1, "state": "RobotInterfered"},
     "observation": {"step": 1, "observation": "O3", "bits": 3, "state": "S1"},
     "decision": {"step": 1, "action": "rIdle", "belief": [1.0]},
     "action": {"step": 1, "action": "rIdle"},
@@ -184,7 +185,7 @@ def test_as_reply_and_reply_error_answer_a_request():
 
 def test_error_message_carries_the_rejected_frames_id_and_epoch():
     with pytest.raises(MessageError) as caught:
-        decode('{"type":"observation","step":5,"bits":99,"observation":"O3","state":"S1",'
+        decode('{"type":"observation","step":5,"bits":199,"observation":"O3","state":"S1",'
                '"id":77,"epoch":4}')
     assert caught.value.msg_id == 77 and caught.value.epoch == 4
     reply = decode(error_reply(caught.value))

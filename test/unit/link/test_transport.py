@@ -128,8 +128,8 @@ MALFORMED_FRAMES = [
     ("text", "[1, 2, 3]", "must be a JSON object"),
     ("text", '{"type":"teleport","step":2}', 'unknown message type "teleport"'),
     ("text", '{"type":"step","step":2,"action":"idle"}', 'missing field "state"'),
-    ("text", '{"type":"observation","step":2,"observation":"O99","bits":99,"state":"S1"}',
-     '"bits" must be in 0..63'),
+    ("text", '{"type":"observation","step":2,"observation":"O99","bits":199,"state":"S1"}',
+     '"bits" must be in 0..127'),
     ("text", '{"type":"action","step":2,"action":"rIdle","belief":[0.9,0.9]}', "must sum to 1"),
     ("binary", b'{"type":"reset"}', "binary frame"),
 ]
