@@ -277,3 +277,60 @@ def test_the_printed_hand_run_command_is_one_the_solver_takes(tmp_path, monkeypa
     pomdp = parse_launch_options(despot_pomdp.build_parser(), commands["despot_pomdp"])
     assert (pomdp.pomdp_port, pomdp.planner, pomdp.robot_model) == \
         (7070, "reactive", str(folder / "r.pomdp"))
+
+
+# -- the task (issue #22) -----------------------------------------------------------------------
+
+def test_task_fabric_runs_its_own_models_by_default(capsys):
+    assert main(["--no-port-check", "task:=fabric"]) == 0
+    config = yaml.safe_load(capsys.readouterr().out)
+    assert (config["task"], config["human_model"], config["robot_model"]) == (
+        "fabric", "beginner_nontired_collaborative", "base")
+    assert main(["--no-port-check", "task:=fabric", "human_model:=auto",
+                 "robot_model:=policy3"]) == 0
+    config = yaml.safe_load(capsys.readouterr().out)
+    assert (config["human_model"], config["robot_model"]) == (
+        "beginner_nontired_collaborative", "policy3")
+
+
+SEED_ROBOT = ROOT / "models" / "robot" / "robot.pomdp"
+FABRIC_ROBOT = ROOT / "models" / "fabric" / "robot" / "base.pomdpx"
+
+
+@pytest.mark.parametrize("words, line", [
+    (("task:=fabric", f"robot_model:={SEED_ROBOT}"),
+     f"hrc.launch: {SEED_ROBOT.relative_to(ROOT)}: states S0, S1, S2, S3, S4, S5, S6 are not "
+     "task fabric's states (missing: TaskHuman, "),
+    ((f"robot_model:={FABRIC_ROBOT}",),
+     f"hrc.launch: {FABRIC_ROBOT.relative_to(ROOT)}: states TaskHuman, "),
+    (("task:=fabric", "human_model:=humanModel"),
+     "hrc.launch: human_model:=humanModel: no human model named 'humanModel' in "),
+    (("task:=fabric", "planner:=reactive"),
+     "hrc.launch: planner:=reactive: the reactive robot reads the seed task's observations"),
+    (("task:=seeds",), "hrc.launch: task:=seeds: must be one of seed, fabric"),
+])
+def test_a_model_of_another_task_is_refused_in_one_line(words, line):
+    said = refused("--no-port-check", *words)
+    assert said.startswith(line), said
+    if "robot_model" in words[-1]:
+        other = "seed" if "task:=fabric" in words else "fabric"
+        assert said.endswith(f"; it is a model of task {other} (task:={other})"), said
+
+
+def test_the_hand_run_commands_carry_the_task(tmp_path, monkeypatch, capsys):
+    import shlex
+
+    from ros_hrc.command_line import parse_launch_options
+    from ros_hrc.processes import despot_mdp, despot_pomdp
+
+    monkeypatch.setenv("ROS_HOME", str(tmp_path))
+    assert main(["--no-port-check", "task:=fabric", "start_mdp:=false", "start_pomdp:=false",
+                 "--link-session=hrc_link_t5"]) == 0
+    commands = {}
+    for line in capsys.readouterr().err.splitlines():
+        words = shlex.split(line.partition(" by hand: ")[2])
+        commands[words[2]] = words[3:]
+    mdp = parse_launch_options(despot_mdp.build_parser(), commands["despot_mdp"])
+    pomdp = parse_launch_options(despot_pomdp.build_parser(), commands["despot_pomdp"])
+    assert (mdp.task, mdp.human_model) == ("fabric", "beginner_nontired_collaborative")
+    assert (pomdp.task, pomdp.robot_model) == ("fabric", "base")
