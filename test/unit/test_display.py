@@ -142,3 +142,20 @@ def test_fabric_s_grasp_planning_has_words_of_its_own():
     caption.action_finished("human", "attempt_grasp", False, "missed")
     assert caption.action_started("robot", "grasp_planning")[2] == \
         "robot: plans a grasp over the object ..."
+
+
+def test_a_fabric_step_is_shown_in_fabric_s_words():
+    """The task is the one whose robot states the belief is over: fabric's bits and its
+    needs-help states (before, the seed's: 'has_object', and no help believed at all)."""
+    from ros_hrc import tasks
+
+    fabric = tasks.get("fabric").robot_states
+    belief = [0.0] * len(fabric)
+    belief[fabric.index("NeedsHelp")], belief[fabric.index("TaskHuman")] = 0.7, 0.3
+    step = status(observation_bits=8 | 2 | 1, robot_observation="O8", robot_state="NeedsHelp",
+                  belief_states=fabric, belief=belief, robot_action="grasp")
+    lines = status_lines(step)
+    assert "(visible+in_range+object_taken)" in lines[2]
+    assert lines[3].startswith("P(human needs help) = 0.70")
+    assert [b.state for b in belief_bars(step) if b.needs_help] == [
+        "MayNotBeCapable", "MayBeTired", "NoFocus", "NeedsToBeReminded", "NeedsHelp"]

@@ -2,14 +2,17 @@
 
 One source for the PyBullet window's overlay and RViz's markers: :func:`status_lines` turns a
 step (anything with the fields of ``ros_hrc/Status``) into a few short lines, and
-:func:`belief_bars` into the robot's belief per state with the true state marked.
+:func:`belief_bars` into the robot's belief per state with the true state marked. The task a
+step belongs to (:mod:`ros_hrc.tasks`: whose bits, which states need help) is the one whose
+robot states the step's belief is over (the seed's when none is).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence
 
-from ros_hrc.loop import task
+from ros_hrc import tasks
+from ros_hrc.tasks.definition import Task
 
 
 @dataclass(frozen=True)
@@ -21,9 +24,19 @@ class BeliefBar:
     needs_help: bool
 
 
+def task_of(belief_states: Sequence[str]) -> Task:
+    """The task whose robot states ``belief_states`` are (the default task's otherwise)."""
+    names = set(belief_states)
+    for name in tasks.TASK_NAMES:
+        if names and names == set(tasks.get(name).robot_states):
+            return tasks.get(name)
+    return tasks.get(tasks.DEFAULT_TASK)
+
+
 def needs_help_probability(belief_states: Sequence[str], belief: Sequence[float]) -> float:
-    """The robot's belief that the human needs help (the mass on S2..S5)."""
-    return float(sum(p for s, p in zip(belief_states, belief) if s in task.NEEDS_HELP_STATES))
+    """The robot's belief that the human needs help (the seed's: the mass on S2..S5)."""
+    helped = task_of(belief_states).needs_help_states
+    return float(sum(p for s, p in zip(belief_states, belief) if s in helped))
 
 
 def holder_text(holder: str) -> str:
@@ -41,6 +54,7 @@ def status_lines(status) -> List[str]:
         P(human needs help) = 0.87; nobody holds the object
     """
     bits = int(getattr(status, "observation_bits", 0))
+    task = task_of(getattr(status, "belief_states", ()))
     lines = [f"episode {getattr(status, 'episode', 0)}, step {status.step}",
              f"human: {status.human_action or '-'} -> {status.human_state or '-'}",
              f"robot: sees {status.robot_observation or '-'} ({task.describe_bits(bits)}), "
@@ -55,8 +69,9 @@ def status_lines(status) -> List[str]:
 
 def belief_bars(status) -> List[BeliefBar]:
     """The robot's belief over its model's states, in the model's order, the true one marked."""
+    helped = task_of(status.belief_states).needs_help_states
     return [BeliefBar(state=s, probability=float(p), true_state=(s == status.robot_state),
-                      needs_help=s in task.NEEDS_HELP_STATES)
+                      needs_help=s in helped)
             for s, p in zip(status.belief_states, status.belief)]
 
 
