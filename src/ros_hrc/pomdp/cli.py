@@ -375,7 +375,9 @@ def _register_simulate(subparsers) -> None:
                     "first step, as in SARSOP: it starts from the initial belief conditioned on "
                     "the start state's fully observable values (an MDP: on the start state). "
                     "Prints the mean total with its 95 % confidence interval "
-                    "(mean +/- 1.96 sd / sqrt(runs)) and the planner's time per step.")
+                    "(mean +/- 1.96 sd / sqrt(runs)), the reward estimator it used, and the "
+                    "planner's time per step. A saved policy and --planner mdp run all runs "
+                    "at once (their beliefs as one array); DESPOT runs them one by one.")
     p.add_argument("model", help="a .pomdp or .pomdpx file")
     how = p.add_mutually_exclusive_group(required=True)
     how.add_argument("--policy", metavar="POLICY", help="a policy file written by 'solve -o'")
@@ -389,6 +391,10 @@ def _register_simulate(subparsers) -> None:
                    help="random seed, 0 to 2**64-1 (default 0)")
     p.add_argument("--lookahead", action="store_true",
                    help="policy: choose by one-step lookahead over the policy's values")
+    p.add_argument("--estimator", choices=["realised", "expected"], default="realised",
+                   help="sum the realised rewards R(s,a,s') (default), or the expected "
+                        "rewards R(s,a) at the visited states, as SARSOP's pomdpsim does: "
+                        "the same mean, a narrower interval when rewards depend on s'")
     d = p.add_argument_group("DESPOT (--planner despot)")
     d.add_argument("--time-per-step", type=_seconds, default=1.0, metavar="S",
                    help="search time per decision (default 1)")
@@ -421,6 +427,39 @@ def _check_simulate(args: argparse.Namespace) -> Optional[Tuple[str, str]]:
         return "--sim-num", (f"SIM-LEN x SIM-NUM must be at most {MAX_RUNS} steps, got "
                              f"{args.sim_len} x {args.sim_num}")
     return None
+
+
+def _batch_chooser(model: Model, args: argparse.Namespace, used: int):
+    """(chooser, label) for the planners that only choose from the belief (a saved policy,
+    --planner mdp), whose runs go all at once; (None, None) for DESPOT."""
+    from ros_hrc.pomdp.planner import MdpPlanner
+    from ros_hrc.pomdp.policy import load as load_policy
+    from ros_hrc.pomdp.simulate import batch_memory_needed, policy_chooser, q_chooser
+
+    source, limit = args.model, args.memory_limit
+    used += batch_memory_needed(model, args.sim_num, lookahead=bool(args.lookahead))
+    memory.require(used, limit, source, f"simulating {args.sim_num} runs at once")
+    if args.policy:
+        policy = load_policy(args.policy, model, memory_limit=limit, memory_in_use=used)
+        if policy.kind == "mdp":
+            return q_chooser(MdpPlanner.from_policy(model, policy).Q), \
+                f"policy {args.policy} (MDP)"
+        label = f"policy {args.policy}" + (" (one-step lookahead)" if args.lookahead else "")
+        return policy_chooser(model, policy, args.lookahead), label
+    if args.planner == "mdp":
+        if not model.fully_observable:
+            raise SolverError("--planner mdp is for fully observable models; use despot or "
+                              "a policy from 'solve'")
+        from ros_hrc.pomdp.hsvi import mdp_memory_needed
+        memory.require(used + mdp_memory_needed(model), limit, source,
+                       "simulating with value iteration")
+        return q_chooser(MdpPlanner(model).solution.Q), "value iteration (MDP)"
+    return None, None
+
+
+#: What each reward estimator sums, as the output names it.
+_ESTIMATOR_WORDS = {"realised": "realised rewards R(s,a,s')",
+                    "expected": "expected rewards R(s,a), as pomdpsim"}
 
 
 def _planner_factory(model: Model, args: argparse.Namespace, used: int):
@@ -471,13 +510,15 @@ def _planner_factory(model: Model, args: argparse.Namespace, used: int):
 @_solver_errors_exit_2
 def cmd_simulate(args: argparse.Namespace) -> int:
     """``hrc_pomdp simulate MODEL (--policy P | --planner despot|mdp) --sim-len N --sim-num M``."""
-    from ros_hrc.pomdp.simulate import memory_needed, simulate
+    from ros_hrc.pomdp.simulate import memory_needed, simulate, simulate_batch
 
     model = load_with_progress(args.model, args.memory_limit)
     used = memory.model_bytes(model) + memory_needed(model, args.sim_len, args.sim_num)
     memory.require(used, args.memory_limit, args.model,
                    f"simulating {args.sim_num} runs of {args.sim_len} steps")
-    factory, label = _planner_factory(model, args, used)
+    chooser, label = _batch_chooser(model, args, used)
+    if chooser is None:
+        factory, label = _planner_factory(model, args, used)
     shown = [time.perf_counter()]
 
     def show(done: int, mean: float) -> None:
@@ -487,7 +528,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             value = -mean if model.minimise else mean
             progress(f"run {done}/{args.sim_num}: mean {value:.6g}")
 
-    result = simulate(model, factory, args.sim_len, args.sim_num, args.seed, progress=show)
+    if chooser is not None:
+        result = simulate_batch(model, chooser, args.sim_len, args.sim_num, args.seed,
+                                progress=show, estimator=args.estimator)
+    else:
+        result = simulate(model, factory, args.sim_len, args.sim_num, args.seed,
+                          progress=show, estimator=args.estimator)
     facts = result.as_dict()
     if model.minimise:
         facts["mean"], facts["ci95_low"], facts["ci95_high"] = (
@@ -502,6 +548,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
               f"seed {args.seed}")
         print(f"  expected total discounted {facts['values']}  {facts['mean']:.6g}   95% CI "
               f"({facts['ci95_low']:.6g}, {facts['ci95_high']:.6g})")
+        print(f"  estimator      {args.estimator}: the mean of the runs' discounted sums of "
+              f"{_ESTIMATOR_WORDS[args.estimator]}")
         print(f"  time per step  {result.ms_per_step:.3f} ms (act p50 {result.ms_act_p50:.3f} "
               f"ms, p99 {result.ms_act_p99:.3f} ms)")
         if result.zero_probability_events:
