@@ -26,11 +26,7 @@ class BeliefBar:
 
 def task_of(belief_states: Sequence[str]) -> Task:
     """The task whose robot states ``belief_states`` are (the default task's otherwise)."""
-    names = set(belief_states)
-    for name in tasks.TASK_NAMES:
-        if names and names == set(tasks.get(name).robot_states):
-            return tasks.get(name)
-    return tasks.get(tasks.DEFAULT_TASK)
+    return tasks.of_robot_states(belief_states)
 
 
 def needs_help_probability(belief_states: Sequence[str], belief: Sequence[float]) -> float:

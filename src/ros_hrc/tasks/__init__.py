@@ -10,11 +10,11 @@ A task is chosen by name (``task:=`` of hrc.launch, ``--task`` of the programs) 
 from __future__ import annotations
 
 import importlib
-from typing import Dict, Tuple
+from typing import Dict, Iterable, Tuple
 
 from ros_hrc.tasks.definition import Task
 
-__all__ = ["Task", "TASK_NAMES", "DEFAULT_TASK", "get", "UnknownTask"]
+__all__ = ["Task", "TASK_NAMES", "DEFAULT_TASK", "get", "of_robot_states", "UnknownTask"]
 
 #: Every task, by name -> the module that defines it (as ``TASK``), in the order of the docs.
 _MODULES: Dict[str, str] = {
@@ -38,3 +38,13 @@ def get(name: str) -> Task:
     except KeyError:
         raise UnknownTask(f"no task {name!r}; known: {', '.join(TASK_NAMES)}") from None
     return importlib.import_module(module).TASK
+
+
+def of_robot_states(names: Iterable[str]) -> Task:
+    """The task whose robot states are ``names`` (any order): e.g. a robot model's or a step's
+    belief's; the default task when none is."""
+    wanted = set(names)
+    for name in TASK_NAMES:
+        if wanted and wanted == set(get(name).robot_states):
+            return get(name)
+    return get(DEFAULT_TASK)
