@@ -16,7 +16,8 @@ if [[ $rc -eq 5 ]]; then echo "pytest collected no tests: failing"; status=1
 elif [[ $rc -ne 0 ]]; then status=1; fi
 
 echo "=== integration tests (rostest) ==="
-passed=0; failed=0
+passed=0; failed=0; failed_names=()
+rostest_out=$(mktemp -d)
 shopt -s nullglob
 tests=(test/rostest/*.test)
 rm -f "$ROS_LOG_DIR/fuzz_counts.txt"
@@ -25,9 +26,18 @@ for t in "${tests[@]}"; do
   echo "--- rostest $t"
   # Not --text: with it rostest exits 0 even when a test fails. Without it the nodes' output
   # goes to $ROS_LOG_DIR and rostest prints each failure with its traceback.
-  if rostest "$t"; then passed=$((passed+1)); else failed=$((failed+1)); status=1; fi
+  out="$rostest_out/$(basename "$t").txt"
+  rostest "$t" 2>&1 | tee "$out"
+  if [[ ${PIPESTATUS[0]} -eq 0 ]]; then passed=$((passed+1))
+  else failed=$((failed+1)); failed_names+=("$t"); status=1; fi
 done
 # The fuzz test's counts (sent, error replies, closed, survived), which rostest keeps in a file.
 if [[ -f "$ROS_LOG_DIR/fuzz_counts.txt" ]]; then cat "$ROS_LOG_DIR/fuzz_counts.txt"; fi
-echo "rostest: $passed passed, $failed failed"
+# CI keeps only the end of this output: say there which tests failed, and how.
+for t in "${failed_names[@]}"; do
+  echo "--- FAILED rostest $t:"
+  grep -E "FAIL|Error|assert|Traceback|\[failed\]" "$rostest_out/$(basename "$t").txt" | tail -15
+done
+rm -rf "$rostest_out"
+echo "rostest: $passed passed, $failed failed${failed_names[*]:+: ${failed_names[*]}}"
 exit $status
