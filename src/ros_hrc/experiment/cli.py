@@ -60,6 +60,7 @@ from ros_hrc.experiment.statistics import summarize, write_summary
 from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
                                       lock_directory)
+from ros_hrc import tasks
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
                                  positional_mapping_line, shown_path)
@@ -210,6 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="results/experiment",
                    help="results directory (relative to the current directory)")
     settings.add_argument(p, "robot_model")
+    settings.add_argument(p, "task")     # (#22) every cell runs task:=, models checked against it
     settings.add_argument(p, "human_choice")
     settings.add_argument(p, "max_trials")
     settings.add_argument(p, "reactive_budget")
@@ -235,21 +237,21 @@ def validate_grid(args: argparse.Namespace) -> None:
     resolve_files(args)
     loaded = []
     try:
-        loaded.append(load_robot_model(args.robot_model))
+        loaded.append(load_robot_model(args.robot_model, task_of(args)))
     except ModelNotFound as exc:
         raise GridError(f"--robot-model: {exc}") from None
     for policy in dict.fromkeys(args.policies):
         own = robot_policy(policy).robot_model
         if own is not None:
             try:
-                loaded.append(load_robot_model(own))
+                loaded.append(load_robot_model(own, task_of(args)))
             except ModelNotFound as exc:
                 hint = " (make fit writes it)" if own == "robot_fitted" else ""
                 raise GridError(f"--policies: {policy} runs robot model {own}: {exc}"
                                 f"{hint}") from None
     for human in dict.fromkeys(args.human_models):
         try:
-            loaded.append(load_human_model(args.human_files[human]))
+            loaded.append(load_human_model(args.human_files[human], task_of(args)))
         except ModelNotFound as exc:
             raise GridError(f"--human-models: {exc}") from None
     for spec in plan_cells(args, set()):
@@ -329,14 +331,17 @@ def resolve_files(args: argparse.Namespace) -> None:
     if getattr(args, "human_files", None) is not None:
         return
     args.out = str(user_path(args.out))
+    task = task_of(args)
+    if task.name != tasks.DEFAULT_TASK and args.robot_model == settings.default("robot_model"):
+        args.robot_model = task.default_robot_model   # the task's own robot by default
     try:
-        args.robot_model = str(model_path(args.robot_model, "robot"))
+        args.robot_model = str(model_path(args.robot_model, "robot", task))
     except ModelNotFound as exc:
         raise GridError(f"--robot-model: {exc}") from None
     files = {}
     for human in args.human_models:
         try:
-            files[human] = str(model_path(human, "human"))
+            files[human] = str(model_path(human, "human", task))
         except ModelNotFound as exc:
             raise GridError(f"--human-models: {exc}") from None
     args.human_files = files
@@ -365,7 +370,19 @@ def _cell(args: argparse.Namespace, human: str, policy: str, seed: int,
         human_choice=args.human_choice,
         max_trials=args.max_trials,
         reactive_budget=args.reactive_budget if budget is None else budget,
-        scenarios=args.scenarios, depth=args.depth, lambda_=args.lambda_, record_bag=args.bag)
+        scenarios=args.scenarios, depth=args.depth, lambda_=args.lambda_, record_bag=args.bag,
+        extra_args=task_launch_args(args))
+
+
+def task_of(args: argparse.Namespace) -> tasks.Task:
+    """The task of the grid (``--task``; the default task for a namespace without one)."""
+    return tasks.get(getattr(args, "task", None) or tasks.DEFAULT_TASK)
+
+
+def task_launch_args(args: argparse.Namespace) -> List[str]:
+    """The cells' hrc.launch argument for a task other than the default (none for it)."""
+    task = task_of(args)
+    return [] if task.name == tasks.DEFAULT_TASK else [f"task:={task.name}"]
 
 
 def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:

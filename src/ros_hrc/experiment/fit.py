@@ -53,6 +53,8 @@ from ros_hrc.experiment.cli import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_
                                     file_error_line, names_argument, open_results,
                                     run_stoppable)
 from ros_hrc.experiment.zoo import zoo_argument
+from ros_hrc import tasks
+from ros_hrc.experiment.cli import task_launch_args, task_of
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
@@ -99,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "wherever a row has any (5)")
     p.add_argument("--jobs", type=at_least(0, MAX_JOBS), default=0,
                    help="stacks run side by side (0: one per core)")
+    settings.add_argument(p, "task")     # (#22) the task the episodes and the prior are of
     p.add_argument("--runs", default="results/fit",
                    help="where the episodes are kept, and found again (results/fit)")
     p.add_argument("--out", default="models/robot/robot_fitted.pomdp",
@@ -152,15 +155,18 @@ def check_arguments(args: argparse.Namespace) -> Model:
     except OSError as exc:
         raise FitError(f"--out {file_error_line(exc)}") from None
     try:
-        args.prior = str(model_path(args.prior, "robot"))
-        prior = load_robot_model(args.prior)
+        which = task_of(args)
+        if which.name != tasks.DEFAULT_TASK and args.prior == "robot":
+            args.prior = which.default_robot_model    # the task's own robot by default
+        args.prior = str(model_path(args.prior, "robot", which))
+        prior = load_robot_model(args.prior, which)
     except ModelNotFound as exc:
         raise FitError(f"--prior: {exc}") from None
     args.human_files = {}
     for human in dict.fromkeys(args.human_models):
         try:
-            args.human_files[human] = str(model_path(human, "human"))
-            load_human_model(args.human_files[human])
+            args.human_files[human] = str(model_path(human, "human", task_of(args)))
+            load_human_model(args.human_files[human], task_of(args))
         except ModelNotFound as exc:
             raise FitError(f"--human-models: {exc}") from None
     return prior
@@ -177,7 +183,8 @@ def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
                                   episodes=missing, step_limit=args.step_limit,
                                   log_dir=str(Path(args.runs) / "logs"),
                                   human_model_file=args.human_files[human],
-                                  robot_model=str(args.prior)))
+                                  robot_model=str(args.prior),
+                                  extra_args=task_launch_args(args)))
     return cells
 
 
@@ -192,7 +199,9 @@ def count_experience(model: Model, episodes: Iterable[EpisodeRow],
     for row in episodes:
         trace = sorted(by_episode.get((row.human_model, row.robot_policy, row.seed, row.episode),
                                       []), key=lambda s: s.step)
-        state, action = start, FIRST_ACTION
+        # The robot starts idle: the task's idle action (the seed's rIdle).
+        action = tasks.of_robot_states(model.states).robot_idle_action
+        state = start
         for step in trace:
             counts.add_step(state, action, step.robot_state, step.observation, model)
             state, action = step.robot_state, step.robot_action
