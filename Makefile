@@ -1,6 +1,7 @@
 # ros_hrc: `make run` sets up (if needed), builds and starts the whole stack;
 # `make test` sets up (if needed), builds and runs every test.
 SHELL := /bin/bash
+, := ,
 ARGS ?=
 
 .PHONY: setup run test unit rostest bench experiment fit lint clean
@@ -23,10 +24,16 @@ bench: setup
 # The study (docs/experiments.md): the held-out humans, the anticipating robots against the
 # reactive one tuned over budgets 1..10 and the human alone, 92 episodes per cell (a 15-point
 # difference in success detectable). ARGS="--episodes 30" for a quicker, weaker look.
+# ARGS="--task fabric": the successor task's study instead (its ten human types; the human
+# alone, the reactive MDP robot with its wait swept over 5..30 simulated seconds, the
+# proactive POMDP robot), into results/experiment_fabric.
 EXPERIMENT_POLICIES ?= pomdp,pomdp_fitted,pomdp_considerate,no_robot
+FABRIC_STUDY := $(or $(findstring --task fabric,$(ARGS)),$(findstring --task=fabric,$(ARGS)))
 experiment: setup
-	@source env.sh && rosrun ros_hrc hrc_experiment --out results/experiment \
-	    --policies $(EXPERIMENT_POLICIES) --reactive-budgets 1..10 $(ARGS)
+	@source env.sh && rosrun ros_hrc hrc_experiment \
+	    $(if $(FABRIC_STUDY),--out results/experiment_fabric --reactive-budgets 5$(,)10$(,)20$(,)30,\
+	         --out results/experiment --policies $(EXPERIMENT_POLICIES) --reactive-budgets 1..10) \
+	    $(ARGS)
 
 # Fit the robot models' T and O to the world on the zoo's fit set (docs/robot_model.md):
 # rewrites models/robot/robot_fitted.pomdp (the authors' rewards) and

@@ -97,6 +97,43 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {' '.join(message.split())}\n")
 
 
+class GridParser(OneLineParser):
+    """The grid's parser: what ``--task`` changes (its humans, its policies) is filled in once
+    the task is known (:func:`apply_task_defaults`)."""
+
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
+        parsed, rest = super().parse_known_args(args, namespace)
+        apply_task_defaults(parsed)
+        return parsed, rest
+
+
+#: The robot policies of a task's study when ``--policies`` is not given (the seed's:
+#: :data:`DEFAULT_POLICIES`). Fabric's are the successor authors' three (THRI 2023 §6.1.3):
+#: the human alone, the reactive MDP robot and the proactive POMDP robot.
+TASK_POLICIES: Dict[str, Tuple[str, ...]] = {"fabric": ("pomdp", "reactive", ALONE_POLICY)}
+#: The hrc.launch argument a ``reactive@N`` sets, per task: the seed's reactive robot helps
+#: after N observations, fabric's declares "needs help" after N simulated seconds without
+#: success (the authors' 15 s).
+REACTIVE_SWEPT: Dict[str, str] = {"seed": "reactive_budget", "fabric": "reactive_wait"}
+
+
+def task_humans(task: tasks.Task) -> List[str]:
+    """The human models of a task's study when ``--human-models`` is not given: the seed's
+    zoo's held-out humans; another task's every shipped type (fabric's ten)."""
+    if task.name == tasks.DEFAULT_TASK:
+        return names_argument(DEFAULT_HUMANS)
+    return sorted({p.stem for p in Path(task.model_dirs["human"]).glob("*.pomdp*")})
+
+
+def apply_task_defaults(args: argparse.Namespace) -> None:
+    """``--human-models`` and ``--policies`` not given: the task's (``--task``)."""
+    task = task_of(args)
+    if getattr(args, "human_models", ()) is None:
+        args.human_models = task_humans(task)
+    if getattr(args, "policies", ()) is None:
+        args.policies = list(TASK_POLICIES.get(task.name, POLICIES_BY_DEFAULT))
+
+
 def names_argument(text: str) -> List[str]:
     """Comma-separated names: at least one, none empty (``a,,b`` is a typo, not two names),
     none twice."""
@@ -186,16 +223,21 @@ def budgets_argument(text: str) -> List[int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(prog=NAME, description=__doc__.split("\n\n")[0],
-                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--human-models", type=names_argument, default=names_argument(DEFAULT_HUMANS),
-                   help=f"human scenarios or .pomdpx files, comma-separated ({DEFAULT_HUMANS})")
-    p.add_argument("--policies", type=names_argument, default=names_argument(DEFAULT_POLICIES),
-                   help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)}")
+    p = GridParser(prog=NAME, description=__doc__.split("\n\n")[0],
+                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--human-models", type=names_argument, default=None,
+                   help=f"human scenarios or .pomdpx files, comma-separated (the task's: "
+                        f"{DEFAULT_HUMANS} for the seed, every shipped type for fabric)")
+    p.add_argument("--policies", type=names_argument, default=None,
+                   help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)} (the "
+                        f"task's: {DEFAULT_POLICIES} for the seed, "
+                        f"{','.join(TASK_POLICIES['fabric'])} for fabric)")
     p.add_argument("--reactive-budgets", type=budgets_argument, default=[],
                    help="also run the reactive robot with each of these budgets (policies "
                         "reactive@N), e.g. 1..10 or 2,4,8 (none: no sweep, the default); the "
-                        "summary names the best")
+                        "summary names the best. The seed's budget is observations before it "
+                        "helps; fabric's is simulated seconds without success (its "
+                        "reactive_wait, the authors' 15)")
     p.add_argument("--seeds", type=_seeds, default=_seeds(DEFAULT_SEEDS),
                    help=f"seeds, comma-separated ({DEFAULT_SEEDS})")
     p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=DEFAULT_EPISODES,
@@ -362,6 +404,11 @@ def robot_model_of(policy: str, grid_model: str) -> str:
 def _cell(args: argparse.Namespace, human: str, policy: str, seed: int,
           episodes: EpisodeRanges, log_dir: str) -> CellSpec:
     budget = robot_policy(policy).reactive_budget
+    extra = task_launch_args(args)
+    if budget is not None and REACTIVE_SWEPT.get(task_of(args).name) != "reactive_budget":
+        # This task's reactive robot is swept by its own argument (fabric: its wait).
+        extra = extra + [f"{REACTIVE_SWEPT[task_of(args).name]}:={budget}"]
+        budget = None
     return CellSpec(
         human_model=human, robot_policy=policy, seed=seed, episodes=episodes,
         step_limit=args.step_limit, log_dir=log_dir,
@@ -371,7 +418,7 @@ def _cell(args: argparse.Namespace, human: str, policy: str, seed: int,
         max_trials=args.max_trials,
         reactive_budget=args.reactive_budget if budget is None else budget,
         scenarios=args.scenarios, depth=args.depth, lambda_=args.lambda_, record_bag=args.bag,
-        extra_args=task_launch_args(args))
+        extra_args=extra)
 
 
 def task_of(args: argparse.Namespace) -> tasks.Task:

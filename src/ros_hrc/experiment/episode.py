@@ -14,7 +14,8 @@ from typing import Dict, Optional, Sequence
 
 import numpy as np
 
-from ros_hrc.loop import task
+from ros_hrc import tasks
+from ros_hrc.tasks.definition import Task
 from ros_hrc.experiment.paired import counterfactual_outcome
 from ros_hrc.experiment.store import UNPAIRED, EpisodeKey, EpisodeRow, StepRow
 from ros_hrc.pomdp.model import Model
@@ -85,17 +86,23 @@ def reactive_policy_name(budget: int) -> str:
     return f"{REACTIVE}@{budget}"
 
 
-#: Robot actions that intrude when the human does not need help.
-HELPING_ACTIONS = frozenset({"rGrasp_obj", "rPoint_obj"})
 #: The human's world services that leave the belt, and those that come back to it first.
 _LEAVES = frozenset({"walk_away"})
 _RETURNS = frozenset({"attempt_grasp", "grasp"})
 
 
-def needs_help_mass(step) -> float:
-    """The robot's belief in "the human needs help" (S2..S5) at this step."""
+def task_of_steps(steps: Sequence) -> Task:
+    """The task an episode was played in: the one whose robot states its beliefs are over
+    (the default task for an episode without steps)."""
+    return tasks.of_robot_states(steps[0].belief_states if steps else ())
+
+
+def needs_help_mass(step, task: Optional[Task] = None) -> float:
+    """The robot's belief in "the human needs help" (the task's needs-help states: the seed's
+    S2..S5) at this step."""
+    task = task or tasks.of_robot_states(step.belief_states)
     return float(sum(p for name, p in zip(step.belief_states, step.belief)
-                     if name in task.NEEDS_HELP_STATES))
+                     if name in task.needs_help_states))
 
 
 def discounted_robot_reward(steps: Sequence, model: Model) -> float:
@@ -131,22 +138,25 @@ def time_to_success(steps: Sequence, reason: str, start_sim_time: float) -> floa
 def wasted_actions(steps: Sequence) -> int:
     """Robot actions the world answered with nothing:
 
-    * ``rGrasp_obj`` after which the robot does not hold the object (the world refused it:
-      out of reach, the human holds it; or the gripper missed);
-    * ``rPoint_obj`` at a human who is away from the belt: he left with ``walkAway`` (the
-      world's ``/human/walk_away``) and has not come back, which only a grasp attempt does
-      (``/human/attempt_grasp`` and ``/human/grasp`` walk back first).
+    * a grasp (the seed's ``rGrasp_obj``, fabric's ``grasp``) after which the robot does not
+      hold the object (the world refused it: out of reach, the human holds it; or the gripper
+      missed);
+    * a point (``rPoint_obj``, ``point``) at a human who is away from the belt: he left with
+      ``walkAway`` (the world's ``/human/walk_away``) and has not come back, which only a grasp
+      attempt does (``/human/attempt_grasp`` and ``/human/grasp`` walk back first).
     """
+    task = task_of_steps(steps)
+    grasps, points = task.robot_actions_calling("grasp"), task.robot_actions_calling("point_to_obj")
     wasted, away = 0, False
     for step in steps:
-        service = task.HUMAN_ACTION_SERVICES.get(step.human_action)
+        service = task.human_action_services.get(step.human_action)
         if service in _LEAVES:
             away = True
         elif service in _RETURNS:
             away = False
-        if step.robot_action == "rGrasp_obj" and step.object_holder != "robot":
+        if step.robot_action in grasps and step.object_holder != "robot":
             wasted += 1
-        elif step.robot_action == "rPoint_obj" and away:
+        elif step.robot_action in points and away:
             wasted += 1
     return wasted
 
@@ -160,16 +170,37 @@ def against_warning(steps: Sequence) -> int:
     it (bit 8). Idling, looking round or walking away after a warning do not lift it: the
     human said "stop" and has not taken the task back. A reset (a new episode) lifts it.
     """
+    task = task_of_steps(steps)
+    warning = task.bit("warning")
+    acting = task.bit("grasp_attempt") | task.bit("has_object", "object_taken")
     count, in_force = 0, False
     for step in steps:
         bits = int(step.observation_bits)
-        if bits & task.WARNING:
+        if bits & warning:
             in_force = True
-        elif bits & (task.GRASP_ATTEMPT | task.HAS_OBJECT):
+        elif bits & acting:
             in_force = False
-        if in_force and step.robot_action in HELPING_ACTIONS:
+        if in_force and step.robot_action in task.helping_actions:
             count += 1
     return count
+
+
+def warnings_after_help(steps: Sequence) -> int:
+    """Warnings the human gave right after the robot helped: steps whose observation carries
+    the warning bit and whose previous step's robot action was a grasp or a point. What an
+    intrusion cost: in fabric the robot's grasp makes the human RobotInterfered, from which he
+    may warn it (the seed's human does not hear the robot, so there it counts coincidences)."""
+    task = task_of_steps(steps)
+    warning = task.bit("warning")
+    return sum(1 for before, step in zip(steps, steps[1:])
+               if before.robot_action in task.helping_actions
+               and int(step.observation_bits) & warning)
+
+
+def points(steps: Sequence) -> int:
+    """The robot's points (``rPoint_obj``, fabric's ``point``) in the episode."""
+    pointing = task_of_steps(steps).robot_actions_calling("point_to_obj")
+    return sum(1 for step in steps if step.robot_action in pointing)
 
 
 def score_episode(key: EpisodeKey, steps: Sequence, reason: str, start_sim_time: float,
@@ -179,10 +210,11 @@ def score_episode(key: EpisodeKey, steps: Sequence, reason: str, start_sim_time:
     human_model, robot_policy, seed, episode = key
     holder = steps[-1].object_holder if steps else "none"
     success = reason == "success"
+    task = task_of_steps(steps)
     # The old label-based count: helping while the observer's label says no help is needed.
-    intrusive = sum(1 for s in steps if s.robot_action in HELPING_ACTIONS
-                    and s.robot_state not in task.NEEDS_HELP_STATES)
-    warnings = sum(1 for s in steps if s.observation_bits & task.WARNING)
+    intrusive = sum(1 for s in steps if s.robot_action in task.helping_actions
+                    and s.robot_state not in task.needs_help_states)
+    warnings = sum(1 for s in steps if s.observation_bits & task.bit("warning"))
     # Observations the robot's model gave probability 0: where the model and the world disagree.
     zero_probability = sum(1 for s in steps if getattr(s, "surprise", False))
     decisions = [s.decision_ms for s in steps]
@@ -194,7 +226,8 @@ def score_episode(key: EpisodeKey, steps: Sequence, reason: str, start_sim_time:
         time_to_success=time_to_success(steps, reason, start_sim_time),
         alone_success=0, alone_time_to_success=math.nan, outcome=UNPAIRED,
         time_gain=math.nan, wasted_actions=wasted_actions(steps),
-        against_warning=against_warning(steps), in_sample=0,
+        against_warning=against_warning(steps), in_sample=0, points=points(steps),
+        warnings_after_help=warnings_after_help(steps),
         robot_discounted_reward=discounted_robot_reward(steps, model),
         intrusive_actions=intrusive, warnings=warnings,
         zero_probability_observations=zero_probability,
@@ -231,11 +264,12 @@ def pair_alone(row: EpisodeRow) -> EpisodeRow:
 def step_rows(key: EpisodeKey, steps: Sequence) -> list:
     """The episode's per-step trace (for the belief plot)."""
     human_model, robot_policy, seed, episode = key
+    task = task_of_steps(steps)
     return [StepRow(human_model=human_model, robot_policy=robot_policy, seed=seed,
                     episode=episode, step=int(s.step), human_action=s.human_action,
                     human_state=s.human_state, robot_state=s.robot_state,
                     robot_action=s.robot_action, observation=s.robot_observation,
-                    belief_needs_help=needs_help_mass(s),
-                    needs_help=int(s.robot_state in task.NEEDS_HELP_STATES),
+                    belief_needs_help=needs_help_mass(s, task),
+                    needs_help=int(s.robot_state in task.needs_help_states),
                     zero_probability=int(bool(getattr(s, "surprise", False))))
             for s in steps]

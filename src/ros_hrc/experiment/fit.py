@@ -54,7 +54,7 @@ from ros_hrc.experiment.cli import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_
                                     run_stoppable)
 from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc import tasks
-from ros_hrc.experiment.cli import task_launch_args, task_of
+from ros_hrc.experiment.cli import task_humans, task_launch_args, task_of
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
@@ -158,6 +158,9 @@ def check_arguments(args: argparse.Namespace) -> Model:
         which = task_of(args)
         if which.name != tasks.DEFAULT_TASK and args.prior == "robot":
             args.prior = which.default_robot_model    # the task's own robot by default
+        if which.name != tasks.DEFAULT_TASK and args.human_models == names_argument(
+                DEFAULT_HUMANS):
+            args.human_models = task_humans(which)    # and the task's own humans
         args.prior = str(model_path(args.prior, "robot", which))
         prior = load_robot_model(args.prior, which)
     except ModelNotFound as exc:

@@ -186,6 +186,7 @@ SUMMARY_COLUMNS: Tuple[str, ...] = (
     "time_to_success_median", "time_gain_median", "time_gain_pairs",
     "wasted_actions_mean", "wasted_actions_low", "wasted_actions_high",
     "against_warning", "against_warning_episodes", "in_sample",
+    "rescued_by_pointing", "warnings_after_help", "warnings_after_help_episodes",
     "best_reactive",
     *(f"vs_reactive_{k}" for k in COMPARISON_KEYS),
     *(f"vs_alone_{k}" for k in COMPARISON_KEYS),
@@ -227,6 +228,12 @@ def _entry(human_model: str, robot_policy: str, group: Sequence[EpisodeRow],
         "against_warning": sum(r.against_warning for r in group),
         "against_warning_episodes": sum(r.against_warning > 0 for r in group),
         "in_sample": sum(r.in_sample for r in group),
+        # Rescued episodes the human ended himself after the robot pointed: the point (not a
+        # fetch) turned a failure alone into his own success.
+        "rescued_by_pointing": sum(r.outcome == "rescued" and r.succeeded_by == "human"
+                                   and r.points > 0 for r in group),
+        "warnings_after_help": sum(r.warnings_after_help for r in group),
+        "warnings_after_help_episodes": sum(r.warnings_after_help > 0 for r in group),
     }
     for prefix, column in _MEAN_CI_QUANTITIES:
         mean, low, high = mean_ci([getattr(r, column) for r in group], confidence)

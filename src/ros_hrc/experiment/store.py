@@ -46,7 +46,7 @@ EPISODE_COLUMNS: Tuple[str, ...] = (
     "human_model", "robot_policy", "seed", "episode", "success", "succeeded_by", "end_reason",
     "steps", "sim_seconds", "time_to_success", "alone_success", "alone_time_to_success",
     "outcome", "time_gain", "wasted_actions", "against_warning", "in_sample",
-    "robot_discounted_reward", "intrusive_actions", "warnings",
+    "points", "warnings_after_help", "robot_discounted_reward", "intrusive_actions", "warnings",
     "zero_probability_observations", "mean_decision_ms", "wall_seconds")
 
 STEP_COLUMNS: Tuple[str, ...] = (
@@ -194,7 +194,9 @@ class EpisodeRow(_Row):
     (human model, seed, episode) stream with ``no_robot`` (the human alone):
     alone_success, alone_time_to_success, outcome (one of :data:`OUTCOME_VALUES`) and
     time_gain = alone_time_to_success - time_to_success (NaN unless both succeed). in_sample
-    is 1 when the robot's model was fitted on this stream. mean_decision_ms may be NaN (a
+    is 1 when the robot's model was fitted on this stream. points counts the robot's points,
+    warnings_after_help the warnings given right after its grasp or point
+    (:func:`ros_hrc.experiment.episode.warnings_after_help`). mean_decision_ms may be NaN (a
     policy that timed no decisions); the other floats must be finite.
     """
 
@@ -225,6 +227,8 @@ class EpisodeRow(_Row):
     wasted_actions: int = 0
     against_warning: int = 0
     in_sample: int = 0
+    points: int = 0
+    warnings_after_help: int = 0
 
     def __eq__(self, other: object) -> bool:
         # As their CSV cells: NaN (no time without a success) equals NaN here.
@@ -255,7 +259,8 @@ class EpisodeRow(_Row):
             raise self._bad("succeeded_by", f"contradicts success {self.success}")
         self._non_negative("seed", "episode", "steps", "sim_seconds", "intrusive_actions",
                            "warnings", "zero_probability_observations", "wall_seconds",
-                           "wasted_actions", "against_warning")
+                           "wasted_actions", "against_warning", "points",
+                           "warnings_after_help")
         self._zero_one("alone_success", "in_sample")
         if self.outcome not in OUTCOME_VALUES:
             raise self._bad("outcome", f"expected one of {', '.join(OUTCOME_VALUES)}")

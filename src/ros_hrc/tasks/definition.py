@@ -271,6 +271,26 @@ class Task:
     def robot_actions(self) -> Tuple[str, ...]:
         return tuple(self.robot_action_services)
 
+    def robot_actions_calling(self, *services: str) -> FrozenSet[str]:
+        """The robot's actions carried by any of these /robot/* services (e.g. ``"grasp"``:
+        the seed's rGrasp_obj, fabric's grasp): how task-agnostic code names an action."""
+        return frozenset(a for a, s in self.robot_action_services.items() if s in services)
+
+    @property
+    def helping_actions(self) -> FrozenSet[str]:
+        """The robot's actions that take the task over or show the way (its grasp and its
+        point): the ones that intrude on a human who needs no help."""
+        return self.robot_actions_calling("grasp", "point_to_obj")
+
+    def bit(self, *names: str) -> int:
+        """The observation bit of the first of ``names`` the task has (e.g. ``"has_object"``
+        or fabric's ``"object_taken"``); ValueError when it has none of them."""
+        by_name = {name: bit for bit, name in self.observations.bit_names}
+        for name in names:
+            if name in by_name:
+                return by_name[name]
+        raise ValueError(f"task {self.name} has no observation bit {' or '.join(names)}")
+
     # -- observing ------------------------------------------------------------------------------
     def observation_map(self) -> ObservationMap:
         """A fresh bits -> observation map, for one episode."""

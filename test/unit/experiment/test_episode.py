@@ -154,3 +154,41 @@ def test_a_comma_list_with_an_empty_or_repeated_item_is_refused(words, why, caps
         build_parser().parse_args(words)
     assert ended.value.code == 2
     assert why in capsys.readouterr().err
+
+
+def test_a_fabric_episode_is_scored_in_fabric_s_names():
+    """The scoring reads the task from the belief's states: fabric's grasp and point intrude,
+    its needs-help states are its own, a warning right after the robot's grasp is what the
+    intrusion cost, and the human's own success after a point is counted."""
+    from ros_hrc import tasks
+    fabric = tasks.get("fabric")
+    model = load_model(str(resolve_model("base", "robot", fabric.model_dirs["robot"])))
+
+    def fabric_step(n, robot_action="idle", robot_state="TaskHuman", bits=3, holder="none",
+                    human_action="idle"):
+        belief = [0.0] * len(fabric.robot_states)
+        belief[fabric.robot_states.index("NeedsHelp")] = 1.0
+        return replace_states(step(n, robot_state=robot_state, robot_action=robot_action,
+                                   bits=bits, holder=holder, human_action=human_action),
+                              fabric.robot_states, belief)
+
+    steps = [fabric_step(0, robot_action="grasp", robot_state="TaskHuman"),   # intrudes
+             fabric_step(1, bits=16, human_action="warnRobot"),                 # what it cost
+             fabric_step(2, robot_action="point", robot_state="NeedsHelp", bits=16),
+             fabric_step(3, robot_action="idle", bits=8 | 3, holder="human",
+                         human_action="graspAttempt")]
+    row = score_episode(("beginner_nontired_collaborative", "pomdp", 0, 0), steps, "success",
+                        9.0, model, 1.0)
+    assert row.intrusive_actions == 1          # the grasp; the point came when he needed it
+    assert row.warnings == 2
+    assert row.warnings_after_help == 1        # the warning after the grasp
+    assert row.against_warning == 1            # the point while the warning held
+    assert row.points == 1
+    assert row.wasted_actions == 1             # the grasp did not take the object
+    assert [r.needs_help for r in step_rows(("h", "pomdp", 0, 0), steps)] == [0, 0, 1, 0]
+    assert step_rows(("h", "pomdp", 0, 0), steps)[0].belief_needs_help == 1.0
+
+
+def replace_states(s, states, belief):
+    s.belief_states, s.belief = list(states), belief
+    return s

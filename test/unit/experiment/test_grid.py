@@ -419,3 +419,31 @@ def test_experiment_launch_defaults_are_the_command_s_own():
         args.episodes, args.step_limit, args.human_choice, args.max_trials, args.reactive_budget)
     assert budgets_argument(default["reactive_budgets"]) == list(range(1, 11))
     assert budgets_argument("none") == []
+
+
+def test_the_fabric_study_runs_its_own_humans_and_robots_and_sweeps_the_wait():
+    """--task fabric: its ten human types, the human alone, its reactive robot and its POMDP
+    robot by default; a reactive@N cell waits N simulated seconds (reactive_wait:=N), the
+    seed's keeps its budget in observations."""
+    args = build_parser().parse_args(["--task", "fabric", "--reactive-budgets", "5,20"])
+    assert len(args.human_models) == 10 and "expert_tired_collaborative" in args.human_models
+    assert args.policies == ["pomdp", "reactive", "no_robot"]
+    validate_grid(args)
+    cells = {(c.human_model, c.robot_policy): c for c in plan_cells(args, set())}
+    assert {p for _, p in cells} == {"pomdp", "reactive", "no_robot", "reactive@5", "reactive@20"}
+    wait = cells[("distracted_collaborative", "reactive@20")]
+    assert "task:=fabric" in wait.extra_args and "reactive_wait:=20" in wait.extra_args
+    assert cells[("distracted_collaborative", "pomdp")].robot_model.endswith(
+        "models/fabric/robot/base.pomdpx")
+    seed = build_parser().parse_args(["--reactive-budgets", "3", "--human-models", "tired"])
+    cell = [c for c in plan_cells(seed, set()) if c.robot_policy == "reactive@3"][0]
+    assert cell.reactive_budget == 3 and not any("reactive_wait" in a for a in cell.extra_args)
+
+
+def test_a_seed_model_in_a_fabric_grid_is_one_line_naming_its_task(capsys):
+    seed_robot = str(ROOT / "models" / "robot" / "robot.pomdp")
+    assert main(["--task", "fabric", "--robot-model", seed_robot, "--policies", "pomdp",
+                 "--episodes", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hrc_experiment: ") and "robot.pomdp" in err and "task seed" in err
+    assert len(err.strip().splitlines()) == 1

@@ -49,7 +49,8 @@ def test_columns_are_in_the_agreed_order_and_match_the_dataclasses():
         "human_model", "robot_policy", "seed", "episode", "success", "succeeded_by",
         "end_reason", "steps", "sim_seconds", "time_to_success", "alone_success",
         "alone_time_to_success", "outcome", "time_gain", "wasted_actions", "against_warning",
-        "in_sample", "robot_discounted_reward", "intrusive_actions", "warnings",
+        "in_sample", "points", "warnings_after_help", "robot_discounted_reward",
+        "intrusive_actions", "warnings",
         "zero_probability_observations", "mean_decision_ms", "wall_seconds")
     assert STEP_COLUMNS == (
         "human_model", "robot_policy", "seed", "episode", "step", "human_action",
