@@ -134,6 +134,15 @@ class CellSpec:
     def __post_init__(self) -> None:
         self.episodes = EpisodeRanges.of(self.episodes)
 
+    @property
+    def task(self) -> str:
+        """The cell's task: its ``task:=`` launch argument (the last wins, as in roslaunch;
+        the default task without one)."""
+        for word in reversed(self.extra_args):
+            if word.startswith("task:="):
+                return word[len("task:="):]
+        return settings.default("task")
+
     def to_json(self) -> str:
         return json.dumps(asdict(self))
 

@@ -231,7 +231,7 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
     stack fails, ModelError if the robot model does not fit the task."""
     if not spec.episodes:
         return 0
-    model = load_robot_model(spec.robot_model)
+    model = load_robot_model(spec.robot_model, spec.task)
     mapping = positional_mapping_line(model)
     if mapping:   # stdout carries the episodes; stderr goes to the cell's worker log
         print(f"{cell_name(spec)}: {mapping}", file=sys.stderr, flush=True)

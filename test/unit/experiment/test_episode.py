@@ -192,3 +192,8 @@ def test_a_fabric_episode_is_scored_in_fabric_s_names():
 def replace_states(s, states, belief):
     s.belief_states, s.belief = list(states), belief
     return s
+
+
+def test_a_cell_knows_its_task_from_its_launch_arguments():
+    assert CellSpec("h", "pomdp", 0, [0]).task == "seed"
+    assert CellSpec("h", "pomdp", 0, [0], extra_args=["task:=fabric", "x:=1"]).task == "fabric"
