@@ -180,7 +180,9 @@ class Setting:
         self._in_range(value, number)
         return number
 
-    def _parse_float(self, value: Any) -> float:
+    def _parse_float(self, value: Any) -> Optional[float]:
+        if isinstance(value, str) and value.strip().lower() == AUTO_WORD and self.default is None:
+            return None      # automatic: resolve() derives it
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
             raise self._refuse(value, unparsable=True)
         try:
@@ -316,6 +318,10 @@ _TABLE: Iterable[Setting] = (
        "empty): true when real_time_factor is 0 (the run then depends only on the seed) or in "
        "manual mode (the world waits while you type a state)"),
     _s("belt_speed", "float", 0.02, "conveyor belt speed", minimum=0, maximum=0.5, unit="m/s"),
+    _s("away_time", "float", None, "how long a walk away lasts when the human is "
+       "already away: he stays away and the belt runs on; auto: the task's (seed 0, no time, "
+       "its study's world; fabric 0.8, as long as an idle, so that a human waiting in "
+       "recovery lets the object reach the belt's end)", minimum=0, maximum=60, unit="s"),
     # watching it
     _s("viz", "bool", True, "publish what RViz shows: each agent's description and joint "
        "states, /tf (robot_state_publisher per agent) and the step's markers"),
@@ -452,6 +458,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     if out["time_per_step"] == 0 and out["max_trials"] == 0:
         raise SettingError("time_per_step", values.get("time_per_step", 0),
                            "0 (no time budget) needs max_trials > 0 to bound the decision")
+    if out["away_time"] is None:
+        out["away_time"] = task.away_time
     if out["rviz"]:
         out["viz"] = True    # RViz shows what viz publishes
     if out["pause_when_idle"] is None:

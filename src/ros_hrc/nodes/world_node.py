@@ -62,6 +62,7 @@ Parameters (read once at start-up):
   ~gui (bool, false)              open PyBullet's window
   ~seed (int, 0)                  seed of the world's randomness
   ~belt_speed (float, 0.02)       conveyor speed, m/s
+  ~away_time (float, 0)           how long a walk away lasts when the human is already away, s
   ~real_time_factor (float, 1.0)  simulated seconds per wall second; 0 = as fast as possible
   ~pause_when_idle (bool or "")  freeze simulated time while no action runs ("": when
                                   real_time_factor is 0)
@@ -104,6 +105,7 @@ from ros_hrc.msg import Status, WorldState
 from ros_hrc.nodes.guard import is_guard
 from ros_hrc.process_tree import is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
+from ros_hrc.world.human import HumanConfig
 from ros_hrc.world import (HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World,
                            WorldConfig)
 
@@ -119,6 +121,7 @@ class WorldNodeConfig:
     gui: bool = False
     seed: int = 0
     belt_speed: float = 0.02
+    away_time: float = 0.0
     real_time_factor: float = 1.0
     pause_when_idle: bool = False
     publish_rate: float = 10.0
@@ -148,6 +151,8 @@ class WorldNodeConfig:
                                  "pause_when_idle": get_param("~pause_when_idle", "")})
         config = cls(
             gui=setting("gui"), seed=setting("seed"), belt_speed=setting("belt_speed"),
+            # Not given (world.launch alone, an older launch): no time, the default task's.
+            away_time=setting("away_time") or 0.0,
             real_time_factor=pace["real_time_factor"],
             pause_when_idle=pace["pause_when_idle"],
             publish_rate=setting("publish_rate"),
@@ -357,7 +362,8 @@ class WorldNode:
     def start(self) -> None:
         """Build the world, advertise everything, start stepping."""
         c = self.config
-        self.world = World(WorldConfig(gui=c.gui, seed=c.seed, belt_speed=c.belt_speed), c.model_dir)
+        self.world = World(WorldConfig(gui=c.gui, seed=c.seed, belt_speed=c.belt_speed,
+                                       human=HumanConfig(away_time=c.away_time)), c.model_dir)
         self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=1) if c.use_sim_time else None
         self._state_pub = rospy.Publisher("/hrc/world_state", WorldState, queue_size=1)
         if self._clock_pub is not None:

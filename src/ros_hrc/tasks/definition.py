@@ -224,6 +224,9 @@ class Task:
     # -- the models shipped for it
     default_human_model: str = ""
     default_robot_model: str = ""
+    #: The world's away_time for this task (hrc.launch away_time:=auto): how long a walk away
+    #: lasts when the human is already away (0: no time).
+    away_time: float = 0.0
     #: Where a scenario name is looked up, by kind ("human", "robot").
     model_dirs: Mapping[str, Path] = field(default_factory=dict)
     #: A longer description of the rules (docs and ``hrc_check --task NAME``).

@@ -365,6 +365,9 @@ FABRIC = Task(
     noise=noisy_bits,
     default_human_model="beginner_nontired_collaborative",
     default_robot_model="base",
+    # The authors' human in Recovery waited while the belt ran on (their task ended when the
+    # product reached the belt's end): a walk away while away lasts as long as an idle.
+    away_time=0.8,
     model_dirs={"human": MODELS_DIR / "fabric" / "human",
                 "robot": MODELS_DIR / "fabric" / "robot"},
     notes=("The human acts in his state (a grasp's outcome drawn first, and shown); after the "

@@ -52,6 +52,9 @@ class HumanConfig:
     reach_time: float = 1.2                        # s
     walk_time: float = 1.6                         # s, for walk_distance
     turn_time: float = 0.8                         # s, to turn round
+    # A walk away while already away: he stays away this long, and the belt runs on (0: the
+    # step takes no time, the seed study's world; docs/world.md).
+    away_time: float = 0.0                         # s
 
 
 @dataclass(frozen=True)
@@ -320,6 +323,9 @@ class Human(ArticulatedBody):
         self._start("walk_away")
         c = self.config
         if not self.at_station():
+            if c.away_time > 0:
+                yield from self.pause(c.away_time)
+                return Outcome(True, f"stays away from the belt for {c.away_time:g} s")
             return Outcome(True, "already away from the belt")
         yield from self.move({**self._relax(), "base_yaw": math.pi}, c.turn_time)
         yield from self.move({"base_x": -c.walk_distance}, c.walk_time, extra=self._legs(3))

@@ -27,6 +27,19 @@ def test_walk_away_takes_the_human_out_of_reach_and_sight(world):
     assert world.run("human", "walk_away").message == "already away from the belt"
 
 
+def test_a_human_who_stays_away_lets_the_belt_run_for_his_away_time():
+    """away_time (fabric's world): a walk away while away is time spent away, so a human who
+    waits in recovery sees the object travel on; 0 (the seed's) takes no time."""
+    from ros_hrc.world.human import HumanConfig
+    with World(WorldConfig(human=HumanConfig(away_time=0.8))) as world:
+        world.run("human", "walk_away")
+        x = world.object.position()[0]
+        outcome = world.run("human", "walk_away")
+        assert outcome.success and outcome.message == "stays away from the belt for 0.8 s"
+        assert outcome.duration >= 0.75 and not world.human.at_station()
+        assert world.object.position()[0] > x + 0.01   # 0.02 m/s for 0.8 s
+
+
 def test_look_around_loses_sight_of_the_object_and_finds_it_again(still_world):
     ticket = still_world.submit("human", "look_around")
     seen = []
