@@ -115,6 +115,11 @@ TASK_POLICIES: Dict[str, Tuple[str, ...]] = {"fabric": ("pomdp", "reactive", ALO
 #: after N observations, fabric's declares "needs help" after N simulated seconds without
 #: success (the authors' 15 s).
 REACTIVE_SWEPT: Dict[str, str] = {"seed": "reactive_budget", "fabric": "reactive_wait"}
+#: Steps before an episode ends, per task, when ``--step-limit`` is not given. The seed's
+#: study ends its episodes at 15 steps; a fabric episode ends in the world (the object taken,
+#: or at the belt's end after about 69 simulated seconds, at most ~85 steps), so its limit is
+#: only a safety net.
+TASK_STEP_LIMITS: Dict[str, int] = {"seed": 15, "fabric": 300}
 
 
 def task_humans(task: tasks.Task) -> List[str]:
@@ -126,12 +131,15 @@ def task_humans(task: tasks.Task) -> List[str]:
 
 
 def apply_task_defaults(args: argparse.Namespace) -> None:
-    """``--human-models`` and ``--policies`` not given: the task's (``--task``)."""
+    """``--human-models``, ``--policies`` and ``--step-limit`` not given: the task's
+    (``--task``)."""
     task = task_of(args)
     if getattr(args, "human_models", ()) is None:
         args.human_models = task_humans(task)
     if getattr(args, "policies", ()) is None:
         args.policies = list(TASK_POLICIES.get(task.name, POLICIES_BY_DEFAULT))
+    if getattr(args, "step_limit", 0) is None:
+        args.step_limit = TASK_STEP_LIMITS[task.name]
 
 
 def names_argument(text: str) -> List[str]:
@@ -246,8 +254,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-in-sample", action="store_true",
                    help="evaluate a fitted robot model on streams it was fitted on too "
                         "(marked in_sample); refused otherwise")
-    p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=15,
-                   help="steps before an episode ends (15)")
+    p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=None,
+                   help="steps before an episode ends (the task's: 15 for the seed; 300 for "
+                        "fabric, a safety net: its episodes end in the world, the object taken "
+                        "or at the belt's end)")
     p.add_argument("--jobs", type=at_least(0, MAX_JOBS), default=0,
                    help="stacks run side by side (0: one per core)")
     p.add_argument("--out", default="results/experiment",

@@ -54,7 +54,7 @@ from ros_hrc.experiment.cli import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_
                                     run_stoppable)
 from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc import tasks
-from ros_hrc.experiment.cli import task_humans, task_launch_args, task_of
+from ros_hrc.experiment.cli import TASK_STEP_LIMITS, task_humans, task_launch_args, task_of
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
@@ -91,8 +91,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="episodes per human model (100)")
     p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the stacks: the human MDP and the exploring robot (0)")
-    p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=15,
-                   help="steps before an episode ends (15, as hrc_experiment)")
+    p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=None,
+                   help="steps before an episode ends (the task's, as hrc_experiment: 15 for "
+                        "the seed, 300 for fabric)")
     p.add_argument("--prior", default="robot",
                    help="the robot model whose rows are the prior and whose rewards are kept "
                         "(a scenario name under models/robot or a file; robot)")
@@ -161,6 +162,8 @@ def check_arguments(args: argparse.Namespace) -> Model:
         if which.name != tasks.DEFAULT_TASK and args.human_models == names_argument(
                 DEFAULT_HUMANS):
             args.human_models = task_humans(which)    # and the task's own humans
+        if args.step_limit is None:
+            args.step_limit = TASK_STEP_LIMITS[which.name]
         args.prior = str(model_path(args.prior, "robot", which))
         prior = load_robot_model(args.prior, which)
     except ModelNotFound as exc:

@@ -428,6 +428,8 @@ def test_the_fabric_study_runs_its_own_humans_and_robots_and_sweeps_the_wait():
     args = build_parser().parse_args(["--task", "fabric", "--reactive-budgets", "5,20"])
     assert len(args.human_models) == 10 and "expert_tired_collaborative" in args.human_models
     assert args.policies == ["pomdp", "reactive", "no_robot"]
+    assert args.step_limit == 300      # a safety net: the world ends a fabric episode
+    assert build_parser().parse_args([]).step_limit == 15
     validate_grid(args)
     cells = {(c.human_model, c.robot_policy): c for c in plan_cells(args, set())}
     assert {p for _, p in cells} == {"pomdp", "reactive", "no_robot", "reactive@5", "reactive@20"}
