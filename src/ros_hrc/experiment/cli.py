@@ -51,7 +51,7 @@ from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import DEFAULT_POLICIES as POLICIES_BY_DEFAULT
 from ros_hrc.experiment.episode import (ALONE_POLICY, ROBOT_POLICIES, pair, pair_alone,
                                         reactive_policy_name, robot_policy, stream_of)
-from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_time_gain
+from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_success, plot_time_gain
 from ros_hrc.experiment.provenance import file_sha256, ranges_text, read_fitted_on
 from ros_hrc.experiment.stack import (MAX_EPISODES, CellSpec, EpisodeRanges, cell_name,
                                       check_launch_settings, decode_episode, worker_command,
@@ -796,6 +796,7 @@ def report(store: ResultsStore, out: Path, plots: bool) -> None:
     written = [str(store.episodes_path), str(store.steps_path), str(csv_path), str(md_path)]
     if plots:
         written.append(plot_outcomes(summary, out / "outcomes.png"))
+        written.append(plot_success(summary, out / "success.png"))
         written.append(plot_time_gain(rows, out / "time_gain.png"))
         written.append(plot_belief(store.steps(), out / "belief.png"))
     print(f"{NAME}: written " + ", ".join(str(p) for p in written))

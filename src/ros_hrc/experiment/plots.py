@@ -108,6 +108,45 @@ def plot_outcomes(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.
     return _save(fig, png_path)
 
 
+def plot_success(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.PathLike]) -> str:
+    """Success per human model at a glance: one row per human model (the pooled entries
+    last), one horizontal bar per robot policy with its success rate and Wilson interval, so
+    that many humans (fabric's ten types) fit one figure. Returns the PNG's path."""
+    if not summary:
+        raise ValueError("plot_success: the summary is empty, nothing to plot")
+    humans = _ordered(e["human_model"] for e in summary)
+    policies = _ordered(e["robot_policy"] for e in summary)
+    colours = _policy_colours(policies)
+    by_key = {(e["human_model"], e["robot_policy"]): e for e in summary}
+    height = 1.0 / (len(policies) + 1)
+    fig = _new_figure(7.5, 0.32 * len(humans) * len(policies) + 1.6)
+    ax = fig.subplots()
+    for j, policy in enumerate(policies):
+        ys, rates, lows, highs = [], [], [], []
+        for i, human in enumerate(humans):
+            e = by_key.get((human, policy))
+            if e is None:
+                continue
+            # The first human on top: rows count down.
+            ys.append(len(humans) - 1 - i + (len(policies) - 1 - j - (len(policies) - 1) / 2)
+                      * height)
+            rates.append(e["success_rate"])
+            lows.append(e["success_rate"] - e["success_low"]
+                        if math.isfinite(e["success_low"]) else 0.0)
+            highs.append(e["success_high"] - e["success_rate"]
+                         if math.isfinite(e["success_high"]) else 0.0)
+        ax.barh(ys, rates, height * 0.9, color=colours[policy], label=policy,
+                xerr=[lows, highs], error_kw={"elinewidth": 0.8, "capsize": 2})
+    ax.set_yticks(range(len(humans)), list(reversed(humans)), fontsize="small")
+    ax.set_xlim(0, 1.0)
+    ax.set_xlabel("success rate (95 % Wilson interval)")
+    ax.grid(axis="x", alpha=0.3)
+    ax.set_axisbelow(True)
+    fig.legend(loc="outside lower center", ncol=min(len(policies), 6), fontsize="small")
+    fig.suptitle("Success per human model and robot policy")
+    return _save(fig, png_path)
+
+
 def plot_time_gain(rows: Iterable[Any], png_path: Union[str, os.PathLike]) -> str:
     """Time against the counterfactual: per human model, the distribution of the time gain
     (simulated seconds the human alone took minus those with the robot, on the episodes where

@@ -10,7 +10,7 @@ import warnings
 
 import pytest
 
-from ros_hrc.experiment.plots import plot_belief, plot_outcomes
+from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_success
 from ros_hrc.experiment.statistics import (POOLED, SUMMARY_COLUMNS, format_ci, mean_ci,
                                            proportion_ci, summarize, write_summary)
 from ros_hrc.experiment.store import (EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, ResultsStore,
@@ -275,6 +275,15 @@ def test_plot_outcomes_writes_a_png(tmp_path):
     assert_png(path)
     with pytest.raises(ValueError):
         plot_outcomes([], tmp_path / "empty.png")
+
+
+def test_plot_success_writes_a_png_with_a_missing_pair_and_an_n_of_1(tmp_path):
+    summary = summarize(grid_rows() + [episode("lone", "pomdp")])
+    path = plot_success(summary, tmp_path / "plots" / "success.png")
+    assert path == str(tmp_path / "plots" / "success.png")
+    assert_png(path)
+    with pytest.raises(ValueError):
+        plot_success([], tmp_path / "empty.png")
 
 
 def test_plot_belief_writes_a_png_and_picks_an_episode_with_need(tmp_path):
