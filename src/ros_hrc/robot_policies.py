@@ -24,6 +24,18 @@ human needs help; only their *decisions* ignore that belief.
     is what the POMDP adds. Because rule 1 comes first the robot never helps while a warning
     holds. Before the first observation it idles (rule ``start``).
 
+``ReactiveMdpPlanner``
+    The ``fabric`` task's reactive robot, the seed authors' successor's: each observation
+    names a state of their 6-state reactive MDP by the rules of
+    :mod:`ros_hrc.tasks.fabric_reactive` (in order: ``waited`` -- ``wait`` simulated seconds
+    since the episode's reset without success; ``attempt_failed`` -- a grasp attempt seen
+    before, still no success; then by the observation), and the robot acts by that MDP's
+    optimal policy (``models/fabric/robot/reactive.pomdpx``, value iteration at start-up:
+    TaskHuman idle, HumanNeedsHelp grasp, WarningReceived cancel, TaskRobot grasp). The time
+    comes with each observation (``observe_time``: the protocol's ``Observation.elapsed``).
+
+Which reactive robot ``planner:=reactive`` is depends on the task: :data:`REACTIVE_ROBOTS`.
+
 ``NoRobotPlanner``
     Always ``rIdle``: the human works alone.
 
@@ -39,13 +51,18 @@ the policy needs is refused with a ValueError naming it. No ROS, no PyBullet.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, Iterable, Optional
+from typing import Callable, Dict, Iterable, Optional
 
 import numpy as np
 
 from ros_hrc.loop import task
+from ros_hrc.model_files import resolve_model
+from ros_hrc.pomdp.io import load_model
+from ros_hrc.pomdp.mdp import value_iteration
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
+from ros_hrc.tasks import fabric_reactive
+from ros_hrc.tasks.definition import Task
 
 IDLE_ACTION = "rIdle"
 STOP_ACTION = "rStop_all"
@@ -169,6 +186,116 @@ class ReactivePlanner(BeliefPlanner):
         if self.last_rule in ("start", "has_object", "nothing"):
             return self._actions[IDLE_ACTION]
         return self._actions[self.config.help_action]
+
+
+@dataclass
+class ReactiveMdpConfig:
+    """FABRIC's reactive robot's parameter: ``wait``, the simulated seconds since the
+    episode's reset after which a human without success is helped (rule ``waited``; 0: never
+    for that reason)."""
+
+    wait: float = fabric_reactive.DEFAULT_WAIT
+
+    def __post_init__(self) -> None:
+        fabric_reactive.ReactiveStateMap(self.wait)    # the one check of a wait
+
+
+def mdp_policy(mdp: Model) -> Dict[str, str]:
+    """The optimal policy of a fully observable MDP, by value iteration: state -> action."""
+    solution = value_iteration(mdp)
+    return {state: mdp.actions[int(a)] for state, a in zip(mdp.states, solution.policy)}
+
+
+class ReactiveMdpPlanner(BeliefPlanner):
+    """FABRIC's reactive robot (module docstring): the authors' rules name a state of the
+    reactive MDP ``mdp`` from each observation, and the robot acts by the MDP's optimal
+    policy; the exact belief over ``model``'s states is kept as by any planner.
+
+    ``policy`` (MDP state -> action name) is computed here; ``mdp_state`` is the state the
+    latest observation named, ``last_rule`` the rule that named it (``start`` before the first
+    observation of an episode), ``elapsed`` the time given with it."""
+
+    def __init__(self, model: Model, mdp: Model, config: Optional[ReactiveMdpConfig] = None,
+                 seed: Optional[int] = None) -> None:
+        self.config = config if config is not None else ReactiveMdpConfig()
+        who = "the reactive MDP robot"
+        where = mdp.name or mdp.source or "?"
+        if set(mdp.states) != set(fabric_reactive.MDP_STATES):
+            raise ValueError(f"{who} needs an MDP over {', '.join(fabric_reactive.MDP_STATES)}; "
+                             f"{where} has states {', '.join(mdp.states)}")
+        unread = [o for o in model.observations if o not in fabric_reactive.BY_OBSERVATION]
+        missing = [o for o in fabric_reactive.BY_OBSERVATION if o not in model.observations]
+        if unread or missing:
+            raise ValueError(f"{who} reads observations {', '.join(fabric_reactive.BY_OBSERVATION)}"
+                             f"; model {model.name or model.source or '?'} has "
+                             f"{', '.join(model.observations)}")
+        self.mdp = mdp
+        self.policy = mdp_policy(mdp)
+        self._actions = _action_indices(model, self.policy.values(), who)
+        self._states = fabric_reactive.ReactiveStateMap(self.config.wait)
+        super().__init__(model, seed)  # exact belief: particles stay None
+        self.reset()
+
+    def reset(self, belief: Optional[np.ndarray] = None) -> None:
+        super().reset(belief)
+        self._states.reset()
+        self.elapsed: Optional[float] = None
+        self.last_rule = "start"
+
+    @property
+    def mdp_state(self) -> str:
+        return self._states.state
+
+    def observe_time(self, elapsed: Optional[float]) -> None:
+        """The simulated seconds since the episode's reset of the next observation (None:
+        unknown, and rule ``waited`` cannot apply)."""
+        self.elapsed = elapsed
+
+    def update(self, action: int, observation: int) -> None:
+        super().update(action, observation)
+        self._states(self.model.observations[observation], self.elapsed)
+
+    def act(self) -> int:
+        self.last_rule = self._states.rule
+        self.last_stats = PlannerStats()
+        return self._actions[self.policy[self._states.state]]
+
+    def policy_text(self) -> str:
+        """The MDP's policy in one line, e.g. ``TaskHuman: idle, HumanNeedsHelp: grasp, ...``."""
+        return ", ".join(f"{state}: {action}" for state, action in self.policy.items())
+
+
+def _seed_reactive(task_: Task, model: Model, budget: int, wait: float,
+                   seed: Optional[int]) -> BeliefPlanner:
+    return ReactivePlanner(model, ReactiveConfig(budget=budget), seed=seed)
+
+
+def _fabric_reactive(task_: Task, model: Model, budget: int, wait: float,
+                     seed: Optional[int]) -> BeliefPlanner:
+    path = resolve_model(fabric_reactive.REACTIVE_MDP_MODEL, "robot", task_.model_dirs["robot"])
+    return ReactiveMdpPlanner(model, load_model(path), ReactiveMdpConfig(wait=wait), seed=seed)
+
+
+#: Each task's reactive robot (``planner:=reactive``), by task name: the seed's rules on its
+#: bits (``reactive_budget``), fabric's reactive MDP (``reactive_wait``). A task not here has
+#: none (the pre-flight refuses ``planner:=reactive`` for it).
+REACTIVE_ROBOTS: Dict[str, Callable[..., BeliefPlanner]] = {
+    "seed": _seed_reactive,
+    "fabric": _fabric_reactive,
+}
+
+
+def reactive_planner(task_: Task, model: Model, budget: int = DEFAULT_REACTIVE_BUDGET,
+                     wait: float = fabric_reactive.DEFAULT_WAIT,
+                     seed: Optional[int] = None) -> BeliefPlanner:
+    """The task's reactive robot over ``model`` (``budget``: the seed's, ``wait``: fabric's);
+    ValueError for a task without one."""
+    try:
+        make = REACTIVE_ROBOTS[task_.name]
+    except KeyError:
+        raise ValueError(f"task {task_.name} has no reactive robot (tasks with one: "
+                         f"{', '.join(REACTIVE_ROBOTS)})") from None
+    return make(task_, model, budget, wait, seed)
 
 
 class NoRobotPlanner(BeliefPlanner):

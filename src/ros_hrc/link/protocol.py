@@ -508,6 +508,8 @@ class Observation(Message):
     """Observer -> POMDP: the robot's observation after step ``step`` (its name, e.g. ``O35``,
     and the raw predicate ``bits`` 0..127, which may differ when the pattern was mapped to the
     nearest legal one) and the robot model's true ``state`` (e.g. ``S2``, for reporting).
+    Optional: ``elapsed``, the simulated seconds since the episode's reset when the world was
+    observed (a finite number >= 0; absent: unknown), for a robot whose rules count time.
     Answered with a :class:`Decision` (or an :class:`Error`)."""
 
     TYPE: ClassVar[str] = "observation"
@@ -515,12 +517,15 @@ class Observation(Message):
     observation: str
     bits: int
     state: str
+    elapsed: Optional[float] = None
 
     def _validate(self, check: _Checker) -> None:
         self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         self._set("observation", check.text("observation", self.observation))
         self._set("bits", check.integer("bits", self.bits, maximum=MAX_BITS))
         self._set("state", check.text("state", self.state))
+        if self.elapsed is not None:
+            self._set("elapsed", check.number("elapsed", self.elapsed, minimum=0.0))
 
 
 @dataclass(frozen=True)

@@ -158,10 +158,13 @@ class ObserveWorld(Call):
 
 @dataclass(frozen=True)
 class Decide(Call):
-    """Ask the robot planner for a decision on this observation (answer: :class:`Decision`)."""
+    """Ask the robot planner for a decision on this observation (answer: :class:`Decision`).
+    ``elapsed``: the world's simulated seconds since the episode's start when it was observed
+    (a robot whose rules count time reads it; None: unknown)."""
     observation: str
     bits: int
     state: str
+    elapsed: Optional[float] = None
 
 
 @dataclass(frozen=True)
@@ -624,7 +627,8 @@ class Coordinator:
                                                              report.human_action)
                 ctx.stage = "decide"
                 self._call(Decide, call.step, observation=report.robot_observation, bits=raw,
-                           state=report.robot_state)
+                           state=report.robot_state,
+                           elapsed=max(0.0, float(result.sim_time) - self._episode_start_time))
             elif isinstance(call, Decide):
                 if result.action not in self.task.robot_action_services:
                     return self._fail_step(f"the robot planner answered an unknown action "

@@ -51,7 +51,9 @@ class WorldPort:
 class PlannerPort:
     """The robot planner: a decision per observation, a reset into an epoch."""
 
-    def decide(self, epoch: int, step: int, observation: str, bits: int, state: str) -> Decision:
+    def decide(self, epoch: int, step: int, observation: str, bits: int, state: str,
+               elapsed: Optional[float] = None) -> Decision:
+        """``elapsed``: simulated seconds since the episode's start (None: unknown)."""
         raise NotImplementedError
 
     def reset(self, epoch: int, episode: int) -> Outcome:
@@ -257,7 +259,7 @@ class LoopRunner:
             return self.world.reset(call.interrupt, call.episode)
         if isinstance(call, Decide):
             return self.planner.decide(call.epoch, call.step, call.observation, call.bits,
-                                       call.state)
+                                       call.state, elapsed=call.elapsed)
         if isinstance(call, ResetPlanner):
             return self.planner.reset(call.epoch, call.episode)
         if isinstance(call, ActRobot):

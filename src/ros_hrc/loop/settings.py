@@ -367,7 +367,8 @@ _TABLE: Iterable[Setting] = (
     # the robot (POMDP)
     _s("start_pomdp", "bool", True, "start the POMDP process"),
     _s("planner", "choice", "despot", "despot; policy with policy_file; reactive (baseline: "
-       "rules on the current observation, see reactive_budget); none (baseline: the robot "
+       "the task's reactive robot, rules on the current observation: seed's see "
+       "reactive_budget, fabric's reactive MDP see reactive_wait); none (baseline: the robot "
        "never acts); explore (a uniformly random action each step, seeded: hrc_fit's "
        "exploring robot)", choices=("despot", "policy", "reactive", "none", "explore")),
     _s("policy_file", "file", "",
@@ -383,8 +384,12 @@ _TABLE: Iterable[Setting] = (
     _s("max_trials", "int", 0, "cap on DESPOT trials per decision (0: time only; set it for "
        "reproducible runs)", minimum=0, maximum=INT32_MAX),
     _s("reactive_budget", "int", 8, "planner:=reactive helps after this many steps since the "
-       "reset without the human getting the object (0: never for that reason)", minimum=0,
-       maximum=INT32_MAX),
+       "reset without the human getting the object (0: never for that reason); task seed",
+       minimum=0, maximum=INT32_MAX),
+    _s("reactive_wait", "float", 15.0, "planner:=reactive of task fabric declares that the "
+       "human needs help (and grasps) once this many simulated seconds have passed since the "
+       "episode's reset without success: the authors' 15 s (0: never for that reason)",
+       minimum=0, maximum=1e6, unit="s"),
     _s("read_stdin", "bool", True, "Enter on the roslaunch terminal resets everything"),
 )
 
@@ -437,11 +442,13 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
         given = values.get(name)
         if given is None or (isinstance(given, str) and given.strip() in ("", AUTO_WORD)):
             out[name] = task.default_model(kind)
-    if out["planner"] == "reactive" and task.name != tasks.DEFAULT_TASK:
-        raise SettingError("planner", values.get("planner"),
-                           f"the reactive robot reads the seed task's observations; task "
-                           f"{task.name} has none of its own yet (use despot, policy, none "
-                           "or explore)")
+    if out["planner"] == "reactive":
+        from ros_hrc.robot_policies import REACTIVE_ROBOTS   # numpy's: only when asked
+        if task.name not in REACTIVE_ROBOTS:
+            raise SettingError("planner", values.get("planner"),
+                               f"task {task.name} has no reactive robot (tasks with one: "
+                               f"{', '.join(REACTIVE_ROBOTS)}; use despot, policy, none or "
+                               "explore)")
     seen: Dict[int, str] = {}
     for name in PORTS:
         port = out[name]

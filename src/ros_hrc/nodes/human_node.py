@@ -236,9 +236,13 @@ class RosPlanner(PlannerPort):
         self.call = call
         self.ready = ready
 
-    def decide(self, epoch: int, step: int, observation: str, bits: int, state: str) -> Decision:
+    def decide(self, epoch: int, step: int, observation: str, bits: int, state: str,
+               elapsed: Optional[float] = None) -> Decision:
         self.ready()
-        answer = self.call.call("/hrc/obs/decide", Decide, epoch, step, observation, bits, state)
+        args = [epoch, step, observation, bits, state]
+        if "elapsed" in Decide._request_class.__slots__:   # a workspace built since it came
+            args.append(-1.0 if elapsed is None else elapsed)   # Decide.srv: < 0 is unknown
+        answer = self.call.call("/hrc/obs/decide", Decide, *args)
         if not answer.success:
             raise ServiceUnavailable(answer.message)
         return Decision(action=answer.action, belief=tuple(answer.belief),

@@ -22,6 +22,7 @@ the reason (:class:`~ros_hrc.link.transport.ReplyRejected`).
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -65,8 +66,10 @@ class ObsNode:
         if down:
             return DecideResponse(success=False, message=f"no decision: {down}")
         try:
+            elapsed = getattr(req, "elapsed", -1.0)   # Decide.srv: < 0 (or not built) unknown
             reply = self.pomdp.request(Observation(
                 step=req.step, observation=req.observation, bits=req.bits, state=req.state,
+                elapsed=elapsed if 0.0 <= elapsed < math.inf else None,
                 epoch=req.epoch), self.config.decide_timeout)
         except LinkError as exc:
             return DecideResponse(success=False, message=f"no decision from the POMDP process: "

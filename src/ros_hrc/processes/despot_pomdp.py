@@ -9,7 +9,7 @@ offline policy, or a baseline robot of ``ros_hrc.robot_policies``: the
 reactive robot or no robot, which keep the belief but decide without it), and answer with a
 ``decision``. The coordinator has the robot carry it out (hrc_robot), not this process.
 A ``reset`` puts the belief back to the model's initial belief (and the reactive robot's step
-count back to 0), in the epoch the reset names, and restarts the planner's random stream as
+count, or fabric's reactive robot's MDP state, back to the start), in the epoch the reset names, and restarts the planner's random stream as
 the one of (``--seed``, the reset's episode, "planner") (:mod:`ros_hrc.loop.streams`): episode
 e of seed s gets the same decisions whatever ran before it. Observations of any other epoch
 are refused.
@@ -53,8 +53,7 @@ from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
-from ros_hrc.robot_policies import (ExplorePlanner, NoRobotConfig, NoRobotPlanner, ReactiveConfig,
-                                    ReactivePlanner)
+from ros_hrc.robot_policies import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
 
 NAME = "despot_pomdp"
 
@@ -84,10 +83,15 @@ class RobotAgent:
         self.last_action = self.first_action
         self.surprises = 0
 
-    def step(self, observation: str):
-        """Belief update with (previous action, observation), then plan: (action, ms, note)."""
+    def step(self, observation: str, elapsed: Optional[float] = None):
+        """Belief update with (previous action, observation), then plan: (action, ms, note).
+        ``elapsed``: the simulated seconds since the episode's reset (None: unknown), for a
+        planner that counts time (``observe_time``: the fabric reactive robot)."""
         o = self.model.index("observation", observation)
         note = ""
+        observe_time = getattr(self.planner, "observe_time", None)
+        if observe_time is not None:
+            observe_time(elapsed)
         started = time.perf_counter()
         self.planner.update(self.last_action, o)
         if self.planner.last_update_zero_probability:
@@ -119,6 +123,7 @@ class PomdpProcess:
         self.dispatch = DispatchTable(NAME)
         self.dispatch.on(Observation, self.on_observation)
         self.dispatch.on(Reset, self.on_reset)
+        self._said_no_time = False
 
     def on_reset(self, msg: Reset, peer: Peer) -> Message:
         # The coordinator names the episode (0 is one); a reset without a number (a client of
@@ -140,15 +145,22 @@ class PomdpProcess:
         if msg.observation not in model.observations:
             return reply_error(msg, f"unknown observation {msg.observation!r}; the model's are "
                                     f"{', '.join(model.observations)}", ERR_INVALID)
-        action, decision_ms, note = self.agent.step(msg.observation)
+        action, decision_ms, note = self.agent.step(msg.observation, msg.elapsed)
         belief = self.agent.belief
+        at = f" at {msg.elapsed:.1f} s" if msg.elapsed is not None else ""
         print(f"\n-----Step {msg.step}-----\n- Observation = {msg.observation} "
-              f"(bits {msg.bits}); true state (not seen) = {msg.state}", flush=True)
+              f"(bits {msg.bits}){at}; true state (not seen) = {msg.state}", flush=True)
+        if msg.elapsed is None and hasattr(self.agent.planner, "observe_time") \
+                and not self._said_no_time:
+            self._said_no_time = True
+            print(f"{NAME}: observations carry no time (elapsed): the reactive robot's wait "
+                  "(rule waited) cannot apply", file=sys.stderr, flush=True)
         if note:
             print(f"- NOTE: {note}", flush=True)
-        # The reactive robot says which of its rules chose the action.
+        # The reactive robot says which of its rules chose the action (and the MDP state).
         rule = getattr(self.agent.planner, "last_rule", None)
-        why = f"rule {rule}, " if rule else ""
+        mdp_state = getattr(self.agent.planner, "mdp_state", None)
+        why = (f"rule {rule}, " if rule else "") + (f"MDP state {mdp_state}, " if mdp_state else "")
         print(f"- Belief:\n{self._belief_text()}\n- Action = {model.actions[action]} "
               f"({why}{decision_ms:.1f} ms)", flush=True)
         return Decision(step=msg.step, action=model.actions[action], belief=belief.tolist(),
@@ -178,7 +190,10 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
         return PolicyPlanner(model, load_policy(args.policy_file, model), seed=args.seed,
                              lookahead=True)
     if args.planner == "reactive":
-        return ReactivePlanner(model, ReactiveConfig(budget=args.reactive_budget), seed=args.seed)
+        return reactive_planner(tasks.get(getattr(args, "task", tasks.DEFAULT_TASK)), model,
+                                budget=args.reactive_budget,
+                                wait=getattr(args, "reactive_wait", settings.default("reactive_wait")),
+                                seed=args.seed)
     if args.planner == "none":
         idle = tasks.get(getattr(args, "task", tasks.DEFAULT_TASK)).robot_idle_action
         return NoRobotPlanner(model, NoRobotConfig(idle_action=idle), seed=args.seed)
@@ -198,6 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "planner")
     settings.add_argument(p, "policy_file", "--policy")
     settings.add_argument(p, "reactive_budget")
+    settings.add_argument(p, "reactive_wait")
     settings.add_argument(p, "time_per_step")
     settings.add_argument(p, "scenarios")
     settings.add_argument(p, "depth")
@@ -237,6 +253,9 @@ def main(argv: Optional[list] = None) -> int:
     print(f"{NAME}: {model.source or args.robot_model}: {model.n_states} states, {model.n_actions} "
           f"actions, {model.n_observations} observations; planner {args.planner}; "
           f"observations on {server.url}", flush=True)
+    policy_text = getattr(planner, "policy_text", None)
+    if policy_text is not None:
+        print(f"{NAME}: the reactive MDP's policy (value iteration): {policy_text()}", flush=True)
     try:
         threading.Event().wait()
     except KeyboardInterrupt:

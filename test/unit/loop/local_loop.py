@@ -48,7 +48,7 @@ class LocalLoop:
 
     def __init__(self, task: str, human_model: str, robot_model: str, seed: int = 0,
                  episodes: str = "1-1000", max_steps: int = 12, planner: str = "despot",
-                 max_trials: int = 60) -> None:
+                 max_trials: int = 60, reactive_wait: float = 15.0) -> None:
         self.task = tasks.get(task)
         self.world = World(WorldConfig(seed=seed))
         human = load_human_model(human_model, self.task)
@@ -62,7 +62,8 @@ class LocalLoop:
             mode="auto", seed=seed, step_delay=0.0, reply_timeout=5.0))
         args = SimpleNamespace(planner=planner, time_per_step=0.0, max_trials=max_trials,
                                scenarios=100, depth=30, lambda_=0.1, seed=seed,
-                               reactive_budget=8, policy_file="", task=self.task.name)
+                               reactive_budget=8, reactive_wait=reactive_wait, policy_file="",
+                               task=self.task.name)
         self.robot = RobotAgent(robot, build_planner(robot, args),
                                 first_action=self.task.robot_idle_action, seed=seed)
         self.reports: List[StepReport] = []
@@ -116,11 +117,12 @@ class LocalLoop:
         elif isinstance(effect, ObserveWorld):
             c.call_done(effect.id, self._snapshot())
         elif isinstance(effect, Decide):
-            action, _ms, note = self.robot.step(effect.observation)
+            action, _ms, note = self.robot.step(effect.observation, effect.elapsed)
             model = self.robot.model
             c.call_done(effect.id, Decision(
                 action=model.actions[action], belief=tuple(self.robot.belief.tolist()),
-                belief_states=tuple(model.states), surprise=bool(note)))
+                belief_states=tuple(model.states), surprise=bool(note),
+                rule=getattr(self.robot.planner, "last_rule", "")))
         elif isinstance(effect, ActRobot):
             service = self.task.robot_action_services[effect.action]
             done = self.world.run("robot", service, driver=True)

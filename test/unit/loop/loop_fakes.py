@@ -327,7 +327,8 @@ class FakePlanner(PlannerPort):
                 self._down -= 1
                 raise ConnectionError("the planner process is gone")
 
-    def decide(self, epoch: int, step: int, observation: str, bits: int, state: str) -> Decision:
+    def decide(self, epoch: int, step: int, observation: str, bits: int, state: str,
+               elapsed=None) -> Decision:
         with self._lock:
             self.calls.append(("decide", epoch, step))
         self._check_up()

@@ -293,6 +293,19 @@ def test_task_fabric_runs_its_own_models_by_default(capsys):
         "beginner_nontired_collaborative", "policy3")
 
 
+def test_task_fabric_takes_its_reactive_robot_and_its_wait(capsys):
+    """planner:=reactive with task:=fabric is fabric's reactive MDP robot (it was refused
+    while only the seed had one); reactive_wait is its wait in simulated seconds."""
+    assert main(["--no-port-check", "task:=fabric", "planner:=reactive"]) == 0
+    config = yaml.safe_load(capsys.readouterr().out)
+    assert (config["planner"], config["reactive_wait"]) == ("reactive", 15.0)
+    assert main(["--no-port-check", "task:=fabric", "planner:=reactive",
+                 "reactive_wait:=7.5"]) == 0
+    assert yaml.safe_load(capsys.readouterr().out)["reactive_wait"] == 7.5
+    said = refused("--no-port-check", "task:=fabric", "planner:=reactive", "reactive_wait:=-1")
+    assert said.startswith("hrc.launch: reactive_wait:=-1: "), said
+
+
 SEED_ROBOT = ROOT / "models" / "robot" / "robot.pomdp"
 FABRIC_ROBOT = ROOT / "models" / "fabric" / "robot" / "base.pomdpx"
 
@@ -305,8 +318,6 @@ FABRIC_ROBOT = ROOT / "models" / "fabric" / "robot" / "base.pomdpx"
      f"hrc.launch: {FABRIC_ROBOT.relative_to(ROOT)}: states TaskHuman, "),
     (("task:=fabric", "human_model:=humanModel"),
      "hrc.launch: human_model:=humanModel: no human model named 'humanModel' in "),
-    (("task:=fabric", "planner:=reactive"),
-     "hrc.launch: planner:=reactive: the reactive robot reads the seed task's observations"),
     (("task:=seeds",), "hrc.launch: task:=seeds: must be one of seed, fabric"),
 ])
 def test_a_model_of_another_task_is_refused_in_one_line(words, line):

@@ -15,7 +15,7 @@ DEFAULTS = {
     "task": "seed", "human_model": "humanModel", "robot_model": "robot", "mode": "auto",
     "gui": False,
     "seed": 0, "use_sim_time": False, "real_time_factor": 1.0, "pause_when_idle": None,
-    "belt_speed": 0.02, "viz": True, "rviz": False, "snapshot_dir": "", "camera_rate": 0.0,
+    "belt_speed": 0.02, "away_time": None, "viz": True, "rviz": False, "snapshot_dir": "", "camera_rate": 0.0,
     "publish_rate": 10.0,
     "host": "127.0.0.1", "pomdp_port": 7070, "robot_port": 8080,
     "human_port": 9090, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
@@ -23,7 +23,7 @@ DEFAULTS = {
     "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "wait_for_listener": False,
     "start_pomdp": True, "planner": "despot",
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
-    "max_trials": 0, "reactive_budget": 8, "read_stdin": True,
+    "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
 }
 
 
@@ -211,7 +211,7 @@ def test_unknown_names_are_refused_naming_them():
 def test_resolve_fills_every_default_in_table_order():
     config = settings.resolve({}, environ={})
     assert list(config) == list(SETTINGS)
-    expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False)
+    expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False, away_time=0.0)
     assert config == expected
 
 
