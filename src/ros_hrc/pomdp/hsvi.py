@@ -37,6 +37,10 @@ in the belief set and the upper bound's points, a trial starts at the root with 
 weighted excess gap P(k)·(gap(b_k) − precision), and the bounds reported at the start (and the
 policy's) are the weighted sums. Without a key there is one root, the initial belief.
 
+When every observation tells the fully observed values after it, ``solve`` hands the model to
+:mod:`ros_hrc.pomdp.momdp`, the same search with beliefs and bounds kept per block of states
+sharing those values (SARSOP's MOMDP representation): RockSample_4_3 0.7 s instead of 38 s.
+
 A fully observable model is an MDP: ``solve`` then runs value iteration instead.
 
 Time and memory: ``solve``'s timeout counts from the call, so building the tables and the MDP
@@ -873,7 +877,9 @@ class HsviSolver:
 def solve(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3,
           progress: Optional[Callable[[SolveProgress], None]] = None,
           memory_limit: Optional[int] = None) -> Policy:
-    """Solve ``model`` offline: HSVI2 for a POMDP, value iteration for an MDP.
+    """Solve ``model`` offline: HSVI2 for a POMDP, value iteration for an MDP; a model with
+    fully observed variables that its observations tell (``momdp.applies``) by blocks, with
+    the same search (:mod:`ros_hrc.pomdp.momdp`, as SARSOP does).
 
     The returned policy carries ``lower``/``upper``, bounds on the optimal value at the start
     (the initial belief; with fully observed variables Σ_k P(k) V*(b_k) over
@@ -886,6 +892,10 @@ def solve(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3
     deadline = start + timeout if timeout is not None else None
     if model.fully_observable:
         return solve_mdp(model, timeout=timeout, precision=precision, memory_limit=memory_limit)
+    from ros_hrc.pomdp import momdp                # imports this module
+    if momdp.applies(model):
+        return momdp.solve(model, timeout=timeout, precision=precision,
+                           memory_limit=memory_limit, progress=progress)
     solver = HsviSolver(model, deadline=deadline, memory_limit=memory_limit)
     remaining = None if deadline is None else max(0.0, deadline - time.perf_counter())
     solver.run(timeout=remaining, precision=precision, progress=progress)
