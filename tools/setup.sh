@@ -2,7 +2,7 @@
 # One-command set-up for ros_hrc on Debian 12 (run as root, or with sudo available):
 #   1. Debian's ROS 1 Noetic packages (apt),
 #   2. a virtual environment .venv made from /usr/bin/python3 with --system-site-packages,
-#      holding the pinned PyPI packages of requirements.txt,
+#      holding the pinned PyPI packages of requirements.txt (Ray among them, for --cluster),
 #   3. a catkin workspace .ws/ around the repository (.ws/src/ros_hrc holds a link to each
 #      top-level entry of the repository), built with catkin_make and the environment's python.
 # Idempotent: each step leaves a stamp holding what it was made from, and is skipped while

@@ -58,6 +58,8 @@ from ros_hrc.experiment.stack import (MAX_EPISODES, CellSpec, EpisodeRanges, cel
                                       write_spec)
 from ros_hrc.experiment.statistics import summarize, write_summary
 from ros_hrc.experiment.zoo import zoo_argument
+from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
+from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
                                       lock_directory)
 from ros_hrc import tasks
@@ -259,7 +261,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "fabric, a safety net: its episodes end in the world, the object taken "
                         "or at the belt's end)")
     p.add_argument("--jobs", type=at_least(0, MAX_JOBS), default=0,
-                   help="stacks run side by side (0: one per core)")
+                   help="stacks run side by side (0: one per core; with --cluster, one per "
+                        "ros_hrc slot of the cluster)")
     p.add_argument("--out", default="results/experiment",
                    help="results directory (relative to the current directory)")
     settings.add_argument(p, "robot_model")
@@ -270,6 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "scenarios")
     settings.add_argument(p, "depth")
     settings.add_argument(p, "lambda", dest="lambda_")
+    add_cluster_argument(p)
     p.add_argument("--bag", action=argparse.BooleanOptionalAction, default=False,
                    help="also record /hrc/status as a rosbag (default: no)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
@@ -679,12 +683,18 @@ def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None,
 
 def run_grid(cells: List[CellSpec], store, jobs: int,
              stopper: Optional[Stopper] = None, program: str = NAME,
-             gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None) -> dict:
+             gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None,
+             worker: Optional[Callable[..., None]] = None,
+             status: Callable[[], str] = lambda: "") -> dict:
     """Run the cells side by side; record episodes as they come (``store.add(row, steps)``).
     Returns run figures. ``program`` names the progress bar and the messages (hrc_fit runs
     grids too). A robot cell starts once the ``no_robot`` cells of its (human model, seed) in
     ``cells`` are over (the human alone comes first); ``gate(cell)`` then gives the cell to
-    run (fewer episodes, or None: nothing to run)."""
+    run (fewer episodes, or None: nothing to run). ``worker`` runs one cell (by default
+    :func:`_run_worker`, a local process; on a cluster,
+    :meth:`ros_hrc.experiment.cluster.ClusterRun.run_cell`); ``status()`` leads the progress
+    bar's text."""
+    worker = worker or _run_worker
     from tqdm import tqdm
 
     stopper = stopper or Stopper()
@@ -703,7 +713,8 @@ def run_grid(cells: List[CellSpec], store, jobs: int,
                 store.add(row, steps)
                 figures["episodes"] += 1
                 figures["simulated_seconds"] += row.sim_seconds
-                bar.set_postfix_str(f"{row.human_model}/{row.robot_policy} seed {row.seed}: "
+                bar.set_postfix_str(f"{status()}{row.human_model}/{row.robot_policy} "
+                                    f"seed {row.seed}: "
                                     f"{row.end_reason} in {row.steps} steps")
                 bar.update(1)
 
@@ -766,7 +777,7 @@ def run_grid(cells: List[CellSpec], store, jobs: int,
                 cell_logs.mkdir(parents=True, exist_ok=True)
                 with open(cell_logs / f"{name}.worker.log", "a") as log:
                     try:
-                        _run_worker(cell, deliver, log, stopper, on_all_delivered=release)
+                        worker(cell, deliver, log, stopper, on_all_delivered=release)
                     except (RuntimeError, OSError) as exc:
                         with lock:
                             failures.append(f"{name}: {exc}")
@@ -815,19 +826,42 @@ def open_results(directory: Path, argument: str):
 
 def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
                   out: Path, program: str = NAME,
-                  gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None
-                  ) -> Tuple[Optional[dict], Optional[int]]:
+                  gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None,
+                  cluster: Optional[str] = None) -> Tuple[Optional[dict], Optional[int]]:
     """:func:`run_grid` under SIGINT and SIGTERM: ``(figures, None)``, or, when a signal
-    stopped it, ``(None, 128 + signal)`` after saying what is kept and how to resume."""
+    stopped it, ``(None, 128 + signal)`` after saying what is kept and how to resume.
+    ``cluster`` (``--cluster``): the cells run as Ray tasks there
+    (:mod:`ros_hrc.experiment.cluster`, the only place Ray is imported); a cluster that cannot
+    be joined is one line and ``(None, 2)``."""
     stopper = Stopper()
-    stopper.install()
     figures = None
+    remote = None
     try:
-        figures = run_grid(cells, store, jobs, stopper, program=program, gate=gate)
+        if cluster is not None:
+            from ros_hrc.experiment.cluster import ClusterRun
+            # Joined before the handlers go in: ray.init installs its own for SIGTERM.
+            remote = ClusterRun(cluster, program, slots=jobs)
+            try:
+                remote.connect()
+            except HrcError as exc:
+                print(f"{program}: {' '.join(str(exc).split())}", file=sys.stderr, flush=True)
+                return None, 2
+        stopper.install()
+        try:
+            if remote is None:
+                figures = run_grid(cells, store, jobs, stopper, program=program, gate=gate)
+            else:
+                figures = run_grid(cells, store, remote.in_flight_limit, stopper,
+                                   program=program, gate=gate, worker=remote.run_cell,
+                                   status=remote.status)
+                figures["cluster"] = remote.report()
+        finally:
+            stopper.uninstall()
     except KeyboardInterrupt:   # a signal before the handlers were in place
         stopper.stop(signal.SIGINT)
     finally:
-        stopper.uninstall()
+        if remote is not None:
+            remote.close()
     if not stopper.stopping:
         return figures, None
     name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
@@ -852,12 +886,15 @@ def main(argv: Optional[list] = None) -> int:
     try:
         args = build_parser().parse_args(words)
         validate_grid(args)
+        if args.cluster is not None:
+            check_cluster(args.cluster)
     except HrcError as exc:
         return _error(exc)
     except KeyboardInterrupt:
         return 130
     out = Path(args.out)        # absolute: validate_grid resolved it
-    args.jobs = args.jobs or os.cpu_count() or 1
+    if args.cluster is None:    # on a cluster, 0 is the cluster's slots
+        args.jobs = args.jobs or os.cpu_count() or 1
     try:
         lock = open_results(out, "--out")
     except HrcError as exc:
@@ -887,12 +924,14 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
           + (f" ({adopted} taken from {alone.directory})" if adopted else "")
           + (f", and {counterfactual} of the human alone ({ALONE_POLICY}, for the "
              f"counterfactual, into {alone.directory})" if counterfactual else "")
-          + f", on {min(args.jobs, len(cells) or 1)} stacks side by side", flush=True)
+          + (f", on {min(args.jobs, len(cells) or 1)} stacks side by side"
+             if args.cluster is None else f", on the Ray cluster --cluster {args.cluster}"),
+          flush=True)
     figures = None
     if cells:
         recorder = PairedRecorder(store, alone, args.in_sample)
         figures, stopped = run_stoppable(cells, recorder, args.jobs, words, out,
-                                         gate=recorder.gate)
+                                         gate=recorder.gate, cluster=args.cluster)
         if stopped is not None:
             return stopped
         print(f"{NAME}: {figures['episodes']} episodes in {figures['wall_seconds']:.1f} s "

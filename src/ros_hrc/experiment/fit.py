@@ -53,6 +53,8 @@ from ros_hrc.experiment.cli import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_
                                     file_error_line, names_argument, open_results,
                                     run_stoppable)
 from ros_hrc.experiment.zoo import zoo_argument
+from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
+from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc import tasks
 from ros_hrc.experiment.cli import TASK_STEP_LIMITS, task_humans, task_launch_args, task_of
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
@@ -101,7 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the prior's pseudo-counts per row; 0: the episodes' frequencies "
                         "wherever a row has any (5)")
     p.add_argument("--jobs", type=at_least(0, MAX_JOBS), default=0,
-                   help="stacks run side by side (0: one per core)")
+                   help="stacks run side by side (0: one per core; with --cluster, one per "
+                        "ros_hrc slot of the cluster)")
+    add_cluster_argument(p)
     settings.add_argument(p, "task")     # (#22) the task the episodes and the prior are of
     p.add_argument("--runs", default="results/fit",
                    help="where the episodes are kept, and found again (results/fit)")
@@ -256,10 +260,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         args = build_parser().parse_args(words)
         args.words = list(words)
         prior = check_arguments(args)
+        if args.cluster is not None:
+            check_cluster(args.cluster)
     except HrcError as exc:
         return _error(exc)
     runs = Path(args.runs)          # absolute: check_arguments resolved it
-    args.jobs = args.jobs or os.cpu_count() or 1
+    if args.cluster is None:    # on a cluster, 0 is the cluster's slots
+        args.jobs = args.jobs or os.cpu_count() or 1
     try:
         with open_results(runs, "--runs"):
             return _run_locked(args, runs, prior, words)
@@ -293,7 +300,8 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
           f"exploring robot = {wanted} episodes; {wanted - todo} already in {runs}, {todo} to "
           f"run", flush=True)
     if cells:
-        figures, stopped = run_stoppable(cells, store, args.jobs, words, runs, program=NAME)
+        figures, stopped = run_stoppable(cells, store, args.jobs, words, runs, program=NAME,
+                                         cluster=args.cluster)
         if stopped is not None:
             return stopped
         if figures and figures["failed_cells"]:
