@@ -14,11 +14,20 @@ minute depend on episodes per cell: 20 is a small study's cell (an HRI study run
 `--episodes 2` shows the start-up-bound case.
 
     python bench/bench_experiment.py [--jobs N] [--episodes 20]
+
+`--cluster local` (or an address, docs/cluster.md) runs the same grid twice, on the local pool
+and on the cluster, the cluster with as many cells in flight as the pool has stacks, and prints
+both runs' episodes per minute and the cluster's overhead per cell (its extra wall seconds times
+the stacks side by side, over the cells; joining the cluster, a one-off, apart); writes
+bench/results/experiment_cluster.json.
+
+    python bench/bench_experiment.py --cluster local [--jobs 2] [--episodes 20]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import tempfile
 from pathlib import Path
@@ -29,25 +38,45 @@ from ros_hrc.experiment.cli import main as hrc_experiment
 from ros_hrc.experiment.store import ResultsStore
 
 
+HUMANS = ("expert", "distracted")
+POLICIES = ("pomdp", "reactive")
+
+
+def run_grid(episodes: int, jobs: int, extra=()) -> tuple:
+    """The bench's grid through hrc_experiment: (run.json's figures, every episode row), or
+    None when it failed."""
+    with tempfile.TemporaryDirectory(prefix="bench_experiment_") as work:
+        # The policies named: the grid stays the one the recorded figures were measured on;
+        # no_robot is not named, so its episodes are the counterfactual pairs (in work/alone).
+        rc = hrc_experiment(["--human-models", ",".join(HUMANS), "--seeds", "0",
+                             "--policies", ",".join(POLICIES),
+                             "--episodes", str(episodes), "--step-limit", "10",
+                             "--jobs", str(jobs), "--out", work, "--no-plots", *extra])
+        if rc != 0:
+            print(f"hrc_experiment failed ({rc})")
+            return None
+        run = json.loads((Path(work) / "run.json").read_text())
+        rows = ResultsStore(work).episodes() + ResultsStore(Path(work) / "alone").episodes()
+    return run, rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jobs", type=int, default=0, help="stacks side by side (0: per core)")
     parser.add_argument("--episodes", type=int, default=20, help="episodes per cell")
-    parser.add_argument("--out", type=Path,
-                        default=Path(__file__).resolve().parent / "results" / "experiment.json")
+    parser.add_argument("--cluster", default=None, metavar="ADDRESS|auto|local",
+                        help="also run the grid on this Ray cluster and compare")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="result file (bench/results/experiment.json, with --cluster "
+                             "experiment_cluster.json)")
     args = parser.parse_args(argv)
-    with tempfile.TemporaryDirectory(prefix="bench_experiment_") as work:
-        # The policies named: the grid stays the one the recorded figures were measured on;
-        # no_robot is not named, so its episodes are the counterfactual pairs (in work/alone).
-        rc = hrc_experiment(["--human-models", "expert,distracted", "--seeds", "0",
-                             "--policies", "pomdp,reactive",
-                             "--episodes", str(args.episodes), "--step-limit", "10",
-                             "--jobs", str(args.jobs), "--out", work, "--no-plots"])
-        if rc != 0:
-            print(f"hrc_experiment failed ({rc})")
-            return 1
-        run = json.loads((Path(work) / "run.json").read_text())
-        rows = ResultsStore(work).episodes() + ResultsStore(Path(work) / "alone").episodes()
+    results = Path(__file__).resolve().parent / "results"
+    if args.cluster is not None:
+        return compare_cluster(args, args.out or results / "experiment_cluster.json")
+    done = run_grid(args.episodes, args.jobs)
+    if done is None:
+        return 1
+    run, rows = done
     walls = [r.wall_seconds for r in rows]
     per_stack = sum(r.sim_seconds for r in rows) / sum(walls)
     decisions = {}
@@ -71,7 +100,40 @@ def main(argv=None) -> int:
           f"p99 {result['episode_wall_p99_s']:.2f}")
     print("  mean decision time: " + ", ".join(f"{p} {ms:.1f} ms" for p, ms in
                                                 result["mean_decision_ms"].items()))
-    write_result(args.out, result)
+    write_result(args.out or results / "experiment.json", result)
+    return 0
+
+
+def compare_cluster(args, out: Path) -> int:
+    """The grid on the local pool, then on the cluster with as many cells in flight."""
+    jobs = args.jobs or os.cpu_count() or 1
+    local = run_grid(args.episodes, jobs)
+    remote = run_grid(args.episodes, jobs, ["--cluster", args.cluster])
+    if local is None or remote is None:
+        return 1
+    (pool, _), (cluster, _) = local, remote
+    cells = len(HUMANS) * (len(POLICIES) + 1)      # and the human alone on each stream
+    overhead = (cluster["wall_seconds"] - pool["wall_seconds"]) * jobs / cells
+    result = {
+        "cluster": args.cluster, "episodes_per_cell": args.episodes, "cells": cells,
+        "episodes": cluster["episodes"], "jobs": jobs,
+        "local_wall_seconds": pool["wall_seconds"],
+        "cluster_wall_seconds": cluster["wall_seconds"],
+        "local_episodes_per_minute": pool["episodes_per_minute"],
+        "cluster_episodes_per_minute": cluster["episodes_per_minute"],
+        "overhead_per_cell_s": overhead,
+        "connect_seconds": cluster["cluster"]["connect_seconds"],
+        "nodes": [{k: n[k] for k in ("ip", "cells", "episodes")}
+                  for n in cluster["cluster"]["nodes"]],
+    }
+    print(f"  {result['episodes']} episodes ({args.episodes} per cell, {cells} cells), "
+          f"{jobs} at a time")
+    print(f"  episodes per minute: local pool {result['local_episodes_per_minute']:.1f}, "
+          f"cluster {args.cluster} {result['cluster_episodes_per_minute']:.1f}")
+    print(f"  overhead per cell on the cluster: {overhead:+.2f} s "
+          f"({pool['wall_seconds']:.1f} s local, {cluster['wall_seconds']:.1f} s on the "
+          f"cluster; joining it {result['connect_seconds']:.1f} s more, once)")
+    write_result(out, result)
     return 0
 
 

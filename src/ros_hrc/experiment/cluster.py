@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import bisect
+import contextlib
 import dataclasses
 import ipaddress
 import os
@@ -118,15 +119,9 @@ def contains(ranges: EpisodeRanges, episode: int) -> bool:
 def without(ranges: EpisodeRanges, taken: Set[int]) -> EpisodeRanges:
     """``ranges`` but the numbers in ``taken``: memory in proportion to ``taken``."""
     spans: List[Tuple[int, int]] = []
-    cuts = sorted(taken)
     for start, stop in ranges.spans:
-        first = bisect.bisect_left(cuts, start)
-        for cut in cuts[first:bisect.bisect_left(cuts, stop)]:
-            if cut > start:
-                spans.append((start, cut))
-            start = cut + 1
-        if start < stop:
-            spans.append((start, stop))
+        rest = EpisodeRanges.missing(stop - start, (n - start for n in taken))
+        spans.extend((start + a, start + b) for a, b in rest.spans)
     return EpisodeRanges(tuple(spans))
 
 
@@ -271,10 +266,8 @@ def _start_worker(command: List[str]) -> subprocess.Popen:
 def _stop_worker(proc: subprocess.Popen) -> None:
     """SIGTERM to a cell's worker (it stops its stack as Ctrl-C would) and wait for it."""
     if proc.poll() is None:
-        try:
+        with contextlib.suppress(ProcessLookupError):
             proc.send_signal(signal.SIGTERM)
-        except ProcessLookupError:
-            pass
         try:
             proc.wait(STOP_WAIT)
         except subprocess.TimeoutExpired:

@@ -1,0 +1,175 @@
+"""hrc_experiment --cluster: the cells as Ray tasks (docs/cluster.md).
+
+The whole test starts a Ray cluster of two nodes on this machine's loopback (a head on
+127.0.0.2 and a node on 127.0.0.3, one CPU and one ``ros_hrc`` slot each, each with its own
+temp dir), runs a small grid on it through the real stacks (each cell starts its own roscore:
+no master is needed beforehand), kills the second node's raylet once that node has delivered an
+episode, and checks the rows against the same grid run by the local pool. The others need no
+Ray cluster."""
+import csv
+import importlib.util
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+from ros_hrc.experiment.cluster import (PortSource, RayNode, cluster_argument, contains,
+                                        wait_for_cells, without)
+from ros_hrc.experiment.stack import EpisodeRanges
+
+HAS_RAY = importlib.util.find_spec("ray") is not None
+HAS_STACK = importlib.util.find_spec("rospy") is not None and shutil.which("roslaunch")
+
+#: Two human models, the human alone and the reactive robot, one seed: four cells, the human
+#: alone first on each stream, then its robot (the gate of the paired counterfactual).
+GRID = ["--human-models", "tired,distracted", "--policies", "no_robot,reactive", "--seeds", "0",
+        "--episodes", "12", "--step-limit", "8", "--no-plots"]
+#: Columns that measure this machine's speed, not the episode.
+TIMED_COLUMNS = {"mean_decision_ms", "wall_seconds"}
+#: Ray's ports for the test's nodes (each taken only when free).
+RAY_PORTS = (23311, 23999)
+
+
+def experiment(*args: str) -> list:
+    return [sys.executable, "-m", "ros_hrc.experiment.cli", *args]
+
+
+def rows_of(path: Path, drop=frozenset()) -> list:
+    with open(path, newline="") as f:
+        return [{k: v for k, v in row.items() if k not in drop} for row in csv.DictReader(f)]
+
+
+def key(row: dict) -> tuple:
+    return row["human_model"], row["robot_policy"], row["seed"], row["episode"]
+
+
+def test_episode_ranges_without_some_numbers():
+    ranges = EpisodeRanges.of([0, 1, 2, 3, 7, 8, 9])
+    rest = without(ranges, {0, 2, 9, 40})
+    assert list(rest) == [1, 3, 7, 8]
+    assert [contains(ranges, n) for n in (0, 3, 4, 6, 7, 9, 10)] == \
+        [True, True, False, False, True, True, False]
+
+
+@pytest.mark.parametrize("text", ["", "nohost", "host:", "host:0", "host:70000", ":6379"])
+def test_a_bad_cluster_address_is_refused(text):
+    with pytest.raises(Exception, match="expected ADDRESS"):
+        cluster_argument(text)
+
+
+def test_without_cluster_ray_is_not_imported():
+    code = ("import sys, ros_hrc.experiment.cli, ros_hrc.experiment.fit; "
+            "sys.exit('ray' in sys.modules)")
+    assert subprocess.run([sys.executable, "-c", code], timeout=120).returncode == 0
+
+
+@pytest.mark.skipif(not HAS_RAY, reason="Ray is not installed")
+def test_a_cluster_that_is_not_there_is_one_line(tmp_path):
+    port = PortSource(*RAY_PORTS).take()      # free: nothing listens there
+    done = subprocess.run(experiment("--human-models", "expert", "--policies", "no_robot",
+                                     "--episodes", "1", "--cluster", f"127.0.0.2:{port}",
+                                     "--out", str(tmp_path / "out")),
+                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        f"hrc_experiment: --cluster 127.0.0.2:{port}: no Ray head answers there"), done.stderr
+    assert not (tmp_path / "out" / "episodes.csv").exists()
+
+
+def _start(command: list, output: Path) -> subprocess.Popen:
+    with open(output, "w") as out:
+        return subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=out,
+                                stderr=subprocess.STDOUT, text=True)
+
+
+def _node_cell(logs: Path, node_ip: str):
+    """The first cell whose worker log says an attempt ran on ``node_ip`` (its name), if any."""
+    for log in sorted(logs.glob("*.worker.log")):
+        if f" {node_ip} (node " in log.read_text(errors="replace"):
+            return log.name[:-len(".worker.log")]
+    return None
+
+
+def _rows_of_cell(episodes: Path, cell: str) -> int:
+    if not episodes.exists():
+        return 0
+    human, policy = cell.rsplit("-seed", 1)[0].split("-", 1)
+    return sum(1 for row in rows_of(episodes)
+               if (row["human_model"], row["robot_policy"]) == (human, policy))
+
+
+@pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
+def test_a_grid_on_two_nodes_equals_the_local_run_and_a_lost_node_loses_no_episode(tmp_path):
+    # The local pool's run, while the cluster starts.
+    local = _start(experiment(*GRID, "--jobs", "2", "--out", str(tmp_path / "local")),
+                   tmp_path / "local.out")
+    # Ray's socket paths must stay short: its own temp dirs under /tmp, not pytest's.
+    ray_dir = Path(tempfile.mkdtemp(prefix="hrc_ray_", dir="/tmp"))
+    nodes = []
+    driver = None
+    try:
+        ports = PortSource(*RAY_PORTS)
+        head = RayNode.start(ray_dir / "head", cpus=1, ros_hrc=1, node_ip="127.0.0.2",
+                             ports=ports)
+        nodes.append(head)
+        other = RayNode.start(ray_dir / "other", cpus=1, ros_hrc=1, node_ip="127.0.0.3",
+                              head_address=head.address, ports=ports)
+        nodes.append(other)
+        assert local.wait(timeout=600) == 0, (tmp_path / "local.out").read_text()[-3000:]
+
+        out = tmp_path / "cluster"
+        driver = _start(experiment(*GRID, "--cluster", head.address, "--out", str(out)),
+                        tmp_path / "cluster.out")
+        # Once the second node has delivered an episode of a cell, its raylet dies.
+        killed_cell = None
+        deadline = time.monotonic() + 300
+        while driver.poll() is None and killed_cell is None and time.monotonic() < deadline:
+            cell = _node_cell(out / "logs", other.node_ip)
+            if cell is not None and _rows_of_cell(out / "episodes.csv", cell) >= 1:
+                os.kill(other.raylet_pid(), signal.SIGKILL)
+                killed_cell = cell
+            time.sleep(0.02)
+        driver.wait(timeout=600)
+        cluster_out = (tmp_path / "cluster.out").read_text()
+        assert driver.returncode == 0, cluster_out[-3000:]
+        assert killed_cell is not None, cluster_out[-3000:]
+
+        # The rows are the local run's: every episode once, none lost, none twice.
+        for name in ("episodes.csv", "steps.csv"):
+            remote_rows = rows_of(out / name, TIMED_COLUMNS)
+            local_rows = rows_of(tmp_path / "local" / name, TIMED_COLUMNS)
+            assert sorted(map(sorted, map(dict.items, remote_rows))) == \
+                sorted(map(sorted, map(dict.items, local_rows))), name
+        episodes = rows_of(out / "episodes.csv")
+        assert len({key(row) for row in episodes}) == len(episodes) == 2 * 2 * 12
+
+        # Cells ran on both nodes; the lost node's cell went back to the queue with only the
+        # episodes it had not delivered, and ran again on the head.
+        run = json.loads((out / "run.json").read_text())["cluster"]
+        by_ip = {node["ip"]: node for node in run["nodes"]}
+        assert set(by_ip) == {"127.0.0.2", "127.0.0.3"}, run
+        assert by_ip["127.0.0.3"]["episodes"] >= 1 and not by_ip["127.0.0.3"]["alive"], run
+        assert by_ip["127.0.0.2"]["cells"] >= 1 and run["retried_cells"] >= 1, run
+        assert run["dropped_duplicates"] == 0, run
+        log = (out / "logs" / f"{killed_cell}.worker.log").read_text()
+        assert any("attempt 2 of 3" in line and " 127.0.0.2 (node " in line
+                   for line in log.splitlines()), log
+        assert "cells per node: " in cluster_out
+        # The lost node's stacks stopped (their keepers died with its Ray worker).
+        assert wait_for_cells(str(other.directory), 60.0)
+    finally:
+        for proc in (local, driver):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        for node in reversed(nodes):
+            node.stop()
+        shutil.rmtree(ray_dir, ignore_errors=True)
