@@ -447,14 +447,21 @@ def _batch_chooser(model: Model, args: argparse.Namespace, used: int):
         label = f"policy {args.policy}" + (" (one-step lookahead)" if args.lookahead else "")
         return policy_chooser(model, policy, args.lookahead), label
     if args.planner == "mdp":
-        if not model.fully_observable:
-            raise SolverError("--planner mdp is for fully observable models; use despot or "
-                              "a policy from 'solve'")
-        from ros_hrc.pomdp.hsvi import mdp_memory_needed
-        memory.require(used + mdp_memory_needed(model), limit, source,
-                       "simulating with value iteration")
-        return q_chooser(MdpPlanner(model).solution.Q), "value iteration (MDP)"
+        return q_chooser(_mdp_solution(model, used, limit, source).Q), "value iteration (MDP)"
     return None, None
+
+
+def _mdp_solution(model: Model, used: int, limit: Optional[int], source: str):
+    """Value iteration for ``--planner mdp``: refused for a POMDP and beyond the memory limit
+    (``used`` bytes taken already)."""
+    from ros_hrc.pomdp.hsvi import mdp_memory_needed
+    from ros_hrc.pomdp.planner import MdpPlanner
+    if not model.fully_observable:
+        raise SolverError("--planner mdp is for fully observable models; use despot or "
+                          "a policy from 'solve'")
+    memory.require(used + mdp_memory_needed(model), limit, source,
+                   "simulating with value iteration")
+    return MdpPlanner(model).solution
 
 
 #: What each reward estimator sums, as the output names it.
@@ -479,13 +486,7 @@ def _planner_factory(model: Model, args: argparse.Namespace, used: int):
         label = f"policy {args.policy}" + (" (one-step lookahead)" if args.lookahead else "")
         return (lambda seed: PolicyPlanner(model, policy, seed, args.lookahead)), label
     if args.planner == "mdp":
-        if not model.fully_observable:
-            raise SolverError("--planner mdp is for fully observable models; use despot or "
-                              "a policy from 'solve'")
-        from ros_hrc.pomdp.hsvi import mdp_memory_needed
-        memory.require(used + mdp_memory_needed(model), limit, source,
-                       "simulating with value iteration")
-        solution = MdpPlanner(model).solution
+        solution = _mdp_solution(model, used, limit, source)
         return (lambda seed: MdpPlanner(model, solution, seed)), "value iteration (MDP)"
     config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.pruning,
                           xi=args.xi, time_per_step=args.time_per_step,

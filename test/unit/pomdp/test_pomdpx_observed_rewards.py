@@ -3,18 +3,9 @@ as SARSOP reads them) and parse errors that say, in words, what is wrong and on 
 import numpy as np
 import pytest
 
-from ros_hrc.errors import ModelFormatError
 from ros_hrc.pomdp import hsvi, pomdpx
 
-
-def read(text: str):
-    return pomdpx.loads(text, source="test.pomdpx")
-
-
-def error_of(text: str) -> ModelFormatError:
-    with pytest.raises(ModelFormatError) as info:
-        read(text)
-    return info.value
+from test_pomdpx import error_of, read
 
 
 def cond(var: str, parents: str, *entries) -> str:
