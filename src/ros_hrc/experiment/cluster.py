@@ -23,8 +23,9 @@ directory: resume, the lock and the summary are the local run's.
   tasks to end. A worker whose task's process dies (a node lost) gets SIGTERM from the kernel
   (``setpriv --pdeathsig``) and stops its stack too.
 - A cell's logs stay on its node, under the node's Ray session directory
-  (``<ray temp dir>/session_*/ros_hrc/<run>/``); the driver's ``logs/<cell>.worker.log`` says
-  which node ran each attempt and where its logs are there.
+  (``<ray temp dir>/session_*/ros_hrc/<run>/``; with ``local``, beside the driver's logs:
+  ``logs/<run>/``); the driver's ``logs/<cell>.worker.log`` says which node ran each attempt
+  and where its logs are there.
 
 Ray is imported here only, and only when ``--cluster`` is given (DESIGN §15); no ROS here.
 :class:`RayNode` starts and stops a node of one's own (``ray start --block``): ``--cluster
@@ -165,9 +166,10 @@ def _guarded(command: List[str]) -> List[str]:
 
 
 def run_cell_on_node(spec_json: str, files: Dict[str, Tuple[str, bytes]], run_id: str,
-                     attempt: int) -> Iterator[Tuple[str, Any]]:
+                     attempt: int, here: Optional[str] = None) -> Iterator[Tuple[str, Any]]:
     """The body of a cell's Ray task (a generator; it runs on the node). Writes the cell's
-    model files and spec into the node's own directory, runs the worker command there and
+    model files and spec into the node's own directory (``here``, a directory of the node's,
+    instead: ``--cluster local``), runs the worker command there and
     yields ``("start", where)``, then ``("episode", line)`` per episode as the worker prints it,
     and, unless every episode was delivered (the task then ends while the stack shuts down,
     so that the next cell starts meanwhile), ``("end", how)``: the worker's exit status and the
@@ -177,7 +179,7 @@ def run_cell_on_node(spec_json: str, files: Dict[str, Tuple[str, bytes]], run_id
 
     spec = CellSpec.from_json(spec_json)
     name = cell_name(spec)
-    directory = node_directory() / run_id / f"{name}.attempt{attempt}"
+    directory = Path(here or node_directory()) / run_id / f"{name}.attempt{attempt}"
     models = directory / "models"
     models.mkdir(parents=True, exist_ok=True)
     changes: Dict[str, str] = {}
@@ -524,7 +526,10 @@ class ClusterRun:
             attempt += 1
             missing = without(wanted, delivered)
             spec = dataclasses.replace(cell, episodes=missing)
-            generator = self._remote.remote(spec.to_json(), files, self.run_id, attempt)
+            # The private cluster's node is this machine: its cells keep their files beside
+            # the driver's logs, which outlive the cluster.
+            here = cell.log_dir if self._private is not None else None
+            generator = self._remote.remote(spec.to_json(), files, self.run_id, attempt, here)
             handle = _RemoteCell(ray, generator)
             if stopper is not None:
                 stopper.add(handle)

@@ -84,6 +84,45 @@ def test_a_cluster_that_is_not_there_is_one_line(tmp_path):
     assert not (tmp_path / "out" / "episodes.csv").exists()
 
 
+#: A roslaunch whose stack dies at start: every attempt at a cell fails.
+DYING_ROSLAUNCH = """#!/bin/sh
+echo "start $$" >> "$FAKE_ROSLAUNCH_LOG"
+echo "OSError: [Errno 28] No space left on device: '/full/disk/log'"
+exit 1
+"""
+
+
+@pytest.mark.skipif(not (HAS_RAY and importlib.util.find_spec("rospy")),
+                    reason="needs Ray; the worker needs rospy")
+def test_a_cell_that_fails_three_times_is_reported_with_its_log_s_last_lines(tmp_path):
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "roslaunch").write_text(DYING_ROSLAUNCH)
+    (bin_dir / "roslaunch").chmod(0o755)
+    starts = tmp_path / "roslaunch.log"
+    # The private cluster's node inherits this environment: its cells find this roslaunch.
+    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}",
+               FAKE_ROSLAUNCH_LOG=str(starts), TMPDIR="/tmp")
+    out = tmp_path / "out"
+    done = subprocess.run(experiment("--human-models", "tired", "--policies", "no_robot",
+                                     "--seeds", "0", "--episodes", "1", "--cluster", "local",
+                                     "--jobs", "1", "--out", str(out), "--no-plots"),
+                          env=env, capture_output=True, text=True, timeout=300,
+                          stdin=subprocess.DEVNULL)
+    assert done.returncode == 1, done.stdout[-2000:] + done.stderr[-2000:]
+    assert starts.read_text().count("start ") == 3
+    failed = [line for line in (done.stdout + done.stderr).splitlines() if "cell failed" in line]
+    assert len(failed) == 1, done.stdout + done.stderr
+    assert "tired-no_robot-seed0: failed 3 times on the cluster, the last: on " in failed[0]
+    assert failed[0].endswith("No space left on device: '/full/disk/log'"), failed[0]
+    # With --cluster local, the attempts' logs outlive the private cluster, beside the run's.
+    logs = [line.split("its logs there: ")[1]
+            for line in (out / "logs" / "tired-no_robot-seed0.worker.log").read_text().splitlines()
+            if "its logs there: " in line]
+    assert len(logs) == 3 and all(Path(log).is_relative_to(out / "logs") for log in logs)
+    assert all((Path(log) / "tired-no_robot-seed0.log").exists() for log in logs)
+
+
 def _start(command: list, output: Path) -> subprocess.Popen:
     with open(output, "w") as out:
         return subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=out,
