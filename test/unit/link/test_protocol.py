@@ -19,7 +19,7 @@ FULL_MESSAGES = [
          belief={"evaluating": 0.8, "tired": 0.2}, manual=True, epoch=2, id=17),
     Reaction(step=3, state="RobotInterfered", state_index=8, rule="robot_grasped", reward=-1.0,
              manual=False, epoch=2, id=21),
-    Observation(step=3, observation="O35", bits=35, state="S2", epoch=2, id=18),
+    Observation(step=3, observation="O35", bits=35, state="S2", elapsed=12.5, epoch=2, id=18),
     Decision(step=3, action="rPoint_obj", belief=[0.1, 0.2, 0.7],
              belief_states=["S0", "S1", "S2"], decision_ms=12.5, surprise=False,
              rule="attempt_failed", epoch=2, reply_to=18),
@@ -264,3 +264,29 @@ def test_the_protocol_module_imports_no_websocket_library():
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                          text=True).stdout
     assert "websockets" not in out and "'websocket'" not in out and "rospy" not in out
+
+
+# -- observation.elapsed (issue #22: a robot whose rules count simulated time) ------------------
+
+def test_an_observation_may_say_how_long_the_episode_has_run():
+    """``elapsed``: simulated seconds since the episode's reset, optional (absent: unknown)."""
+    assert decode('{"type":"observation","step":3,"observation":"O35","bits":35,"state":"S2",'
+                  '"elapsed":15}').elapsed == 15.0
+    assert Observation(3, "O35", 35, "S2", elapsed=0).elapsed == 0.0
+    plain = decode('{"type":"observation","step":3,"observation":"O35","bits":35,"state":"S2"}')
+    assert plain.elapsed is None and "elapsed" not in json.loads(encode(plain))
+
+
+@pytest.mark.parametrize("value, reason", [
+    ("-0.5", "must be >= 0.0"), ("1e999", "must be finite"), ('"15"', "must be a number"),
+    ("true", "must be a number"), ("[15]", "must be a number"),
+])
+def test_an_observation_with_a_bad_elapsed_is_refused(value, reason):
+    with pytest.raises(ProtocolError, match=f'"elapsed" {reason}'):
+        decode('{"type":"observation","step":3,"observation":"O35","bits":35,"state":"S2",'
+               f'"elapsed":{value}}}')
+    if value in ("-0.5", "true"):
+        with pytest.raises(MessageError):
+            Observation(3, "O35", 35, "S2", elapsed=json.loads(value))
+    with pytest.raises(MessageError, match="must be finite"):
+        Observation(3, "O35", 35, "S2", elapsed=float("nan"))

@@ -25,6 +25,7 @@ from ros_hrc.processes.despot_mdp import MdpProcess, _ResetRequested
 from ros_hrc.processes.despot_pomdp import RobotAgent, build_planner
 from ros_hrc.processes.human_agent import HumanAgent, HumanAgentConfig
 from ros_hrc.world import World, WorldConfig
+from ros_hrc.world.human import HumanConfig
 
 PEER = "mdp"
 
@@ -48,9 +49,10 @@ class LocalLoop:
 
     def __init__(self, task: str, human_model: str, robot_model: str, seed: int = 0,
                  episodes: str = "1-1000", max_steps: int = 12, planner: str = "despot",
-                 max_trials: int = 60, reactive_wait: float = 15.0) -> None:
+                 max_trials: int = 60, reactive_wait: float = 15.0,
+                 away_time: float = 0.0) -> None:
         self.task = tasks.get(task)
-        self.world = World(WorldConfig(seed=seed))
+        self.world = World(WorldConfig(seed=seed, human=HumanConfig(away_time=away_time)))
         human = load_human_model(human_model, self.task)
         robot = load_robot_model(robot_model, self.task)
         self.coordinator = Coordinator(CoordinatorConfig(

@@ -53,6 +53,90 @@ def test_a_seeded_fabric_run_is_the_recorded_one():
         assert now == then, f"episode {then[0]} step {then[1]} differs from the record"
 
 
+REACTIVE_PINNED = Path(__file__).resolve().parent / "data" / "fabric_reactive_run.json"
+REACTIVE_STEPS = 50
+
+
+class TimedLoop(LocalLoop):
+    """A local loop that keeps the simulated time each decision was asked at (the
+    observation's ``elapsed``)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.elapsed = []
+
+    def _carry_out(self, effect) -> None:
+        if type(effect).__name__ == "Decide":
+            self.elapsed.append(effect.elapsed)
+        super()._carry_out(effect)
+
+
+def run_reactive(human_model: str, seed: int, steps: int):
+    """A seeded fabric stack with the reactive MDP robot (planner:=reactive, wait 15 s) in
+    fabric's world (away_time), no step limit: each episode ends in the world (the object
+    taken, or at the belt's end). The reports and each decision's ``elapsed``."""
+    loop = TimedLoop("fabric", human_model, "base", seed=seed, max_steps=0,
+                     planner="reactive", away_time=FABRIC.away_time)
+    try:
+        reports = list(loop.run(steps))
+    finally:
+        loop.close()
+    return reports, loop.elapsed
+
+
+@pytest.fixture(scope="module")
+def reactive_run():
+    """A tired beginner: he attempts, fails, walks away."""
+    return run_reactive("beginner_tired_collaborative", 3, REACTIVE_STEPS)
+
+
+@pytest.fixture(scope="module")
+def reactive_waiting_run():
+    """A tired expert: he idles, and the robot waits its 15 s."""
+    return run_reactive("expert_tired_collaborative", 11, 30)
+
+
+def test_a_seeded_fabric_run_with_the_reactive_robot_is_the_recorded_one(reactive_run):
+    """Each step as ``record`` has it, with the rule that chose the robot's action and the
+    simulated seconds since the episode's start; HRC_RECORD_FABRIC_RUN=1 rewrites it."""
+    reports, _ = reactive_run
+    steps = [record(r) + [r.rule, round(r.sim_time - r.episode_start_time, 3)] for r in reports]
+    if os.environ.get("HRC_RECORD_FABRIC_RUN"):
+        REACTIVE_PINNED.write_text(json.dumps(steps, indent=1) + "\n")
+    recorded = json.loads(REACTIVE_PINNED.read_text())
+    assert len(steps) == len(recorded)
+    for now, then in zip(steps, recorded):
+        assert now == then, f"episode {then[0]} step {then[1]} differs from the record"
+
+
+@pytest.mark.parametrize("run, rules", [
+    ("reactive_run", {"attempt_failed", "grasp_attempt", "no_change", "not_detected",
+                      "success"}),
+    ("reactive_waiting_run", {"waited", "no_change", "success"}),
+])
+def test_the_reactive_robot_decides_by_the_authors_rules_on_the_simulated_time(run, rules,
+                                                                               request):
+    """Every decision was asked with the simulated seconds since the episode's start; the
+    robot grasped when a rule named HumanNeedsHelp, cancelled on a warning, idled otherwise,
+    and waited 15 s, never less, before helping for the time alone."""
+    reports, elapsed = request.getfixturevalue(run)
+    assert len(elapsed) == len(reports) and all(t is not None and t >= 0 for t in elapsed)
+    by_episode = {}
+    for report, t in zip(reports, elapsed):
+        by_episode.setdefault(report.episode, []).append(t)
+        if report.rule == "waited":
+            assert t >= 15.0
+        if report.rule in ("waited", "attempt_failed", "not_detected", "idle_not_detected"):
+            assert report.robot_action == "grasp", report
+        if report.rule == "warning":
+            assert report.robot_action == "cancel", report
+        if report.rule in ("grasp_attempt", "success", "failure", "start"):
+            assert report.robot_action == "idle", report
+    assert all(ts == sorted(ts) for ts in by_episode.values())
+    assert {r.rule for r in reports} == rules
+    assert any(r.end_reason == "success" and r.object_holder == "robot" for r in reports)
+
+
 def expected(report, acting):
     """The human's state after the robot acted, by the task's rules, from the state he acted
     in (``acting``; None for a grasp, whose outcome was drawn); None where his model draws."""
