@@ -19,9 +19,10 @@ directory: resume, the lock and the summary are the local run's.
   that fails :data:`MAX_ATTEMPTS` times is reported with the last lines of its logs, read on the
   node where it last ran.
 - **Stopping.** SIGINT or SIGTERM to the driver cancels the remote tasks; each task then sends
-  SIGTERM to its worker, which stops its stack as it does locally, and the driver waits for the
-  tasks to end. A worker whose task's process dies (a node lost) gets SIGTERM from the kernel
-  (``setpriv --pdeathsig``) and stops its stack too.
+  SIGTERM to its worker, which stops its stack as it does locally. A worker whose task's
+  process dies (the driver gone before its tasks ended, a node lost) gets SIGTERM from the
+  kernel (``setpriv --pdeathsig``) and stops its stack too; with ``local`` the driver waits
+  for its cells' processes to end before it stops the private cluster.
 - A cell's logs stay on its node, under the node's Ray session directory
   (``<ray temp dir>/session_*/ros_hrc/<run>/``; with ``local``, beside the driver's logs:
   ``logs/<run>/``); the driver's ``logs/<cell>.worker.log`` says which node ran each attempt
