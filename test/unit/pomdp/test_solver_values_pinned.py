@@ -23,6 +23,17 @@ PRECISION = 1e-3
 #: (file, first 12 hex digits of its sha256, lower, upper)
 PINNED = [
     ("bench/models/robot_fitted_9a32e6f.pomdp", "c77ba63fe819", 80.82884672422006, 80.82904428376258),
+    ("models/fabric/human/beginner_nontired_collaborative.pomdpx", "251b05735baf", 134.4716150119241, 134.4716169759783),
+    ("models/fabric/human/beginner_nontired_noncollaborative.pomdpx", "219b3f5a9484", 129.45322812423396, 129.45323008828817),
+    ("models/fabric/human/beginner_tired_collaborative.pomdpx", "8191daa7ad7e", 149.6674881455262, 149.66749014279543),
+    ("models/fabric/human/beginner_tired_noncollaborative.pomdpx", "ba71331d3c5d", 137.78732682659583, 137.78732882386507),
+    ("models/fabric/human/distracted_collaborative.pomdpx", "8e2fce4c494d", 109.52439395321183, 109.5243959476651),
+    ("models/fabric/human/distracted_noncollaborative.pomdpx", "7a97791baf84", 78.03176435273672, 78.0317663443782),
+    ("models/fabric/human/expert_nontired_collaborative.pomdpx", "548a85edbc11", 222.12470355274016, 222.1247055185909),
+    ("models/fabric/human/expert_nontired_noncollaborative.pomdpx", "1b3100b01449", 203.58043328318215, 203.5804352490329),
+    ("models/fabric/human/expert_tired_collaborative.pomdpx", "e2a7dda376a7", 193.39012753338432, 193.39012949923506),
+    ("models/fabric/human/expert_tired_noncollaborative.pomdpx", "a0b092c4edb1", 190.65219469116758, 190.65219665701832),
+    ("models/fabric/robot/reactive.pomdpx", "1e91e86f2a54", 236.8748891751794, 236.8748911646692),
     ("models/human/beginner.pomdpx", "41b81931f219", 449.00221532529457, 449.00221729489994),
     ("models/human/confident_novice.pomdpx", "c75f99909eca", 41.610167512303626, 41.61016949152533),
     ("models/human/deliberator.pomdpx", "1af087348084", 46.482922959192585, 46.48292493841499),
@@ -49,10 +60,19 @@ PINNED = [
 ]
 
 
+#: FABRIC's robot POMDPs (discount 0.98): neither today's solver nor the one before issue #24
+#: closes their gap to 1e-3 in minutes (base.pomdpx: [126.6, 136.3] after 150 s), so there is
+#: no bracket to pin; DESPOT plans on them online.
+UNPINNED = {f"models/fabric/robot/{name}.pomdpx"
+            for name in ("base", "policy1", "policy3", "policy6", "policy9")}
+
+
 def test_every_shipped_model_is_pinned():
-    shipped = {str(p.relative_to(ROOT)) for folder in ("models/robot", "models/human")
+    shipped = {str(p.relative_to(ROOT))
+               for folder in ("models/robot", "models/human", "models/fabric/robot",
+                              "models/fabric/human")
                for p in (ROOT / folder).iterdir() if p.suffix in (".pomdp", ".pomdpx")}
-    assert shipped <= {row[0] for row in PINNED}
+    assert shipped - UNPINNED <= {row[0] for row in PINNED}
 
 
 @pytest.mark.parametrize("path, digest, lower, upper", PINNED, ids=[r[0] for r in PINNED])
