@@ -118,9 +118,10 @@ def best_reactive(rows: Iterable[EpisodeRow]) -> Optional[str]:
 #: What one comparison gives (keys of :func:`compare`, each prefixed in the summary).
 COMPARISON_KEYS: Tuple[str, ...] = (
     "policy", "pairs", "success_diff", "success_p", "pre_empted_diff", "pre_empted_p",
-    "time_pairs", "time_median_diff", "time_p", "success_q", "pre_empted_q", "time_q")
+    "time_pairs", "time_median_diff", "time_p", "success_q", "pre_empted_q", "time_q",
+    "own_success_diff", "own_success_p", "own_success_q")
 #: The tests of a comparison whose p-values are adjusted together (see adjust_for_many_tests).
-TESTS: Tuple[str, ...] = ("success", "pre_empted", "time")
+TESTS: Tuple[str, ...] = ("success", "pre_empted", "time", "own_success")
 
 
 def empty_comparison() -> Dict[str, Any]:
@@ -131,8 +132,8 @@ def empty_comparison() -> Dict[str, Any]:
 def compare(policy_rows: Sequence[EpisodeRow], baseline_rows: Sequence[EpisodeRow],
             baseline: str) -> Dict[str, Any]:
     """``policy_rows`` against ``baseline_rows`` on the streams both ran
-    ((human model, seed, episode)): McNemar's exact test of success and of pre-emption,
-    Wilcoxon's signed-rank test of the time to success on the pairs where both succeeded.
+    ((human model, seed, episode)): McNemar's exact test of success, of pre-emption and of the
+    human's own success (he, not the robot, got the object), Wilcoxon's signed-rank test of the time to success on the pairs where both succeeded.
     Differences are the policy's minus the baseline's (a proportion's difference; the
     median of the paired time differences, negative: the policy succeeded sooner)."""
     by_stream = {(r.human_model, r.seed, r.episode): r for r in baseline_rows}
@@ -147,6 +148,7 @@ def compare_with_alone(policy_rows: Sequence[EpisodeRow]) -> Dict[str, Any]:
     class Alone:   # the counterfactual half of a pair, as a row would give it
         def __init__(self, row: EpisodeRow) -> None:
             self.success = row.alone_success
+            self.succeeded_by = "human" if row.alone_success else "none"
             self.outcome = "both_succeed" if row.alone_success else "both_fail"
             self.time_to_success = row.alone_time_to_success
     return _paired_tests([(Alone(r), r) for r in policy_rows if r.outcome != UNPAIRED],
@@ -162,10 +164,13 @@ def _paired_tests(pairs: Sequence[Tuple[Any, EpisodeRow]], baseline: str) -> Dic
                                    [bool(p.success) for _, p in pairs])
     pre_empted = paired.mcnemar_exact([b.outcome == "pre_empted" for b, _ in pairs],
                                       [p.outcome == "pre_empted" for _, p in pairs])
+    own = paired.mcnemar_exact([b.succeeded_by == "human" for b, _ in pairs],
+                               [p.succeeded_by == "human" for _, p in pairs])
     timed = [(b.time_to_success, p.time_to_success) for b, p in pairs
              if b.success and p.success]
     result.update(success_diff=success.difference, success_p=success.p_value,
                   pre_empted_diff=pre_empted.difference, pre_empted_p=pre_empted.p_value,
+                  own_success_diff=own.difference, own_success_p=own.p_value,
                   time_pairs=len(timed))
     if timed:
         times = paired.wilcoxon_paired([b for b, _ in timed], [p for _, p in timed])
@@ -399,12 +404,14 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
                  format_p(e[f"{prefix}_success_p"]), format_p(e[f"{prefix}_success_q"]),
                  _number(e[f"{prefix}_pre_empted_diff"], signed=True),
                  format_p(e[f"{prefix}_pre_empted_p"]), format_p(e[f"{prefix}_pre_empted_q"]),
+                 _number(e[f"{prefix}_own_success_diff"], signed=True),
+                 format_p(e[f"{prefix}_own_success_p"]), format_p(e[f"{prefix}_own_success_q"]),
                  str(e[f"{prefix}_time_pairs"]),
                  _number(e[f"{prefix}_time_median_diff"], signed=True),
                  format_p(e[f"{prefix}_time_p"]), format_p(e[f"{prefix}_time_q"])])
     compared = _table(["Human model", "Robot policy", "Against", "Pairs", "Δ success",
                        "p (McNemar)", "q", "Δ pre-empted", "p (McNemar)", "q",
-                       "Pairs both succeed", "Δ time to success (s, median)", "p (Wilcoxon)",
+                       "Δ own success", "p (McNemar)", "q", "Pairs both succeed", "Δ time to success (s, median)", "p (Wilcoxon)",
                        "q"], comparisons, 3)
     best = {}
     for e in summary:
@@ -422,11 +429,14 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
                          "Time to success (s, median)"], best_rows)
     others = _table(
         ["Human model", "Robot policy", "Steps", "Sim time (s)", "Discounted reward",
-         "Warnings", "Zero-probability observations", "Decision time (ms)"],
+         "Warnings", "Warnings after help", "Rescued after a point",
+         "Zero-probability observations", "Decision time (ms)"],
         ([*_names(e), format_ci(e["steps_mean"], e["steps_low"], e["steps_high"], 1),
           format_ci(e["sim_seconds_mean"], e["sim_seconds_low"], e["sim_seconds_high"]),
           format_ci(e["reward_mean"], e["reward_low"], e["reward_high"]),
           format_ci(e["warnings_mean"], e["warnings_low"], e["warnings_high"]),
+          f"{e['warnings_after_help']} in {e['warnings_after_help_episodes']} ep.",
+          str(e["rescued_by_pointing"]),
           _rate_text(e["zero_probability_observations"], e["observations"]),
           _number(e["mean_decision_ms"], 1)] for e in summary))
     return "\n".join([
@@ -448,7 +458,8 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
         "best over all humans) and against the human alone, on the streams both ran. Δ: the "
         "policy's minus the other's (proportions of the pairs; the median of the paired "
         "differences in time, negative: the policy succeeded sooner). p: McNemar's exact "
-        "test (two-sided) for success and for pre-emption, Wilcoxon's signed-rank test "
+        "test (two-sided) for success, for pre-emption and for the human's own success (he, "
+        "not the robot, got the object), Wilcoxon's signed-rank test "
         "(two-sided) for the time to success over the pairs where both succeeded. q: the "
         "p-value adjusted for the many tests of this summary (Benjamini-Hochberg false "
         "discovery rate over every row's same test against the same kind of baseline).",
@@ -457,7 +468,10 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
         "median time to success, then the smallest budget.",
         "", "## Other measures", "", others, "",
         f"Mean [{level} confidence interval, Student's t] over episodes; [n/a] where an "
-        "interval needs two episodes or more. Zero-probability observations: how many of the "
+        "interval needs two episodes or more. Warnings after help: warnings given on the step "
+        "right after the robot's grasp or point, and in how many episodes. Rescued after a "
+        "point: rescued episodes the human ended himself after the robot pointed. "
+        "Zero-probability observations: how many of the "
         "episodes' observations the robot's model gave probability 0, of all, and the rate.",
         ""])
 

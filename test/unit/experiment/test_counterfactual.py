@@ -196,6 +196,14 @@ def test_the_summary_s_paired_tests_are_those_of_paired_py():
     assert e["vs_reactive_time_pairs"] == len(both) == 6
     assert e["vs_reactive_time_median_diff"] == times.median_difference
     assert e["vs_reactive_time_p"] == times.p_value
+    # The human's own success: reactive@2 leaves the first four to him, the pomdp robot
+    # takes every object it gets.
+    own = paired.mcnemar_exact([r.succeeded_by == "human" for r in best],
+                               [r.succeeded_by == "human" for r in pomdp])
+    assert e["vs_reactive_own_success_diff"] == pytest.approx(-4 / 12)
+    assert e["vs_reactive_own_success_p"] == own.p_value
+    assert e["vs_alone_own_success_diff"] == pytest.approx(-4 / 12)
+    assert "Δ own success" in markdown(summarize(rows))
     # Against the human alone, from each row's own counterfactual columns.
     alone = paired.mcnemar_exact([r.alone_success for r in pomdp], [r.success for r in pomdp])
     assert e["vs_alone_success_p"] == alone.p_value
