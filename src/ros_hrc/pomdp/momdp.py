@@ -137,14 +137,6 @@ class _Tables:
                 per_block.append(branches)
             self.branches.append(per_block)
 
-    def nbytes(self) -> int:
-        total = 0
-        for per_block in self.branches:
-            for branches in per_block:
-                for br in branches:
-                    total += br.likelihood.nbytes + 2 * memory.csr_bytes(br.T.nnz, br.T.shape[0])
-        return total
-
 
 @dataclass
 class _Successors:
