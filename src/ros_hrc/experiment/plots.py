@@ -35,6 +35,21 @@ def _save(fig, png_path: Union[str, os.PathLike]) -> str:
     return path
 
 
+def _wrapped(name: str, width: int = 22) -> str:
+    """A long model name over lines of at most ``width`` characters, broken after its
+    underscores (fabric's ``expert_nontired_noncollaborative``), so panel titles do not run
+    into each other."""
+    lines = [""]
+    for part in name.split("_"):
+        piece = part if not lines[-1] else "_" + part
+        if lines[-1] and len(lines[-1]) + len(piece) > width:
+            lines[-1] += "_"
+            lines.append(part)
+        else:
+            lines[-1] += piece
+    return "\n".join(lines)
+
+
 def _ordered(values: Iterable[Any]) -> List[Any]:
     return list(dict.fromkeys(values))
 
@@ -95,7 +110,7 @@ def plot_outcomes(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.
         ax.set_xticks(list(xs), present, rotation=45, ha="right", fontsize="small")
         ns = sorted({by_key[(human, p)]["n"] for p in present})
         n_text = f"n = {ns[0]}" if len(ns) == 1 else f"n = {ns[0]}–{ns[-1]}"
-        ax.set_title(f"{human} ({n_text})", fontsize="medium")
+        ax.set_title(f"{_wrapped(human)}\n({n_text})", fontsize="small")
         ax.set_ylim(0, 1.02)
         ax.grid(axis="y", alpha=0.3)
         ax.set_axisbelow(True)
@@ -103,23 +118,24 @@ def plot_outcomes(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.
         axes[index // columns][index % columns].set_visible(False)
     for r in range(rows):
         axes[r][0].set_ylabel("share of episodes")
-    fig.legend(loc="outside lower center", ncol=7, fontsize="small")
+    fig.legend(loc="outside lower center", ncol=4, fontsize="small")
     fig.suptitle("Each robot against the same human alone: counterfactual outcomes per episode")
     return _save(fig, png_path)
 
 
 def plot_success(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.PathLike]) -> str:
     """Success per human model at a glance: one row per human model (the pooled entries
-    last), one horizontal bar per robot policy with its success rate and Wilson interval, so
-    that many humans (fabric's ten types) fit one figure. Returns the PNG's path."""
+    last), one marker per robot policy at its success rate with its Wilson interval, the
+    policies spread a little within the row, so that many humans and policies (fabric's ten
+    types, a swept baseline) fit one figure. Returns the PNG's path."""
     if not summary:
         raise ValueError("plot_success: the summary is empty, nothing to plot")
     humans = _ordered(e["human_model"] for e in summary)
     policies = _ordered(e["robot_policy"] for e in summary)
     colours = _policy_colours(policies)
     by_key = {(e["human_model"], e["robot_policy"]): e for e in summary}
-    height = 1.0 / (len(policies) + 1)
-    fig = _new_figure(7.5, 0.32 * len(humans) * len(policies) + 1.6)
+    spread = 0.6 / max(1, len(policies) - 1) if len(policies) > 1 else 0.0
+    fig = _new_figure(7.5, 0.42 * len(humans) + 1.8)
     ax = fig.subplots()
     for j, policy in enumerate(policies):
         ys, rates, lows, highs = [], [], [], []
@@ -127,20 +143,22 @@ def plot_success(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.P
             e = by_key.get((human, policy))
             if e is None:
                 continue
-            # The first human on top: rows count down.
-            ys.append(len(humans) - 1 - i + (len(policies) - 1 - j - (len(policies) - 1) / 2)
-                      * height)
+            # The first human on top; within a row the policies from top to bottom.
+            ys.append(len(humans) - 1 - i + 0.3 - j * spread)
             rates.append(e["success_rate"])
             lows.append(e["success_rate"] - e["success_low"]
                         if math.isfinite(e["success_low"]) else 0.0)
             highs.append(e["success_high"] - e["success_rate"]
                          if math.isfinite(e["success_high"]) else 0.0)
-        ax.barh(ys, rates, height * 0.9, color=colours[policy], label=policy,
-                xerr=[lows, highs], error_kw={"elinewidth": 0.8, "capsize": 2})
+        ax.errorbar(rates, ys, xerr=[lows, highs], fmt="o", markersize=4, capsize=2,
+                    elinewidth=0.8, color=colours[policy], label=policy)
     ax.set_yticks(range(len(humans)), list(reversed(humans)), fontsize="small")
-    ax.set_xlim(0, 1.0)
+    ax.set_ylim(-0.6, len(humans) - 0.4)
+    ax.set_xlim(0, 1.02)
     ax.set_xlabel("success rate (95 % Wilson interval)")
     ax.grid(axis="x", alpha=0.3)
+    for y in range(len(humans) - 1):
+        ax.axhline(y + 0.5, color="0.85", linewidth=0.6)
     ax.set_axisbelow(True)
     fig.legend(loc="outside lower center", ncol=min(len(policies), 6), fontsize="small")
     fig.suptitle("Success per human model and robot policy")
