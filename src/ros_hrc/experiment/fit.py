@@ -298,7 +298,8 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
     todo = sum(len(c.episodes) for c in cells)
     print(f"{NAME}: {len(args.human_models)} human models x {args.episodes} episodes with the "
           f"exploring robot = {wanted} episodes; {wanted - todo} already in {runs}, {todo} to "
-          f"run", flush=True)
+          f"run" + ("" if args.cluster is None else f", on the Ray cluster --cluster "
+                                                     f"{args.cluster}"), flush=True)
     if cells:
         figures, stopped = run_stoppable(cells, store, args.jobs, words, runs, program=NAME,
                                          cluster=args.cluster)
