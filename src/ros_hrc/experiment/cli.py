@@ -827,7 +827,8 @@ def open_results(directory: Path, argument: str):
 def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
                   out: Path, program: str = NAME,
                   gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None,
-                  cluster: Optional[str] = None) -> Tuple[Optional[dict], Optional[int]]:
+                  cluster: Optional[str] = None, cluster_wait: Optional[float] = None
+                  ) -> Tuple[Optional[dict], Optional[int]]:
     """:func:`run_grid` under SIGINT and SIGTERM: ``(figures, None)``, or, when a signal
     stopped it, ``(None, 128 + signal)`` after saying what is kept and how to resume.
     ``cluster`` (``--cluster``): the cells run as Ray tasks there
@@ -840,7 +841,8 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
         if cluster is not None:
             from ros_hrc.experiment.cluster import ClusterRun
             # Joined before the handlers go in: ray.init installs its own for SIGTERM.
-            remote = ClusterRun(cluster, program, slots=jobs)
+            remote = ClusterRun(cluster, program, slots=jobs,
+                                **({} if cluster_wait is None else {"no_node_wait": cluster_wait}))
             try:
                 remote.connect()
             except HrcError as exc:
@@ -931,7 +933,8 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
     if cells:
         recorder = PairedRecorder(store, alone, args.in_sample)
         figures, stopped = run_stoppable(cells, recorder, args.jobs, words, out,
-                                         gate=recorder.gate, cluster=args.cluster)
+                                         gate=recorder.gate, cluster=args.cluster,
+                                         cluster_wait=args.cluster_wait)
         if stopped is not None:
             return stopped
         print(f"{NAME}: {figures['episodes']} episodes in {figures['wall_seconds']:.1f} s "

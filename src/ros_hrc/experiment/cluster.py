@@ -39,6 +39,7 @@ import bisect
 import contextlib
 import dataclasses
 import ipaddress
+import math
 import os
 import queue
 import shutil
@@ -75,6 +76,9 @@ STOP_WAIT = 60.0
 CANCEL_WAIT = 90.0
 #: How long the node count shown on the progress bar is kept before it is asked again (s).
 NODES_REFRESH = 5.0
+#: Seconds a cell waits to start while no living node offers the resource (every such node
+#: lost, the head alive) before it fails with the reason (``--cluster-wait``).
+NO_NODE_WAIT = 120.0
 #: What ``--cluster`` takes besides an address.
 KEYWORDS = ("auto", "local")
 
@@ -106,6 +110,21 @@ def add_argument(parser: argparse.ArgumentParser) -> None:
                         help="run the cells as Ray tasks on a cluster (docs/cluster.md): the "
                              "head's host:port, auto (the one started on this machine) or "
                              "local (a private one for this run); default: the local pool")
+    parser.add_argument("--cluster-wait", type=_seconds, default=NO_NODE_WAIT, metavar="S",
+                        help="with --cluster: how long a cell waits to start while no living "
+                             f"node offers the {RESOURCE} resource (all of them lost) before "
+                             f"it fails, seconds ({NO_NODE_WAIT:g})")
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value <= 0 or value > 86400:
+        raise argparse.ArgumentTypeError(f"expected seconds, more than 0 and at most 86400, "
+                                         f"got {text[:40]!r}")
+    return value
 
 
 # --------------------------------------------------------------------------------------------
@@ -356,8 +375,10 @@ class ClusterRun:
     :func:`ros_hrc.experiment.cli.run_grid` calls for each cell), says what runs where
     (:meth:`status`, :meth:`report`) and lets go of the cluster (:meth:`close`)."""
 
-    def __init__(self, address: str, program: str, slots: int = 0) -> None:
+    def __init__(self, address: str, program: str, slots: int = 0,
+                 no_node_wait: float = NO_NODE_WAIT) -> None:
         self.address = address
+        self.no_node_wait = no_node_wait
         self.program = program
         self.requested = slots     # --jobs: cells in flight at most (0: the cluster's slots)
         self.slots = 0             # the cluster's ros_hrc units when joined
@@ -537,6 +558,15 @@ class ClusterRun:
             node: Optional[NodeFigures] = None
             end: Optional[Dict[str, Any]] = None
             lost: Optional[str] = None
+            if not self._started_or_stopped(generator, stopper):
+                handle.send_signal(signal.SIGTERM)    # it never started: out of the queue
+                if stopper is not None:
+                    stopper.discard(handle)
+                raise RuntimeError(
+                    f"no living node of the cluster has offered the {RESOURCE} resource for "
+                    f"{self.no_node_wait:g} s (every such node lost); start Ray on a machine "
+                    f"where make setup ran with --resources '{{\"{RESOURCE}\": N}}' and run "
+                    "again to resume (docs/cluster.md)")
             try:
                 for ref in generator:
                     kind, payload = ray.get(ref)
@@ -581,6 +611,27 @@ class ClusterRun:
                      f"queue (attempt {attempt + 1} of {MAX_ATTEMPTS})")
         if len(delivered) < len(wanted):
             raise RuntimeError(f"failed {attempt} times on the cluster, the last: {failure}")
+
+    def _started_or_stopped(self, generator, stopper) -> bool:
+        """Wait until the cell's task has something to say (it started on a node: its first
+        item), the run is stopping, or no living node has offered the resource for
+        ``no_node_wait`` seconds (False: Ray would keep the task queued forever)."""
+        none_since: Optional[float] = None
+        while True:
+            ready, _ = self._ray.wait([generator], timeout=NODES_REFRESH)
+            if ready or (stopper is not None and stopper.stopping):
+                return True
+            try:
+                offered = bool(self._offers())
+            except Exception:   # noqa: BLE001 - the head did not answer: Ray reports it
+                offered = True
+            if offered:
+                none_since = None
+                continue
+            now = time.monotonic()
+            none_since = now if none_since is None else none_since
+            if now - none_since >= self.no_node_wait:
+                return False
 
     def _take(self, line: str, wanted: EpisodeRanges, delivered: Set[int], deliver,
               node: Optional[NodeFigures], log) -> bool:

@@ -302,7 +302,7 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
                                                      f"{args.cluster}"), flush=True)
     if cells:
         figures, stopped = run_stoppable(cells, store, args.jobs, words, runs, program=NAME,
-                                         cluster=args.cluster)
+                                         cluster=args.cluster, cluster_wait=args.cluster_wait)
         if stopped is not None:
             return stopped
         if figures and figures["failed_cells"]:

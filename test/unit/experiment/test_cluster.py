@@ -212,3 +212,46 @@ def test_a_grid_on_two_nodes_equals_the_local_run_and_a_lost_node_loses_no_episo
         for node in reversed(nodes):
             node.stop()
         shutil.rmtree(ray_dir, ignore_errors=True)
+
+
+@pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
+def test_a_cell_fails_with_the_reason_once_no_node_offers_ros_hrc(tmp_path):
+    """The only node with the resource dies while the head lives: Ray would keep the cell
+    queued forever; after --cluster-wait it fails, saying why and how to resume."""
+    ray_dir = Path(tempfile.mkdtemp(prefix="hrc_ray_", dir="/tmp"))
+    nodes = []
+    driver = None
+    try:
+        ports = PortSource(*RAY_PORTS)
+        head = RayNode.start(ray_dir / "head", cpus=1, ros_hrc=0, node_ip="127.0.0.2",
+                             ports=ports)
+        nodes.append(head)
+        other = RayNode.start(ray_dir / "other", cpus=1, ros_hrc=1, node_ip="127.0.0.3",
+                              head_address=head.address, ports=ports)
+        nodes.append(other)
+        out = tmp_path / "cluster"
+        driver = _start(experiment("--human-models", "tired", "--policies", "no_robot",
+                                   "--seeds", "0", "--episodes", "40", "--step-limit", "8",
+                                   "--no-plots", "--cluster", head.address,
+                                   "--cluster-wait", "3", "--out", str(out)),
+                        tmp_path / "cluster.out")
+        deadline = time.monotonic() + 300
+        while driver.poll() is None and time.monotonic() < deadline:
+            if _node_cell(out / "logs", other.node_ip) is not None:
+                os.kill(other.raylet_pid(), signal.SIGKILL)
+                break
+            time.sleep(0.02)
+        driver.wait(timeout=600)
+        said = (tmp_path / "cluster.out").read_text()
+        assert driver.returncode == 1, said[-3000:]
+        failed = [line for line in said.splitlines() if "cell failed" in line]
+        assert len(failed) == 1, said[-3000:]
+        assert "no living node of the cluster has offered the ros_hrc resource for 3 s" in \
+            failed[0] and "run again to resume" in failed[0], failed[0]
+    finally:
+        if driver is not None and driver.poll() is None:
+            driver.kill()
+            driver.wait()
+        for node in reversed(nodes):
+            node.stop()
+        shutil.rmtree(ray_dir, ignore_errors=True)
