@@ -97,6 +97,13 @@ CONTIGUOUS_POINTS = 600
 #: Most numbers (A·S·Z·S) of the backup tensor ``_Tables.G`` (8 MB).
 BACKUP_TENSOR = 1_000_000
 
+#: Rounds of backups at the corners (the point masses) before the first trial, at most; they
+#: stop once a round moves no corner's bound by more than VERTEX_ROUND_STOP x the gap at the
+#: start. Only for models of at most VERTEX_STATES states (a round is S backups).
+VERTEX_ROUNDS = 10
+VERTEX_ROUND_STOP = 0.1
+VERTEX_STATES = 100
+
 #: A trial's target gap is this fraction of the root's gap (never below the precision).
 TRIAL_ZETA = 0.95
 
@@ -703,6 +710,7 @@ class HsviSolver:
         self.sweep_seconds = 0.0
         self.backups = 0
         self.memory_limit_reached = False
+        self.corner_rounds_done = False
         self.seconds = time.perf_counter() - began
 
     # -- memory --------------------------------------------------------------------------------
@@ -980,6 +988,32 @@ class HsviSolver:
         self.backups += done
         self.sweeps += 1
 
+    def _corner_rounds(self, precision: float, deadline: float) -> None:
+        """PBVI-style rounds of backups at every corner (point mass) before the first trial,
+        while a round moves some corner's bounds by more than VERTEX_ROUND_STOP x the gap at
+        the start (at most VERTEX_ROUNDS). The blind policies' vectors are far below V* at the
+        corners (2.9 below on robot_completed.pomdp, 25 on robot.pomdp); a few rounds there
+        raise the lower bound everywhere for the cost of a few trials, and the trials need
+        fewer backups (robot_completed.pomdp 290 -> 219 with the rounds' 35)."""
+        S = self.t.S
+        lo, up = self.bounds()
+        if not self.keep_successors or S > VERTEX_STATES or up - lo <= precision:
+            return
+        stop = VERTEX_ROUND_STOP * (up - lo)
+        corners = np.eye(S)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for _ in range(VERTEX_ROUNDS):
+                lower_before = self.lower.values(corners)
+                upper_before = self.upper.corner.copy()
+                for e in corners:
+                    if time.perf_counter() > deadline or not self._room(self._step_cost()):
+                        return
+                    self._backup(self._node(e))
+                moved = max(float((self.lower.values(corners) - lower_before).max()),
+                            float((upper_before - self.upper.corner).max()))
+                if moved <= stop:
+                    break
+
     def _sweeps(self, precision: float, deadline: float, rate_to_beat: float,
                 max_sweeps: int = 10_000) -> float:
         """Sweep while it pays: while a sweep narrows the gap at the start faster per second
@@ -1031,6 +1065,9 @@ class HsviSolver:
             raise SolverError(f"precision must be positive, got {precision}")
         start = time.perf_counter()
         deadline = start + timeout if timeout is not None else float("inf")
+        if not self.corner_rounds_done:
+            self.corner_rounds_done = True
+            self._corner_rounds(precision, deadline)
         lo, up = self.bounds()
         trials = 0
         # Trials and sweeps share the time by how fast each narrows the gap at the start
