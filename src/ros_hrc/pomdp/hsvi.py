@@ -18,12 +18,17 @@ loose and go deeper as they close. The solver stops when the gap at the start is
 ``Policy``. Both bounds are valid at every moment (anytime).
 
 The beliefs the trials visit form SARSOP's tree of reachable beliefs: each node keeps its
-successors under every action and observation, and the upper bound at them and at itself,
-cached between visits. A cached value is brought up to date with the points added since
-(the sawtooth is a minimum over points, and the solver logs every point it adds), not
-recomputed over all of them; every cached value is a valid bound whatever happens later, since
-V* does not change. A model whose successors are too large to keep (``KEEP_SUCCESSORS``) has no
-tree and computes them at each visit.
+successors of non-zero probability under every action and observation, and both bounds at
+them and at itself, cached between visits. A cached value is brought up to date with the
+points (vectors) added since (the sawtooth is a minimum over points, the lower bound a maximum
+over vectors, and the solver logs every point and vector it adds), not recomputed over all of
+them; every cached value is a valid bound whatever happens later, since V* does not change. A
+model whose successors are too large to keep (``KEEP_SUCCESSORS``) has no tree and computes
+them at each visit.
+
+Before the first trial, a small model's corners (the point masses) are backed up in a few
+rounds (PBVI at the corners, ``VERTEX_ROUNDS``): the blind policies' vectors are far below V*
+there, and the trials then need fewer backups.
 
 Sweeps, our addition to HSVI2: synchronous backups of both bounds at once at the heaviest
 beliefs the trials have met and at their one-step successors. They run only when the trials
