@@ -29,8 +29,11 @@ HAS_STACK = importlib.util.find_spec("rospy") is not None and shutil.which("rosl
 
 #: Two human models, the human alone and the reactive robot, one seed: four cells, the human
 #: alone first on each stream, then its robot (the gate of the paired counterfactual).
+#: Episodes per cell: enough that a cell under way on the lost node still has most of its
+#: episodes to run when its raylet dies (its Ray worker notices and ends only after a while).
+EPISODES = 24
 GRID = ["--human-models", "tired,distracted", "--policies", "no_robot,reactive", "--seeds", "0",
-        "--episodes", "12", "--step-limit", "8", "--no-plots"]
+        "--episodes", str(EPISODES), "--step-limit", "8", "--no-plots"]
 #: Columns that measure this machine's speed, not the episode.
 TIMED_COLUMNS = {"mean_decision_ms", "wall_seconds"}
 #: Ray's ports for the test's nodes (each taken only when free).
@@ -129,12 +132,16 @@ def _start(command: list, output: Path) -> subprocess.Popen:
                                 stderr=subprocess.STDOUT, text=True)
 
 
+def _node_cells(logs: Path, node_ip: str) -> list:
+    """The cells whose worker log says an attempt ran on ``node_ip`` (their names)."""
+    return [log.name[:-len(".worker.log")] for log in sorted(logs.glob("*.worker.log"))
+            if f" {node_ip} (node " in log.read_text(errors="replace")]
+
+
 def _node_cell(logs: Path, node_ip: str):
-    """The first cell whose worker log says an attempt ran on ``node_ip`` (its name), if any."""
-    for log in sorted(logs.glob("*.worker.log")):
-        if f" {node_ip} (node " in log.read_text(errors="replace"):
-            return log.name[:-len(".worker.log")]
-    return None
+    """The first cell whose worker log says an attempt ran on ``node_ip``, if any."""
+    cells = _node_cells(logs, node_ip)
+    return cells[0] if cells else None
 
 
 def _rows_of_cell(episodes: Path, cell: str) -> int:
@@ -167,14 +174,16 @@ def test_a_grid_on_two_nodes_equals_the_local_run_and_a_lost_node_loses_no_episo
         out = tmp_path / "cluster"
         driver = _start(experiment(*GRID, "--cluster", head.address, "--out", str(out)),
                         tmp_path / "cluster.out")
-        # Once the second node has delivered an episode of a cell, its raylet dies.
+        # Once the second node has delivered some but not all of a cell's episodes (the cell
+        # is under way there: a finished one would leave nothing to lose), its raylet dies.
         killed_cell = None
         deadline = time.monotonic() + 300
         while driver.poll() is None and killed_cell is None and time.monotonic() < deadline:
-            cell = _node_cell(out / "logs", other.node_ip)
-            if cell is not None and _rows_of_cell(out / "episodes.csv", cell) >= 1:
-                os.kill(other.raylet_pid(), signal.SIGKILL)
-                killed_cell = cell
+            for cell in _node_cells(out / "logs", other.node_ip):
+                if 1 <= _rows_of_cell(out / "episodes.csv", cell) <= EPISODES // 4:
+                    os.kill(other.raylet_pid(), signal.SIGKILL)
+                    killed_cell = cell
+                    break
             time.sleep(0.02)
         driver.wait(timeout=600)
         cluster_out = (tmp_path / "cluster.out").read_text()
@@ -188,14 +197,15 @@ def test_a_grid_on_two_nodes_equals_the_local_run_and_a_lost_node_loses_no_episo
             assert sorted(map(sorted, map(dict.items, remote_rows))) == \
                 sorted(map(sorted, map(dict.items, local_rows))), name
         episodes = rows_of(out / "episodes.csv")
-        assert len({key(row) for row in episodes}) == len(episodes) == 2 * 2 * 12
+        assert len({key(row) for row in episodes}) == len(episodes) == 2 * 2 * EPISODES
 
         # Cells ran on both nodes; the lost node's cell went back to the queue with only the
         # episodes it had not delivered, and ran again on the head.
         run = json.loads((out / "run.json").read_text())["cluster"]
         by_ip = {node["ip"]: node for node in run["nodes"]}
         assert set(by_ip) == {"127.0.0.2", "127.0.0.3"}, run
-        assert by_ip["127.0.0.3"]["episodes"] >= 1 and not by_ip["127.0.0.3"]["alive"], run
+        # (Its "alive" flag waits for Ray's health checks, which may come after the run.)
+        assert by_ip["127.0.0.3"]["episodes"] >= 1, run
         assert by_ip["127.0.0.2"]["cells"] >= 1 and run["retried_cells"] >= 1, run
         assert run["dropped_duplicates"] == 0, run
         log = (out / "logs" / f"{killed_cell}.worker.log").read_text()
