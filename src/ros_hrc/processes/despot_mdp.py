@@ -298,58 +298,26 @@ class MdpProcess:
         if self.agent.reacts:
             return self.one_reacting_step()
         agent = self.agent
-        action = agent.choose_action()
-        self.print(f"\n-----Round {self.episode} Step {agent.step}-----")
-        self.print(f"Agent Took: a{action}:{agent.model.actions[action]}, in the State: "
-                   f"[{self.state_var}:{agent.state_name}]")
+        action = self._choose_and_say()
         manual_state = self._ask_next_state() if self.mode == "manual" else None
         result = agent.advance(action, manual_state)
         msg = Step(step=result.step, action=result.action, state=result.state,
                    reward=result.reward, state_index=result.state_index, belief=result.belief,
                    manual=result.manual, epoch=self.epoch, id=next(self._ids))
-        try:
-            self.client.send(msg)
-        except LinkError as exc:
-            self.print(f"(link trouble: {exc}; waiting for a reset)")
+        if not self._send(msg):
             return True
         reply = self._wait_reply(msg)
-        self.print("== RESULTS ==")
-        self.print(f"- Resulting State:[{self.state_var}:{result.state}]")
-        self.print(f"- Reward = {result.reward:g}")
-        self.print(f"- Accumulated rewards:\n  discounted / undiscounted = "
-                   f"{result.discounted:g} / {result.undiscounted:g}")
-        belief = "\n".join(f"[{self.state_var}:{s}] = {p:g}" for s, p in result.belief.items())
-        self.print(f"- Agent's belief:\n{belief}")
-        if reply is None:
-            self.print(f"- World: no answer in {self.args.reply_timeout:g} s; waiting for a reset")
-            return True
-        if isinstance(reply, Error):
-            self.print(f"- World: step refused: {reply.message}; waiting for a reset")
-            self._refuse_states("the step was refused and the loop resets; give the state "
-                                "when the next episode asks for it")
+        self._say_results(result)
+        if self._not_carried_out(reply):
             return True
         self.print(f"- Robot answered: {reply.action or '?'} ({reply.result or ''})")
-        if reply.end_reason:
-            self.print(f"\n===== Episode {self.episode} over ({reply.end_reason}) after "
-                       f"{agent.step} steps: discounted / undiscounted = "
-                       f"{agent.discounted:g} / {agent.undiscounted:g} =====")
-        if reply.episode_over:
-            self.print("The next episode starts with the next reset (with on_episode_end:=wait: "
-                       "press Enter in the ROS terminal or call /hrc/reset).")
-            self._refuse_states(f"episode {self.episode} is over ({reply.end_reason or 'ended'})"
-                                ": no next state until the next episode; reset first (Enter "
-                                "in the roslaunch terminal or `rosservice call /hrc/reset`)")
-            return True
-        return False
+        return self._after_step(reply)
 
     def one_reacting_step(self) -> bool:
         """One step of a human who hears the robot (module docstring): act, send the state he
         acts in, wait for the robot's action, react to it."""
         agent = self.agent
-        action = agent.choose_action()
-        self.print(f"\n-----Round {self.episode} Step {agent.step}-----")
-        self.print(f"Agent Took: a{action}:{agent.model.actions[action]}, in the State: "
-                   f"[{self.state_var}:{agent.state_name}]")
+        action = self._choose_and_say()
         before = agent.state_name
         shown = agent.act(action)
         if shown != before:
@@ -358,12 +326,60 @@ class MdpProcess:
         msg = Step(step=agent.step, action=agent.model.actions[action], state=shown,
                    state_index=agent.model.states.index(shown), belief=agent.belief_dict(),
                    epoch=self.epoch, id=next(self._ids))
+        if not self._send(msg):
+            return True
+        reply = self._wait_reply(msg)
+        if self._not_carried_out(reply):
+            return True
+        robot_action = reply.action or ""
+        self.print(f"- Robot answered: {robot_action or '?'} ({reply.result or ''})")
+        manual_state = None
+        if self.mode == "manual" and not reply.episode_over:
+            manual_state = self._ask_next_state()
+        result = agent.react(robot_action, reply.end_reason or "", manual_state)
+        if not self._send(Reaction(step=result.step, state=result.state,
+                                   state_index=result.state_index, rule=result.rule,
+                                   reward=result.reward, manual=result.manual or None,
+                                   epoch=self.epoch, id=next(self._ids))):
+            return True
+        self._say_results(result, reaction=f"{result.reaction}" + (
+            "" if result.manual else f" (rule {result.rule})"))
+        return self._after_step(reply)
+
+    # -- what both kinds of step share ----------------------------------------------------------
+    def _choose_and_say(self) -> int:
+        """The agent's action in its state, printed as the step's header."""
+        agent = self.agent
+        action = agent.choose_action()
+        self.print(f"\n-----Round {self.episode} Step {agent.step}-----")
+        self.print(f"Agent Took: a{action}:{agent.model.actions[action]}, in the State: "
+                   f"[{self.state_var}:{agent.state_name}]")
+        return action
+
+    def _send(self, msg) -> bool:
+        """Send ``msg``; False (said) when the link failed: the loop then waits for a reset."""
         try:
             self.client.send(msg)
         except LinkError as exc:
             self.print(f"(link trouble: {exc}; waiting for a reset)")
-            return True
-        reply = self._wait_reply(msg)
+            return False
+        return True
+
+    def _say_results(self, result, reaction: Optional[str] = None) -> None:
+        """The step's results block: the reaction (a reacting human's), his state, the reward,
+        the sums and the agent's belief."""
+        self.print("== RESULTS ==")
+        if reaction is not None:
+            self.print(f"- Reaction: {reaction}")
+        self.print(f"- Resulting State:[{self.state_var}:{result.state}]")
+        self.print(f"- Reward = {result.reward:g}")
+        self.print(f"- Accumulated rewards:\n  discounted / undiscounted = "
+                   f"{result.discounted:g} / {result.undiscounted:g}")
+        belief = "\n".join(f"[{self.state_var}:{s}] = {p:g}" for s, p in result.belief.items())
+        self.print(f"- Agent's belief:\n{belief}")
+
+    def _not_carried_out(self, reply) -> bool:
+        """True (said) when the step got no answer or was refused: the loop resets."""
         if reply is None:
             self.print(f"- World: no answer in {self.args.reply_timeout:g} s; waiting for a reset")
             return True
@@ -372,29 +388,12 @@ class MdpProcess:
             self._refuse_states("the step was refused and the loop resets; give the state "
                                 "when the next episode asks for it")
             return True
-        robot_action = reply.action or ""
-        self.print(f"- Robot answered: {robot_action or '?'} ({reply.result or ''})")
-        manual_state = None
-        if self.mode == "manual" and not reply.episode_over:
-            manual_state = self._ask_next_state()
-        result = agent.react(robot_action, reply.end_reason or "", manual_state)
-        try:
-            self.client.send(Reaction(step=result.step, state=result.state,
-                                      state_index=result.state_index, rule=result.rule,
-                                      reward=result.reward, manual=result.manual or None,
-                                      epoch=self.epoch, id=next(self._ids)))
-        except LinkError as exc:
-            self.print(f"(link trouble: {exc}; waiting for a reset)")
-            return True
-        self.print("== RESULTS ==")
-        self.print(f"- Reaction: {result.reaction}" + ("" if result.manual else
-                                                        f" (rule {result.rule})"))
-        self.print(f"- Resulting State:[{self.state_var}:{result.state}]")
-        self.print(f"- Reward = {result.reward:g}")
-        self.print(f"- Accumulated rewards:\n  discounted / undiscounted = "
-                   f"{result.discounted:g} / {result.undiscounted:g}")
-        belief = "\n".join(f"[{self.state_var}:{s}] = {p:g}" for s, p in result.belief.items())
-        self.print(f"- Agent's belief:\n{belief}")
+        return False
+
+    def _after_step(self, reply) -> bool:
+        """The episode's end, when the reply says so; True when the loop now waits for a
+        reset."""
+        agent = self.agent
         if reply.end_reason:
             self.print(f"\n===== Episode {self.episode} over ({reply.end_reason}) after "
                        f"{agent.step} steps: discounted / undiscounted = "
