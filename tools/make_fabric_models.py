@@ -44,6 +44,7 @@ if str(REPO / "src") not in sys.path:       # run from a checkout without an ins
 from ros_hrc.pomdp import pomdpx  # noqa: E402
 from ros_hrc.pomdp.model import Model  # noqa: E402
 from ros_hrc.pomdp.output import write_text_atomically  # noqa: E402
+from ros_hrc.tasks.fabric import FABRIC  # noqa: E402
 
 SOURCE_REPOSITORY = "cangorur/human_robot_collaboration"
 #: The commit the task names (the repository's master) and the commits the figures were read at:
@@ -58,12 +59,10 @@ STAY = 0.9          # a "stay" row: this on the current state ...
 FLOOR = 0.01        # ... and this on every other column the row spans
 
 # --------------------------------------------------------------------------------------------
-# The human (12-state MDP): names and order as the authors' files
+# The human (12-state MDP): names and order as the authors' files, which the task holds
 # --------------------------------------------------------------------------------------------
-HUMAN_STATES = ["TaskHuman", "GlobalSuccess", "GlobalFail", "FailedToGrasp", "NoAttention",
-                "Evaluating", "Tired", "Recovery", "RobotInterfered", "WarningTheRobot",
-                "RobotIsWarned", "TaskRobot"]
-HUMAN_ACTIONS = ["graspAttempt", "lookAround", "idle", "walkAway", "warnRobot"]
+HUMAN_STATES = list(FABRIC.human_states)
+HUMAN_ACTIONS = list(FABRIC.human_actions)
 
 #: The one row every type shares outside the stay-where-you-are default: a task the robot
 #: holds ends (success 0.4, fail 0.1) or draws a warning (0.2) when the human idles.
@@ -610,17 +609,14 @@ HUMAN_TYPES: Dict[str, HumanType] = {
 # --------------------------------------------------------------------------------------------
 # The robot POMDP (11 states, 5 actions, 12 observations)
 # --------------------------------------------------------------------------------------------
-ROBOT_STATES = ["TaskHuman", "MayNotBeCapable", "MayBeTired", "NoFocus", "NeedsToBeReminded",
-                "NeedsHelp", "NoNeedHelp", "WarningReceived", "GlobalSuccess", "GlobalFail",
-                "TaskRobot"]
-ROBOT_ACTIONS = ["idle", "grasp", "cancel", "point", "graspPlanning"]
+ROBOT_STATES = list(FABRIC.robot_states)
+ROBOT_ACTIONS = list(FABRIC.robot_actions)
 #: The authors' files number the 12 observations (``<NumValues>12``); ObservationAgent maps the
 #: observed bits to them. We name each after the smallest bit sum that maps to it (bits: 1 the
 #: human looks at the object, 2 the human is detected, 4 a grasp attempt, 8 the product arrived
 #: inspected, 16 a warning, 32 the human idles, 64 the product arrived uninspected); the whole
 #: table is in docs/tasks_fabric_facts.md.
-ROBOT_OBSERVATIONS = ["O0", "O2", "O3", "O6", "O7", "O8", "O16", "O32", "O34", "O35", "O40",
-                      "O64"]
+ROBOT_OBSERVATIONS = list(FABRIC.observations.names)
 
 ROBOT_T: Dict[str, str] = {"idle": """
     TaskHuman          0.3  0.15 0.22 0.15 0.01 0.01 0.01 0.01 0.12 0.01 0.01
