@@ -6,6 +6,7 @@ temp dir), runs a small grid on it through the real stacks (each cell starts its
 no master is needed beforehand), kills the second node's raylet once that node has delivered an
 episode, and checks the rows against the same grid run by the local pool. The others need no
 Ray cluster."""
+import contextlib
 import csv
 import importlib.util
 import json
@@ -152,23 +153,50 @@ def _rows_of_cell(episodes: Path, cell: str) -> int:
                if (row["human_model"], row["robot_policy"]) == (human, policy))
 
 
+@contextlib.contextmanager
+def two_nodes(head_slots: int):
+    """A head on 127.0.0.2 with ``head_slots`` ros_hrc slots and a node on 127.0.0.3 with one,
+    one CPU each, Ray's ports from :data:`RAY_PORTS`; both stopped and their files removed
+    at the end."""
+    # Ray's socket paths must stay short: its own temp dirs under /tmp, not pytest's.
+    ray_dir = Path(tempfile.mkdtemp(prefix="hrc_ray_", dir="/tmp"))
+    nodes = []
+    try:
+        ports = PortSource(*RAY_PORTS)
+        nodes.append(RayNode.start(ray_dir / "head", cpus=1, ros_hrc=head_slots,
+                                   node_ip="127.0.0.2", ports=ports))
+        nodes.append(RayNode.start(ray_dir / "other", cpus=1, ros_hrc=1, node_ip="127.0.0.3",
+                                   head_address=nodes[0].address, ports=ports))
+        yield nodes[0], nodes[1]
+    finally:
+        for node in reversed(nodes):
+            node.stop()
+        shutil.rmtree(ray_dir, ignore_errors=True)
+
+
+def _kill(proc) -> None:
+    """Kill a process the test started, if it still runs."""
+    if proc is not None and proc.poll() is None:
+        proc.kill()
+        proc.wait()
+
+
 @pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
 def test_a_grid_on_two_nodes_equals_the_local_run_and_a_lost_node_loses_no_episode(tmp_path):
     # The local pool's run, while the cluster starts.
     local = _start(experiment(*GRID, "--jobs", "2", "--out", str(tmp_path / "local")),
                    tmp_path / "local.out")
-    # Ray's socket paths must stay short: its own temp dirs under /tmp, not pytest's.
-    ray_dir = Path(tempfile.mkdtemp(prefix="hrc_ray_", dir="/tmp"))
-    nodes = []
+    try:
+        with two_nodes(head_slots=1) as (head, other):
+            _grid_on_two_nodes(tmp_path, local, head, other)
+    finally:
+        _kill(local)
+
+
+def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
+    """The grid on the cluster, its second node's raylet killed mid-cell, against ``local``."""
     driver = None
     try:
-        ports = PortSource(*RAY_PORTS)
-        head = RayNode.start(ray_dir / "head", cpus=1, ros_hrc=1, node_ip="127.0.0.2",
-                             ports=ports)
-        nodes.append(head)
-        other = RayNode.start(ray_dir / "other", cpus=1, ros_hrc=1, node_ip="127.0.0.3",
-                              head_address=head.address, ports=ports)
-        nodes.append(other)
         assert local.wait(timeout=600) == 0, (tmp_path / "local.out").read_text()[-3000:]
 
         out = tmp_path / "cluster"
@@ -215,34 +243,26 @@ def test_a_grid_on_two_nodes_equals_the_local_run_and_a_lost_node_loses_no_episo
         # The lost node's stacks stopped (their keepers died with its Ray worker).
         assert wait_for_cells(str(other.directory), 60.0)
     finally:
-        for proc in (local, driver):
-            if proc is not None and proc.poll() is None:
-                proc.kill()
-                proc.wait()
-        for node in reversed(nodes):
-            node.stop()
-        shutil.rmtree(ray_dir, ignore_errors=True)
+        _kill(driver)
 
 
 @pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
 def test_a_cell_fails_with_the_reason_once_no_node_offers_ros_hrc(tmp_path):
     """The only node with the resource dies while the head lives: Ray would keep the cell
     queued forever; after --cluster-wait it fails, saying why and how to resume."""
-    ray_dir = Path(tempfile.mkdtemp(prefix="hrc_ray_", dir="/tmp"))
-    nodes = []
+    with two_nodes(head_slots=0) as (head, other):
+        _fail_without_a_node(tmp_path, other, head.address)
+
+
+def _fail_without_a_node(tmp_path: Path, other, address: str) -> None:
+    """A grid on the cluster at ``address``, the ``other`` node's raylet killed once a cell
+    runs there: the cell fails after --cluster-wait with the reason."""
     driver = None
     try:
-        ports = PortSource(*RAY_PORTS)
-        head = RayNode.start(ray_dir / "head", cpus=1, ros_hrc=0, node_ip="127.0.0.2",
-                             ports=ports)
-        nodes.append(head)
-        other = RayNode.start(ray_dir / "other", cpus=1, ros_hrc=1, node_ip="127.0.0.3",
-                              head_address=head.address, ports=ports)
-        nodes.append(other)
         out = tmp_path / "cluster"
         driver = _start(experiment("--human-models", "tired", "--policies", "no_robot",
                                    "--seeds", "0", "--episodes", "40", "--step-limit", "8",
-                                   "--no-plots", "--cluster", head.address,
+                                   "--no-plots", "--cluster", address,
                                    "--cluster-wait", "3", "--out", str(out)),
                         tmp_path / "cluster.out")
         deadline = time.monotonic() + 300
@@ -259,9 +279,4 @@ def test_a_cell_fails_with_the_reason_once_no_node_offers_ros_hrc(tmp_path):
         assert "no living node of the cluster has offered the ros_hrc resource for 3 s" in \
             failed[0] and "run again to resume" in failed[0], failed[0]
     finally:
-        if driver is not None and driver.poll() is None:
-            driver.kill()
-            driver.wait()
-        for node in reversed(nodes):
-            node.stop()
-        shutil.rmtree(ray_dir, ignore_errors=True)
+        _kill(driver)
