@@ -109,21 +109,6 @@ class GridParser(OneLineParser):
         return parsed, rest
 
 
-#: The robot policies of a task's study when ``--policies`` is not given (the seed's:
-#: :data:`DEFAULT_POLICIES`). Fabric's are the successor authors' three (THRI 2023 §6.1.3):
-#: the human alone, the reactive MDP robot and the proactive POMDP robot.
-TASK_POLICIES: Dict[str, Tuple[str, ...]] = {"fabric": ("pomdp", "reactive", ALONE_POLICY)}
-#: The hrc.launch argument a ``reactive@N`` sets, per task: the seed's reactive robot helps
-#: after N observations, fabric's declares "needs help" after N simulated seconds without
-#: success (the authors' 15 s).
-REACTIVE_SWEPT: Dict[str, str] = {"seed": "reactive_budget", "fabric": "reactive_wait"}
-#: Steps before an episode ends, per task, when ``--step-limit`` is not given. The seed's
-#: study ends its episodes at 15 steps; a fabric episode ends in the world (the object taken,
-#: or at the belt's end after about 69 simulated seconds, at most ~85 steps), so its limit is
-#: only a safety net.
-TASK_STEP_LIMITS: Dict[str, int] = {"seed": 15, "fabric": 300}
-
-
 def task_humans(task: tasks.Task) -> List[str]:
     """The human models of a task's study when ``--human-models`` is not given: the seed's
     zoo's held-out humans; another task's every shipped type (fabric's ten)."""
@@ -134,14 +119,14 @@ def task_humans(task: tasks.Task) -> List[str]:
 
 def apply_task_defaults(args: argparse.Namespace) -> None:
     """``--human-models``, ``--policies`` and ``--step-limit`` not given: the task's
-    (``--task``)."""
+    (``--task``; its study's, :class:`ros_hrc.tasks.definition.Task`)."""
     task = task_of(args)
     if getattr(args, "human_models", ()) is None:
         args.human_models = task_humans(task)
     if getattr(args, "policies", ()) is None:
-        args.policies = list(TASK_POLICIES.get(task.name, POLICIES_BY_DEFAULT))
+        args.policies = list(task.study_policies or POLICIES_BY_DEFAULT)
     if getattr(args, "step_limit", 0) is None:
-        args.step_limit = TASK_STEP_LIMITS[task.name]
+        args.step_limit = task.study_step_limit
 
 
 def names_argument(text: str) -> List[str]:
@@ -241,7 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--policies", type=names_argument, default=None,
                    help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)} (the "
                         f"task's: {DEFAULT_POLICIES} for the seed, "
-                        f"{','.join(TASK_POLICIES['fabric'])} for fabric)")
+                        f"{','.join(tasks.get('fabric').study_policies)} for fabric)")
     p.add_argument("--reactive-budgets", type=budgets_argument, default=[],
                    help="also run the reactive robot with each of these budgets (policies "
                         "reactive@N), e.g. 1..10 or 2,4,8 (none: no sweep, the default); the "
@@ -419,9 +404,10 @@ def _cell(args: argparse.Namespace, human: str, policy: str, seed: int,
           episodes: EpisodeRanges, log_dir: str) -> CellSpec:
     budget = robot_policy(policy).reactive_budget
     extra = task_launch_args(args)
-    if budget is not None and REACTIVE_SWEPT.get(task_of(args).name) != "reactive_budget":
-        # This task's reactive robot is swept by its own argument (fabric: its wait).
-        extra = extra + [f"{REACTIVE_SWEPT[task_of(args).name]}:={budget}"]
+    swept = task_of(args).reactive_parameter
+    if budget is not None and swept != "reactive_budget":
+        # This task's reactive robot is tuned by its own argument (fabric: its wait).
+        extra = extra + [f"{swept}:={budget}"]
         budget = None
     return CellSpec(
         human_model=human, robot_policy=policy, seed=seed, episodes=episodes,

@@ -56,7 +56,7 @@ from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc import tasks
-from ros_hrc.experiment.cli import TASK_STEP_LIMITS, task_humans, task_launch_args, task_of
+from ros_hrc.experiment.cli import task_humans, task_launch_args, task_of
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
@@ -167,7 +167,7 @@ def check_arguments(args: argparse.Namespace) -> Model:
                 DEFAULT_HUMANS):
             args.human_models = task_humans(which)    # and the task's own humans
         if args.step_limit is None:
-            args.step_limit = TASK_STEP_LIMITS[which.name]
+            args.step_limit = which.study_step_limit
         args.prior = str(model_path(args.prior, "robot", which))
         prior = load_robot_model(args.prior, which)
     except ModelNotFound as exc:

@@ -227,6 +227,14 @@ class Task:
     #: The world's away_time for this task (hrc.launch away_time:=auto): how long a walk away
     #: lasts when the human is already away (0: no time).
     away_time: float = 0.0
+    # -- its study (hrc_experiment --task): what a grid runs when not told otherwise
+    #: The robot policies of its study (empty: the experiment's default, the seed's).
+    study_policies: Tuple[str, ...] = ()
+    #: Steps before an episode ends (a task whose episodes end in the world: a safety net).
+    study_step_limit: int = 15
+    #: The hrc.launch argument a ``reactive@N`` policy sets to N: how its reactive robot is
+    #: tuned (the seed's helps after N observations).
+    reactive_parameter: str = "reactive_budget"
     #: Where a scenario name is looked up, by kind ("human", "robot").
     model_dirs: Mapping[str, Path] = field(default_factory=dict)
     #: A longer description of the rules (docs and ``hrc_check --task NAME``).

@@ -368,6 +368,13 @@ FABRIC = Task(
     # The authors' human in Recovery waited while the belt ran on (their task ended when the
     # product reached the belt's end): a walk away while away lasts as long as an idle.
     away_time=0.8,
+    # Its study: the successor authors' three (THRI 2023 §6.1.3), the human alone, the reactive
+    # MDP robot and the proactive POMDP robot; an episode ends in the world (the object taken,
+    # or at the belt's end after about 69 simulated seconds, at most ~85 steps), so the step
+    # limit is only a safety net; the reactive robot is tuned by its wait (the authors' 15 s).
+    study_policies=("pomdp", "reactive", "no_robot"),
+    study_step_limit=300,
+    reactive_parameter="reactive_wait",
     model_dirs={"human": MODELS_DIR / "fabric" / "human",
                 "robot": MODELS_DIR / "fabric" / "robot"},
     notes=("The human acts in his state (a grasp's outcome drawn first, and shown); after the "
