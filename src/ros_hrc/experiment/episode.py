@@ -135,7 +135,7 @@ def time_to_success(steps: Sequence, reason: str, start_sim_time: float) -> floa
     return sim_duration(steps, start_sim_time)
 
 
-def wasted_actions(steps: Sequence) -> int:
+def wasted_actions(steps: Sequence, task: Optional[Task] = None) -> int:
     """Robot actions the world answered with nothing:
 
     * a grasp (the seed's ``rGrasp_obj``, fabric's ``grasp``) after which the robot does not
@@ -145,7 +145,7 @@ def wasted_actions(steps: Sequence) -> int:
       ``walkAway`` (the world's ``/human/walk_away``) and has not come back, which only a grasp
       attempt does (``/human/attempt_grasp`` and ``/human/grasp`` walk back first).
     """
-    task = task_of_steps(steps)
+    task = task or task_of_steps(steps)
     grasps, points = task.robot_actions_calling("grasp"), task.robot_actions_calling("point_to_obj")
     wasted, away = 0, False
     for step in steps:
@@ -161,7 +161,7 @@ def wasted_actions(steps: Sequence) -> int:
     return wasted
 
 
-def against_warning(steps: Sequence) -> int:
+def against_warning(steps: Sequence, task: Optional[Task] = None) -> int:
     """Grasps and points while a warning is in force.
 
     A warning is in force from the step whose observation carries the warning bit (16) (the
@@ -170,7 +170,7 @@ def against_warning(steps: Sequence) -> int:
     it (bit 8). Idling, looking round or walking away after a warning do not lift it: the
     human said "stop" and has not taken the task back. A reset (a new episode) lifts it.
     """
-    task = task_of_steps(steps)
+    task = task or task_of_steps(steps)
     warning = task.bit("warning")
     acting = task.bit("grasp_attempt") | task.bit("has_object", "object_taken")
     count, in_force = 0, False
@@ -185,21 +185,21 @@ def against_warning(steps: Sequence) -> int:
     return count
 
 
-def warnings_after_help(steps: Sequence) -> int:
+def warnings_after_help(steps: Sequence, task: Optional[Task] = None) -> int:
     """Warnings the human gave right after the robot helped: steps whose observation carries
     the warning bit and whose previous step's robot action was a grasp or a point. What an
     intrusion cost: in fabric the robot's grasp makes the human RobotInterfered, from which he
     may warn it (the seed's human does not hear the robot, so there it counts coincidences)."""
-    task = task_of_steps(steps)
+    task = task or task_of_steps(steps)
     warning = task.bit("warning")
     return sum(1 for before, step in zip(steps, steps[1:])
                if before.robot_action in task.helping_actions
                and int(step.observation_bits) & warning)
 
 
-def points(steps: Sequence) -> int:
+def points(steps: Sequence, task: Optional[Task] = None) -> int:
     """The robot's points (``rPoint_obj``, fabric's ``point``) in the episode."""
-    pointing = task_of_steps(steps).robot_actions_calling("point_to_obj")
+    pointing = (task or task_of_steps(steps)).robot_actions_calling("point_to_obj")
     return sum(1 for step in steps if step.robot_action in pointing)
 
 
@@ -225,9 +225,9 @@ def score_episode(key: EpisodeKey, steps: Sequence, reason: str, start_sim_time:
         sim_seconds=sim_duration(steps, start_sim_time),
         time_to_success=time_to_success(steps, reason, start_sim_time),
         alone_success=0, alone_time_to_success=math.nan, outcome=UNPAIRED,
-        time_gain=math.nan, wasted_actions=wasted_actions(steps),
-        against_warning=against_warning(steps), in_sample=0, points=points(steps),
-        warnings_after_help=warnings_after_help(steps),
+        time_gain=math.nan, wasted_actions=wasted_actions(steps, task),
+        against_warning=against_warning(steps, task), in_sample=0, points=points(steps, task),
+        warnings_after_help=warnings_after_help(steps, task),
         robot_discounted_reward=discounted_robot_reward(steps, model),
         intrusive_actions=intrusive, warnings=warnings,
         zero_probability_observations=zero_probability,
