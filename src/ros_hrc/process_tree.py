@@ -1,6 +1,6 @@
 """The machine's process tree, read from /proc (no ROS): who is whose parent, what a process
 runs. Shared by the world's guard (hrc_guard), the world node and the solvers, which each need
-to find the roslaunch that started them."""
+to find the roslaunch that started them, and by the Ray nodes of ``--cluster``."""
 from __future__ import annotations
 
 import os
@@ -15,6 +15,21 @@ def stat_fields(pid: int) -> Optional[List[str]]:
     except OSError:
         return None
     return text[text.rindex(b")") + 2:].decode("ascii", "replace").split()
+
+
+def all_pids() -> List[int]:
+    """Every process of the machine (its pid), as /proc lists them now."""
+    return [int(name) for name in os.listdir("/proc") if name.isdigit()]
+
+
+def group_alive(leader: int) -> bool:
+    """Whether process group ``leader`` still has a live member (a zombie, ended and not yet
+    reaped, is not one)."""
+    for other in all_pids():
+        fields = stat_fields(other)
+        if fields and int(fields[2]) == leader and fields[0] != "Z":
+            return True
+    return False
 
 
 def parent_of(pid: int) -> Optional[int]:

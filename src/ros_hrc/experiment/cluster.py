@@ -58,7 +58,7 @@ from ros_hrc.experiment.stack import (EPISODE_LINE, CellSpec, EpisodeRanges, cel
                                       decode_episode, log_tail, port_is_free, stack_log,
                                       worker_command, write_spec)
 from ros_hrc.link.transport import free_port
-from ros_hrc.process_tree import command_line, parent_of
+from ros_hrc.process_tree import command_line, group_alive, parent_of
 
 #: The custom resource a cell asks for (one unit), beside one CPU: a machine offers it when
 #: the package is installed there (``make setup``) and Ray was started with it.
@@ -848,16 +848,6 @@ class RayNode:
             deadline = time.monotonic() + wait
             while time.monotonic() < deadline:
                 self.proc.poll()        # reaps ray start, the group's leader
-                if not _group_alive(self.proc.pid):
+                if not group_alive(self.proc.pid):
                     return
                 time.sleep(0.1)
-
-
-def _group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True

@@ -44,7 +44,7 @@ import sys
 import time
 from typing import Dict, Iterable, List, Optional, Sequence
 
-from ros_hrc.process_tree import command_line, is_roslaunch, stat_fields
+from ros_hrc.process_tree import all_pids, command_line, group_alive, is_roslaunch, stat_fields
 
 #: Signals the guard passes on to the world: how roslaunch (or a user) stops a node.
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -74,27 +74,14 @@ def _alive(pid: int) -> bool:
     return fields is not None and fields[0] != "Z"
 
 
-def _all_pids() -> List[int]:
-    return [int(name) for name in os.listdir("/proc") if name.isdigit()]
-
-
 def children_of(pid: int) -> List[int]:
     """The processes whose parent is ``pid``, alive, oldest first."""
     found = []
-    for other in _all_pids():
+    for other in all_pids():
         fields = stat_fields(other)
         if fields and int(fields[1]) == pid and fields[0] != "Z":
             found.append(other)
     return sorted(found)
-
-
-def _group_alive(leader: int) -> bool:
-    """Whether process group ``leader`` still has a live member."""
-    for other in _all_pids():
-        fields = stat_fields(other)
-        if fields and int(fields[2]) == leader and fields[0] != "Z":
-            return True
-    return False
 
 
 class _Target:
@@ -107,7 +94,7 @@ class _Target:
         self.group = fields is not None and int(fields[2]) == pid
 
     def alive(self) -> bool:
-        return _group_alive(self.pid) if self.group else _alive(self.pid)
+        return group_alive(self.pid) if self.group else _alive(self.pid)
 
     def send(self, signum: int) -> None:
         try:
