@@ -118,9 +118,11 @@ def task_humans(task: tasks.Task) -> List[str]:
 
 
 def apply_task_defaults(args: argparse.Namespace) -> None:
-    """``--human-models``, ``--policies`` and ``--step-limit`` not given: the task's
-    (``--task``; its study's, :class:`ros_hrc.tasks.definition.Task`)."""
+    """``--robot-model``, ``--human-models``, ``--policies`` and ``--step-limit`` not given:
+    the task's (``--task``; its study's, :class:`ros_hrc.tasks.definition.Task`)."""
     task = task_of(args)
+    if getattr(args, "robot_model", "") is None:
+        args.robot_model = task.default_robot_model
     if getattr(args, "human_models", ()) is None:
         args.human_models = task_humans(task)
     if getattr(args, "policies", ()) is None:
@@ -250,7 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "ros_hrc slot of the cluster)")
     p.add_argument("--out", default="results/experiment",
                    help="results directory (relative to the current directory)")
-    settings.add_argument(p, "robot_model")
+    settings.add_argument(p, "robot_model", default=None)   # the task's (apply_task_defaults)
     settings.add_argument(p, "task")     # (#22) every cell runs task:=, models checked against it
     settings.add_argument(p, "human_choice")
     settings.add_argument(p, "max_trials")
@@ -373,8 +375,6 @@ def resolve_files(args: argparse.Namespace) -> None:
         return
     args.out = str(user_path(args.out))
     task = task_of(args)
-    if task.name != tasks.DEFAULT_TASK and args.robot_model == settings.default("robot_model"):
-        args.robot_model = task.default_robot_model   # the task's own robot by default
     try:
         args.robot_model = str(model_path(args.robot_model, "robot", task))
     except ModelNotFound as exc:
