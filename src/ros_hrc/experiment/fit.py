@@ -8,11 +8,12 @@ human model, as ``hrc_experiment`` does) with the exploring robot (``planner:=ex
 uniformly random robot action each step, seeded), so that every robot action is tried in every
 state the humans reach. From each episode it counts what the robot model describes:
 
-* transitions ``(s, a, s')``: the robot's true state at a step (the observer's label,
-  :class:`ros_hrc.loop.task.RobotStateTracker`), the robot's action then, and the label at the
-  next step. The first step starts from the model's start state with ``rIdle``, as the robot
-  process does (its first belief update). An episode that ends in success adds one more
-  transition into the success state S1 (the robot's grasp or the human's ended it); one that
+* transitions ``(s, a, s')``: the robot's true state at a step (the observer's label, by the
+  task's tracker: the seed's :class:`ros_hrc.loop.task.RobotStateTracker`), the robot's action
+  then, and the label at the next step. The first step starts from the model's start state
+  with the task's idle action (the seed's ``rIdle``), as the robot process does (its first
+  belief update). An episode that ends in success adds one more transition into the task's
+  success state (the seed's S1: the robot's grasp or the human's ended it); one that
   ends otherwise (the object left the belt, the step limit) adds none: nothing says where the
   human would have gone.
 * observations ``(a, s', o)``: the action before the step, the step's label, and the
@@ -73,10 +74,6 @@ NAME = "hrc_fit"
 POLICY = "explore"
 #: hrc_fit fits on the zoo's fit set; hrc_experiment evaluates on the held-out humans.
 DEFAULT_HUMANS = zoo_argument("fit")
-#: The robot's action before its first decision: the robot process's first belief update.
-FIRST_ACTION = "rIdle"
-#: The state an episode that ends in success reaches (someone holds the object).
-SUCCESS_STATE = "S1"
 CONFIG_FILE = "fit.json"
 
 
@@ -87,8 +84,9 @@ class FitError(HrcError):
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=NAME, description=__doc__.split("\n\n")[0],
                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--human-models", type=names_argument, default=names_argument(DEFAULT_HUMANS),
-                   help=f"human scenarios or .pomdpx files, comma-separated ({DEFAULT_HUMANS})")
+    p.add_argument("--human-models", type=names_argument, default=None,
+                   help=f"human scenarios or .pomdpx files, comma-separated (the task's: "
+                        f"{DEFAULT_HUMANS} for the seed, every shipped type for fabric)")
     p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=100,
                    help="episodes per human model (100)")
     p.add_argument("--seed", type=_seed, default=0,
@@ -96,9 +94,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=None,
                    help="steps before an episode ends (the task's, as hrc_experiment: 15 for "
                         "the seed, 300 for fabric)")
-    p.add_argument("--prior", default="robot",
+    p.add_argument("--prior", default=None,
                    help="the robot model whose rows are the prior and whose rewards are kept "
-                        "(a scenario name under models/robot or a file; robot)")
+                        "(a scenario name of the task's robot models or a file; the task's: "
+                        "robot for the seed)")
     p.add_argument("--strength", type=_non_negative, default=5.0,
                    help="the prior's pseudo-counts per row; 0: the episodes' frequencies "
                         "wherever a row has any (5)")
@@ -132,18 +131,21 @@ def _non_negative(text: str) -> float:
     return value
 
 
-def labels_fingerprint() -> str:
-    """A digest of the labelling code: steps recorded under other labels must not be counted
-    (the steps keep the label they were given)."""
-    text = inspect.getsource(task.RobotStateTracker) + repr(
-        (task.EVALUATING_MAY_NEED_HELP, task.EVALUATING_NEEDS_HELP))
+def labels_fingerprint(which: tasks.Task) -> str:
+    """A digest of the task's labelling code: steps recorded under other labels must not be
+    counted (the steps keep the label they were given)."""
+    tracker = type(which.new_tracker(which.default_human_model))
+    text = inspect.getsource(tracker)
+    if tracker is task.RobotStateTracker:    # the seed's thresholds live beside its class
+        text += repr((task.EVALUATING_MAY_NEED_HELP, task.EVALUATING_NEEDS_HELP))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def configuration(args: argparse.Namespace) -> dict:
     """What decides the episodes: a ``--runs`` directory holds the episodes of one of these."""
     return {"human_models": list(args.human_models), "seed": args.seed,
-            "step_limit": args.step_limit, "policy": POLICY, "labels": labels_fingerprint()}
+            "step_limit": args.step_limit, "policy": POLICY,
+            "labels": labels_fingerprint(task_of(args))}
 
 
 def check_arguments(args: argparse.Namespace) -> Model:
@@ -161,11 +163,12 @@ def check_arguments(args: argparse.Namespace) -> Model:
         raise FitError(f"--out {file_error_line(exc)}") from None
     try:
         which = task_of(args)
-        if which.name != tasks.DEFAULT_TASK and args.prior == "robot":
-            args.prior = which.default_robot_model    # the task's own robot by default
-        if which.name != tasks.DEFAULT_TASK and args.human_models == names_argument(
-                DEFAULT_HUMANS):
-            args.human_models = task_humans(which)    # and the task's own humans
+        # Not given: the task's own robot, humans and step limit.
+        if args.prior is None:
+            args.prior = which.default_robot_model
+        if args.human_models is None:
+            args.human_models = (names_argument(DEFAULT_HUMANS)
+                                 if which.name == tasks.DEFAULT_TASK else task_humans(which))
         if args.step_limit is None:
             args.step_limit = which.study_step_limit
         args.prior = str(model_path(args.prior, "robot", which))
@@ -205,23 +208,28 @@ def count_experience(model: Model, episodes: Iterable[EpisodeRow],
     for step in steps:
         by_episode[(step.human_model, step.robot_policy, step.seed, step.episode)].append(step)
     start = model.states[int(model.initial_belief.argmax())]
+    which = tasks.of_robot_states(model.states)
     counts = ExperienceCounts.for_model(model)
     for row in episodes:
         trace = sorted(by_episode.get((row.human_model, row.robot_policy, row.seed, row.episode),
                                       []), key=lambda s: s.step)
         # The robot starts idle: the task's idle action (the seed's rIdle).
-        action = tasks.of_robot_states(model.states).robot_idle_action
+        action = which.robot_idle_action
         state = start
         for step in trace:
             counts.add_step(state, action, step.robot_state, step.observation, model)
             state, action = step.robot_state, step.robot_action
         if trace and row.end_reason == "success":
-            counts.add_transition(state, action, SUCCESS_STATE, model)
+            counts.add_transition(state, action, which.robot_success_state, model)
     return counts
 
 
 def header_lines(args: argparse.Namespace, prior_path: str, episodes: int, steps: int,
                  counts: ExperienceCounts) -> List[str]:
+    which = task_of(args)
+    tracker = type(which.new_tracker(which.default_human_model))
+    labels = ("ros_hrc.loop.task.RobotStateTracker" if tracker is task.RobotStateTracker
+              else f"{tracker.__module__}.{tracker.__qualname__}")
     return [
         f"The robot model fitted to the world by hrc_fit: T and O are Dirichlet posterior "
         f"means of {prior_path} (strength {args.strength:g} pseudo-counts per row) and "
@@ -231,7 +239,7 @@ def header_lines(args: argparse.Namespace, prior_path: str, episodes: int, steps
         f"human models: {', '.join(args.human_models)}; episodes per model: {args.episodes}; "
         f"step limit: {args.step_limit}; seed: {args.seed}",
         "robot: planner:=explore (a uniformly random action each step); true states: the "
-        "observer's labels (ros_hrc.loop.task.RobotStateTracker)",
+        f"observer's labels ({labels})",
         f"experience: {steps} steps; {counts.n_transitions} transitions, "
         f"{counts.n_observations_counted} observations",
         "the streams fitted on, one line per human model (hrc_experiment refuses to evaluate "

@@ -227,6 +227,9 @@ class Task:
     #: The world's away_time for this task (hrc.launch away_time:=auto): how long a walk away
     #: lasts when the human is already away (0: no time).
     away_time: float = 0.0
+    #: The robot state that labels a success (someone holds the object): where hrc_fit ends a
+    #: successful episode's last transition.
+    robot_success_state: str = ""
     # -- its study (hrc_experiment --task): what a grid runs when not told otherwise
     #: The robot policies of its study (empty: the experiment's default, the seed's).
     study_policies: Tuple[str, ...] = ()
@@ -249,6 +252,9 @@ class Task:
         if self.human_grasp_action not in self.human_action_services:
             raise ValueError(f"task {self.name}: grasp {self.human_grasp_action} is not a "
                              "human action")
+        if self.robot_success_state and self.robot_success_state not in self.robot_states:
+            raise ValueError(f"task {self.name}: success {self.robot_success_state} is not a "
+                             "robot state")
         if self.robot_idle_action not in self.robot_action_services:
             raise ValueError(f"task {self.name}: idle {self.robot_idle_action} is not a "
                              "robot action")

@@ -356,6 +356,7 @@ FABRIC = Task(
     robot_action_services=ROBOT_ACTION_SERVICES,
     robot_idle_action="idle",
     needs_help_states=NEEDS_HELP_STATES,
+    robot_success_state="GlobalSuccess",
     observations=OBSERVATIONS,
     predicate_bits=PREDICATE_BITS,
     raw_bits=snapshot_bits,

@@ -203,6 +203,7 @@ SEED = Task(
     robot_action_services=ROBOT_ACTION_SERVICES,
     robot_idle_action="rIdle",
     needs_help_states=NEEDS_HELP_STATES,
+    robot_success_state="S1",
     observations=OBSERVATIONS,
     predicate_bits=PREDICATE_BITS,
     raw_bits=snapshot_bits,

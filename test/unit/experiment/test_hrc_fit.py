@@ -120,3 +120,25 @@ def test_an_out_that_is_a_fifo_is_refused_before_any_stack(tmp_path, capsys):
     assert capsys.readouterr().err == (f"hrc_fit: --out {fifo}: is a FIFO, not a regular file; "
                                        "it is never replaced (write to a file)\n")
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_fabric_episode_that_succeeds_ends_in_fabric_s_success_state():
+    """hrc_fit --task fabric: the first step starts from fabric's idle action and a success
+    ends in GlobalSuccess (the seed's S1 is no fabric state: it was refused before)."""
+    from ros_hrc import tasks
+    from ros_hrc.model_files import resolve_model
+    from ros_hrc.pomdp.io import load_model
+    fabric = tasks.get("fabric")
+    model = load_model(str(resolve_model("base", "robot", fabric.model_dirs["robot"])))
+    key = dict(human_model="distracted_collaborative", robot_policy="explore", seed=0,
+               episode=0)
+    row = EpisodeRow(**key, success=1, succeeded_by="robot", end_reason="success", steps=1,
+                     sim_seconds=3.0, robot_discounted_reward=0.0, intrusive_actions=0,
+                     warnings=0, zero_probability_observations=0, mean_decision_ms=1.0,
+                     wall_seconds=1.0)
+    step = StepRow(**key, step=0, human_action="idle", human_state="TaskHuman",
+                   robot_state="NeedsHelp", robot_action="grasp", observation="O35",
+                   belief_needs_help=0.5, needs_help=1, zero_probability=0)
+    counts = fit.count_experience(model, [row], [step])
+    assert counts.n_transitions == 2     # TaskHuman -idle-> NeedsHelp -grasp-> GlobalSuccess
+    assert fit.labels_fingerprint(fabric) != fit.labels_fingerprint(tasks.get("seed"))
