@@ -26,6 +26,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from ros_hrc import tasks
 from ros_hrc.loop import task
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.model import Model
@@ -35,7 +36,6 @@ from ros_hrc.pomdp.model import Model
 DEFAULT_TRIALS = 300
 #: A time budget that never binds: the trials alone bound the search.
 UNBOUNDED_SECONDS = 1e6
-FIRST_ACTION = "rIdle"
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,10 @@ def run_sequence(model: Model, sequence: ObservationSequence, config: DespotConf
     """Step a fresh planner through ``sequence`` as the robot process does."""
     planner = DespotPlanner(model, config, seed=seed, tables=tables)
     planner.reset()
-    last = model.index("action", FIRST_ACTION) if FIRST_ACTION in model.actions else 0
+    # The robot process's first update: after its task's idle action (any other model: its
+    # first action).
+    idle = tasks.of_robot_states(model.states).robot_idle_action
+    last = model.index("action", idle) if idle in model.actions else 0
     actions: List[str] = []
     impossible: List[str] = []
     for name in sequence.observations:
