@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import os
 import shlex
@@ -53,13 +54,14 @@ from ros_hrc.experiment.episode import (ALONE_POLICY, ROBOT_POLICIES, pair, pair
                                         reactive_policy_name, robot_policy, stream_of)
 from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_success, plot_time_gain
 from ros_hrc.experiment.provenance import file_sha256, ranges_text, read_fitted_on
-from ros_hrc.experiment.stack import (MAX_EPISODES, CellSpec, EpisodeRanges, cell_name,
-                                      check_launch_settings, decode_episode, worker_command,
-                                      write_spec)
+from ros_hrc.experiment.stack import (MAX_ATTEMPTS, MAX_EPISODES, CellSpec, EpisodeRanges,
+                                      cell_name, check_launch_settings, decode_episode, say,
+                                      worker_command, write_spec)
 from ros_hrc.experiment.statistics import summarize, write_summary
 from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
+from ros_hrc.experiment.cluster import without
 from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
                                       lock_directory)
 from ros_hrc import tasks
@@ -667,6 +669,49 @@ def _run_worker(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None,
         raise RuntimeError(last)
 
 
+def run_local_cell(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = None,
+                   on_all_delivered=None, program: str = NAME) -> None:
+    """Run one cell on this machine, as :func:`_run_worker` does, but a failed attempt (its
+    stack failed: a port taken by another program between its pick and its bind, a node that
+    died) runs again with the episodes still missing, on fresh ports, up to
+    :data:`MAX_ATTEMPTS` attempts, as on a cluster; then RuntimeError with the last reason.
+    Each attempt is written in the cell's worker log, a retry said on stderr (``program``
+    names the command). An episode that cannot be recorded (a full disk) is not retried: its
+    OSError goes up at once."""
+    name = cell_name(cell)
+    wanted = EpisodeRanges.of(cell.episodes)
+    delivered: Set[int] = set()
+
+    def take(row, steps) -> None:
+        if row.episode not in delivered:     # an attempt starts after the last one ended
+            delivered.add(row.episode)
+            deliver(row, steps)
+            if len(delivered) == len(wanted) and on_all_delivered is not None:
+                on_all_delivered()
+
+    failure = ""
+    for attempt in range(1, MAX_ATTEMPTS + 1):
+        failure = ""
+        missing = without(wanted, delivered)
+        log.write(f"{program}: {name}: attempt {attempt} of {MAX_ATTEMPTS} "
+                  f"({len(missing)} episodes)\n")
+        log.flush()
+        try:
+            _run_worker(dataclasses.replace(cell, episodes=missing), take, log, stopper)
+        except RuntimeError as exc:
+            failure = str(exc)
+        if len(delivered) == len(wanted) or (stopper is not None and stopper.stopping):
+            return
+        failure = failure or "the worker ended without all its episodes"
+        log.write(f"{program}: {name}: attempt {attempt} failed: {failure}\n")
+        log.flush()
+        if attempt < MAX_ATTEMPTS:
+            say(f"{program}: cell {name}: {failure}; its {len(wanted) - len(delivered)} "
+                f"episodes still missing run again (attempt {attempt + 1} of {MAX_ATTEMPTS})")
+    raise RuntimeError(f"failed {MAX_ATTEMPTS} times, the last: "
+                       f"{failure.removeprefix('failed: ')}")
+
+
 def run_grid(cells: List[CellSpec], store, jobs: int,
              stopper: Optional[Stopper] = None, program: str = NAME,
              gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None,
@@ -677,10 +722,10 @@ def run_grid(cells: List[CellSpec], store, jobs: int,
     grids too). A robot cell starts once the ``no_robot`` cells of its (human model, seed) in
     ``cells`` are over (the human alone comes first); ``gate(cell)`` then gives the cell to
     run (fewer episodes, or None: nothing to run). ``worker`` runs one cell (by default
-    :func:`_run_worker`, a local process; on a cluster,
+    :func:`run_local_cell`, local processes; on a cluster,
     :meth:`ros_hrc.experiment.cluster.ClusterRun.run_cell`); ``status()`` leads the progress
     bar's text."""
-    worker = worker or _run_worker
+    worker = worker or functools.partial(run_local_cell, program=program)
     from tqdm import tqdm
 
     stopper = stopper or Stopper()

@@ -54,18 +54,15 @@ from pathlib import Path
 from typing import Any, Callable, Dict, Iterator, List, Optional, Set, Tuple
 
 from ros_hrc.errors import HrcError
-from ros_hrc.experiment.stack import (EPISODE_LINE, CellSpec, EpisodeRanges, cell_name,
-                                      decode_episode, log_tail, port_is_free, stack_log,
-                                      worker_command, write_spec)
+from ros_hrc.experiment.stack import (EPISODE_LINE, MAX_ATTEMPTS, CellSpec, EpisodeRanges,
+                                      cell_name, decode_episode, log_tail, port_is_free, say,
+                                      stack_log, worker_command, write_spec)
 from ros_hrc.link.transport import free_port
 from ros_hrc.process_tree import command_line, group_alive, parent_of
 
 #: The custom resource a cell asks for (one unit), beside one CPU: a machine offers it when
 #: the package is installed there (``make setup``) and Ray was started with it.
 RESOURCE = "ros_hrc"
-#: Attempts per cell: a cell that fails this many times (its node lost, its stack failed) is
-#: reported as failed, with its logs' last lines.
-MAX_ATTEMPTS = 3
 #: Lines of a failed cell's logs brought back from its node.
 TAIL_LINES = 8
 #: How often a task looks whether the driver cancelled it (s).
@@ -531,7 +528,7 @@ class ClusterRun:
 
     def run_cell(self, cell: CellSpec, deliver, log, stopper=None,
                  on_all_delivered: Optional[Callable[[], None]] = None) -> None:
-        """Run one cell on the cluster, as :func:`ros_hrc.experiment.cli._run_worker` runs it
+        """Run one cell on the cluster, as :func:`ros_hrc.experiment.cli.run_local_cell` runs it
         locally: ``deliver(row, steps)`` per episode as it arrives, ``on_all_delivered()``
         once the last one is in. A failed attempt (its node lost, its stack failed) is
         submitted again with the episodes still missing, up to :data:`MAX_ATTEMPTS` attempts;
@@ -606,9 +603,9 @@ class ClusterRun:
             if attempt < MAX_ATTEMPTS:
                 with self._lock:
                     self.retried_cells += 1
-                _say(f"{self.program}: cell {name}: {failure}; its "
-                     f"{len(wanted) - len(delivered)} episodes still missing go back to the "
-                     f"queue (attempt {attempt + 1} of {MAX_ATTEMPTS})")
+                say(f"{self.program}: cell {name}: {failure}; its "
+                    f"{len(wanted) - len(delivered)} episodes still missing go back to the "
+                    f"queue (attempt {attempt + 1} of {MAX_ATTEMPTS})")
         if len(delivered) < len(wanted):
             raise RuntimeError(f"failed {attempt} times on the cluster, the last: {failure}")
 
@@ -694,14 +691,6 @@ def _drain(ray, generator, wait: float = CANCEL_WAIT) -> None:
 def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" + ("" if n == 1 else "s")
 
-
-def _say(text: str) -> None:
-    """A line above the progress bar."""
-    try:
-        from tqdm import tqdm
-        tqdm.write(text, file=sys.stderr)
-    except ImportError:
-        print(text, file=sys.stderr, flush=True)
 
 
 def cell_processes(marker: str) -> List[int]:

@@ -229,6 +229,20 @@ def check_launch_settings(spec: CellSpec) -> Dict[str, Any]:
     return settings.resolve(launch_settings(spec, stand_in))
 
 
+#: Attempts per cell, on this machine's pool as on a cluster: a cell that fails this many
+#: times (its stack failed, its node lost) is reported as failed, with its logs' last lines.
+MAX_ATTEMPTS = 3
+
+
+def say(text: str) -> None:
+    """A line on stderr, above the progress bar of a grid when there is one."""
+    try:
+        from tqdm import tqdm
+        tqdm.write(text, file=sys.stderr)
+    except ImportError:
+        print(text, file=sys.stderr, flush=True)
+
+
 #: What a cell's stack listens on: its roscore and its three websocket links.
 PORT_NAMES = ("master", "pomdp", "robot", "human")
 #: Tries per port before a cell gives up finding one.
@@ -249,7 +263,7 @@ def pick_ports() -> Dict[str, int]:
     """Ports for a cell's master and its three websocket links: all four distinct (the
     kernel may hand the same free port out twice in a row) and each free when picked.
     Another process may still take one before the stack binds it: :class:`StackWatch` then
-    fails the cell at once. Raises CellFailed when no free port turns up."""
+    fails the attempt at once, and the cell runs again on fresh ports. Raises CellFailed when no free port turns up."""
     ports: Dict[str, int] = {}
     for name in PORT_NAMES:
         for _ in range(PORT_ATTEMPTS):

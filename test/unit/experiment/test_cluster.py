@@ -127,6 +127,15 @@ def test_a_cell_that_fails_three_times_is_reported_with_its_log_s_last_lines(tmp
     assert all((Path(log) / "tired-no_robot-seed0.log").exists() for log in logs)
 
 
+def _said(output: Path) -> str:
+    """What a run said, for a failed assertion: its lines about cells that failed or ran again
+    (which the summary would push out of view), then its last lines."""
+    text = output.read_text(errors="replace")
+    marks = ("cell failed", "run again (attempt", "go back to the queue")
+    cells = [line for line in text.splitlines() if any(mark in line for mark in marks)]
+    return "\n".join(cells + ["...", text[-2000:]])
+
+
 def _start(command: list, output: Path) -> subprocess.Popen:
     with open(output, "w") as out:
         return subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=out,
@@ -197,7 +206,7 @@ def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
     """The grid on the cluster, its second node's raylet killed mid-cell, against ``local``."""
     driver = None
     try:
-        assert local.wait(timeout=600) == 0, (tmp_path / "local.out").read_text()[-3000:]
+        assert local.wait(timeout=600) == 0, _said(tmp_path / "local.out")
 
         out = tmp_path / "cluster"
         driver = _start(experiment(*GRID, "--cluster", head.address, "--out", str(out)),
@@ -215,8 +224,8 @@ def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
             time.sleep(0.02)
         driver.wait(timeout=600)
         cluster_out = (tmp_path / "cluster.out").read_text()
-        assert driver.returncode == 0, cluster_out[-3000:]
-        assert killed_cell is not None, cluster_out[-3000:]
+        assert driver.returncode == 0, _said(tmp_path / "cluster.out")
+        assert killed_cell is not None, _said(tmp_path / "cluster.out")
 
         # The rows are the local run's: every episode once, none lost, none twice.
         for name in ("episodes.csv", "steps.csv"):

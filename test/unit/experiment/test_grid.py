@@ -6,6 +6,8 @@ stopped, so these tests see exactly what the experiment would start."""
 import importlib.util
 import json
 import os
+import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -17,8 +19,9 @@ import pytest
 from ros_hrc.experiment.cli import (budgets_argument, build_parser, main, names_argument,
                                     plan_cells, validate_grid)
 from ros_hrc.experiment import stack
-from ros_hrc.experiment.stack import (CellSpec, EpisodeRanges, cell_name, check_launch_settings,
-                                      launch_arguments, read_spec, worker_command, write_spec)
+from ros_hrc.experiment.stack import (MAX_ATTEMPTS, CellSpec, EpisodeRanges, cell_name,
+                                      check_launch_settings, launch_arguments, read_spec,
+                                      worker_command, write_spec)
 from ros_hrc.experiment.store import DirectoryLocked, lock_directory
 from ros_hrc.loop import settings
 from ros_hrc.loop.settings import SettingError
@@ -373,17 +376,19 @@ def fake_roslaunch(fake_ros, script: str):
 @pytest.mark.skipif(importlib.util.find_spec("rospy") is None, reason="the worker needs rospy")
 def test_a_stack_that_dies_at_start_fails_its_cell_at_once_with_its_log(tmp_path, fake_ros):
     """Before: waited on silently for 602 s (the master, then the first step), then a
-    traceback; here the test's 120 s timeout would end it."""
+    traceback; here the test's 120 s timeout would end it. Each of the cell's attempts fails
+    at once; after the last one the cell fails with its log's last lines."""
     env, log = fake_roslaunch(fake_ros, DYING_ROSLAUNCH)
     out = tmp_path / "out"
     done = run_experiment(env, "--human-models", "tired", "--policies", "no_robot", "--seeds",
                           "0", "--episodes", "1", "--out", str(out), "--no-plots")
     assert done.returncode == 1, done.stderr
-    assert log.read_text().count("start ") == 1
+    assert log.read_text().count("start ") == MAX_ATTEMPTS
+    assert done.stderr.count("its 1 episodes still missing run again") == MAX_ATTEMPTS - 1
     failed = [line for line in (done.stdout + done.stderr).splitlines() if "cell failed" in line]
     assert len(failed) == 1, done.stdout + done.stderr
-    assert "cell failed: tired-no_robot-seed0: failed: hrc.launch exited (1); last lines of " \
-        in failed[0]
+    assert f"cell failed: tired-no_robot-seed0: failed {MAX_ATTEMPTS} times, the last: " \
+        "hrc.launch exited (1); last lines of " in failed[0]
     assert "No space left on device: '/full/disk/log'" in failed[0]
     assert "Traceback" not in done.stderr + done.stdout
 
@@ -398,11 +403,73 @@ def test_a_link_that_cannot_bind_fails_its_cell_at_once(tmp_path, fake_ros):
     assert done.returncode == 1, done.stderr
     failed = [line for line in (done.stdout + done.stderr).splitlines() if "cell failed" in line]
     assert len(failed) == 1, done.stdout + done.stderr
-    assert failed[0].endswith("tired-no_robot-seed0: failed: [FATAL] hrc_human: cannot listen on "
+    assert failed[0].endswith(f"tired-no_robot-seed0: failed {MAX_ATTEMPTS} times, the last: "
+                              "[FATAL] hrc_human: cannot listen on "
                               "127.0.0.1:9: [Errno 98] Address already in use (see "
                               f"{out}/logs/tired-no_robot-seed0.log)")
     pid = int(log.read_text().split()[1])
     assert f"SIGINT {pid}" in log.read_text(), "the stack was stopped"
+
+
+#: A stack lost in the middle of its cell's first attempt (after two episodes): the wrapper
+#: starts the real roslaunch, then kills its whole process group, itself included. Every
+#: later attempt is the real roslaunch.
+LOST_FIRST_ROSLAUNCH = """#!/bin/sh
+echo "start $$ $*" >> "$FAKE_ROSLAUNCH_LOG"
+if [ -e "$FAKE_ROSLAUNCH_LOG.first" ]; then exec "$REAL_ROSLAUNCH" "$@"; fi
+: > "$FAKE_ROSLAUNCH_LOG.first"
+"$REAL_ROSLAUNCH" "$@" &
+rows=0
+while [ "$rows" -lt 3 ]; do
+  sleep 0.05
+  if [ -f "$EPISODES_CSV" ]; then rows=$(wc -l < "$EPISODES_CSV"); fi
+done
+kill -9 0
+"""
+
+HAS_STACK = importlib.util.find_spec("rospy") is not None and shutil.which("roslaunch")
+
+
+@pytest.mark.skipif(not HAS_STACK, reason="needs the built stack")
+def test_a_stack_lost_mid_cell_runs_again_for_the_missing_episodes_only(tmp_path, fake_ros):
+    """A cell's stack can fail for a moment's reason (a port another program took between
+    its pick and its bind, a node killed): the cell runs again with the episodes still
+    missing, on fresh ports, and the rows are those of a run that never failed. Before, the
+    cell failed and the user had to run the grid again."""
+    grid = ("--human-models", "tired", "--policies", "no_robot", "--seeds", "3",
+            "--episodes", "12", "--step-limit", "8", "--no-plots")
+    env, log = fake_roslaunch(fake_ros, LOST_FIRST_ROSLAUNCH)
+    out = tmp_path / "out"
+    env.update(REAL_ROSLAUNCH=shutil.which("roslaunch"), EPISODES_CSV=str(out / "episodes.csv"))
+    done = subprocess.run(experiment(*grid, "--out", str(out)), env=env, capture_output=True,
+                          text=True, timeout=600, stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert log.read_text().count("start ") == 2
+    # Two episodes at least were in when the stack was lost (another may have come since).
+    again = re.search(r"its (\d+) episodes still missing run again \(attempt 2 of 3\)",
+                      done.stderr)
+    assert again and 1 <= int(again.group(1)) <= 10, done.stderr
+    worker_log = (out / "logs" / "tired-no_robot-seed3.worker.log").read_text()
+    assert f"attempt 2 of 3 ({again.group(1)} episodes)" in worker_log, worker_log
+
+    clean = subprocess.run(experiment(*grid, "--out", str(tmp_path / "clean")),
+                           capture_output=True, text=True, timeout=600,
+                           stdin=subprocess.DEVNULL)
+    assert clean.returncode == 0, clean.stderr[-3000:]
+    timed = {"mean_decision_ms", "wall_seconds"}
+    for name in ("episodes.csv", "steps.csv"):
+        rows = [csv_rows(path / name, timed) for path in (out, tmp_path / "clean")]
+        assert rows[0] == rows[1], name
+    assert [row["episode"] for row in csv_rows(out / "episodes.csv", timed)] == \
+        [str(n) for n in range(12)]
+
+
+def csv_rows(path: Path, drop=frozenset()) -> list:
+    """The rows of a CSV file (without the ``drop`` columns), sorted by episode and step."""
+    import csv
+    with open(path, newline="") as f:
+        rows = [{k: v for k, v in row.items() if k not in drop} for row in csv.DictReader(f)]
+    return sorted(rows, key=lambda row: (int(row["episode"]), int(row.get("step", 0))))
 
 
 def test_experiment_launch_defaults_are_the_command_s_own():
