@@ -1,6 +1,7 @@
 """The machine's process tree, read from /proc (no ROS): who is whose parent, what a process
 runs. Shared by the world's guard (hrc_guard), the world node and the solvers, which each need
-to find the roslaunch that started them, and by the Ray nodes of ``--cluster``."""
+to find the roslaunch that started them, by the Ray nodes of ``--cluster``, and by a study's
+cells, which find what is left of a stack whose roslaunch died."""
 from __future__ import annotations
 
 import os
@@ -52,3 +53,11 @@ def is_roslaunch(pid: int) -> bool:
     """Whether process ``pid`` runs roslaunch (``roslaunch ...``, ``python3 .../roslaunch``
     or ``python3 -m roslaunch``)."""
     return any(os.path.basename(word) == "roslaunch" for word in command_line(pid)[:3])
+
+
+def processes_naming(marker: str) -> List[int]:
+    """This machine's processes (but this one) whose command line has a word containing
+    ``marker``."""
+    own = os.getpid()
+    return [pid for pid in all_pids()
+            if pid != own and any(marker in word for word in command_line(pid))]

@@ -58,7 +58,7 @@ from ros_hrc.experiment.stack import (EPISODE_LINE, MAX_ATTEMPTS, CellSpec, Epis
                                       cell_name, decode_episode, log_tail, port_is_free, say,
                                       stack_log, worker_command, write_spec)
 from ros_hrc.link.transport import free_port
-from ros_hrc.process_tree import command_line, group_alive, parent_of
+from ros_hrc.process_tree import command_line, group_alive, parent_of, processes_naming
 
 #: The custom resource a cell asks for (one unit), beside one CPU: a machine offers it when
 #: the package is installed there (``make setup``) and Ray was started with it.
@@ -693,23 +693,11 @@ def _count(n: int, noun: str) -> str:
 
 
 
-def cell_processes(marker: str) -> List[int]:
-    """This machine's processes whose command line names ``marker`` (a run's id, or a node's
-    directory): a cell's keeper and worker (their spec file) and its stack (its model files)."""
-    own = os.getpid()
-    found = []
-    for entry in os.listdir("/proc"):
-        if entry.isdigit() and int(entry) != own and \
-                any(marker in word for word in command_line(int(entry))):
-            found.append(int(entry))
-    return found
-
-
 def wait_for_cells(marker: str, wait: float) -> bool:
     """Wait until no process of this machine names ``marker`` (the cells of a run stopped
     their stacks), at most ``wait`` s; whether none is left."""
     deadline = time.monotonic() + wait
-    while cell_processes(marker):
+    while processes_naming(marker):
         if time.monotonic() > deadline:
             return False
         time.sleep(0.2)

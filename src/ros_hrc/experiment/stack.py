@@ -24,6 +24,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
@@ -33,6 +34,7 @@ from ros_hrc.experiment.store import EpisodeRow, StepRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
 from ros_hrc.loop import settings
 from ros_hrc.loop.streams import EpisodeSchedule
+from ros_hrc.process_tree import processes_naming
 from ros_hrc.pomdp.output import write_text_atomically
 
 #: The module a worker process runs (``python -m``).
@@ -276,11 +278,17 @@ def pick_ports() -> Dict[str, int]:
     return ports
 
 
-def stack_environment(ports: Mapping[str, int], log_dir: Path) -> Dict[str, str]:
+def stack_environment(spec: CellSpec, ports: Mapping[str, int], log_dir: Path) -> Dict[str, str]:
     """The environment a cell's processes (roslaunch, and the worker's own node) share: the
-    cell's own master, logs under the cell's log folder."""
+    cell's own master, ROS's logs in a folder of the cell's own (:func:`ros_log_dir`)."""
     return {"ROS_MASTER_URI": f"http://127.0.0.1:{ports['master']}",
-            "ROS_LOG_DIR": str(Path(log_dir) / "ros")}
+            "ROS_LOG_DIR": str(ros_log_dir(spec, log_dir))}
+
+
+def ros_log_dir(spec: CellSpec, log_dir: Path) -> Path:
+    """Where a cell's ROS processes log (``<log_dir>/ros/<cell>``): each of them names it in
+    its ``__log:=`` argument, which tells a cell's processes from another's."""
+    return Path(log_dir) / "ros" / cell_name(spec)
 
 
 def stack_log(spec: CellSpec, log_dir: Path) -> Path:
@@ -290,11 +298,11 @@ def stack_log(spec: CellSpec, log_dir: Path) -> Path:
 
 def start_stack(spec: CellSpec, ports: Mapping[str, int], log_dir: Path) -> subprocess.Popen:
     """Start the cell's ``hrc.launch`` (with a roscore on ``ports['master']``) in a session of
-    its own, output into :func:`stack_log`. Stop it with :func:`stop_launched`."""
+    its own, output into :func:`stack_log`. Stop it with :func:`stop_stack`."""
     log_dir = Path(log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ)
-    env.update(stack_environment(ports, log_dir))
+    env.update(stack_environment(spec, ports, log_dir))
     cmd = ["roslaunch", "-p", str(ports["master"]), "ros_hrc", "hrc.launch"]
     cmd += launch_arguments(spec, ports)
     with open(stack_log(spec, log_dir), "wb") as log:
@@ -383,6 +391,32 @@ def stop_launched(proc: subprocess.Popen, grace: float = 60.0) -> None:
             except ProcessLookupError:
                 pass
             proc.wait()
+
+
+#: Seconds the processes left of a stack get to end on SIGTERM before SIGKILL.
+LEFTOVER_GRACE = 10.0
+
+
+def stop_stack(proc: subprocess.Popen, spec: CellSpec, log_dir: Path,
+               grace: float = 60.0) -> List[int]:
+    """Stop a cell's ``hrc.launch`` (:func:`stop_launched`), then what is left of it: roslaunch
+    runs each node in a session of its own, so a roslaunch that died without stopping them
+    (SIGKILL, the OOM killer) leaves its master and nodes running, and stepping. Those
+    (found by their ``__log:=`` in :func:`ros_log_dir`) get SIGTERM, then SIGKILL after
+    :data:`LEFTOVER_GRACE` s. Returns the pids of the leftovers."""
+    stop_launched(proc, grace)
+    marker = f"__log:={ros_log_dir(spec, log_dir)}/"
+    leftovers = processes_naming(marker)
+    for signum in (signal.SIGTERM, signal.SIGKILL):
+        for pid in processes_naming(marker):
+            try:
+                os.kill(pid, signum)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + LEFTOVER_GRACE
+        while processes_naming(marker) and time.monotonic() < deadline:
+            time.sleep(0.1)
+    return leftovers
 
 
 #: Prefix of a worker's stdout line carrying a finished episode.

@@ -37,7 +37,7 @@ from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import score_episode, step_rows
 from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch, cell_name,
                                       encode_episode, pick_ports, read_spec, stack_environment,
-                                      stack_log, start_stack, stop_launched)
+                                      stack_log, start_stack, stop_launched, stop_stack)
 from ros_hrc.experiment.store import EpisodeRow
 from ros_hrc.loop.models import load_robot_model, positional_mapping_line
 from ros_hrc.msg import Status
@@ -238,7 +238,7 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
     ports = pick_ports()
     log_dir = Path(spec.log_dir)
     # This process's own node talks to the cell's master too.
-    os.environ.update(stack_environment(ports, log_dir))
+    os.environ.update(stack_environment(spec, ports, log_dir))
     proc = None
     try:
         with SIGNALS.deferred():   # started means stopped in the finally, even on a signal
@@ -247,7 +247,11 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
     finally:
         SIGNALS.disarm()
         if proc is not None:
-            stop_launched(proc, SIGNALS.grace())
+            left = stop_stack(proc, spec, log_dir, SIGNALS.grace())
+            if left:
+                print(f"{cell_name(spec)}: hrc.launch left {len(left)} processes running "
+                      f"(its nodes run in sessions of their own); stopped them",
+                      file=sys.stderr, flush=True)
 
 
 def main(argv: Optional[List[str]] = None) -> int:

@@ -24,6 +24,7 @@ from ros_hrc.experiment.stack import (MAX_ATTEMPTS, CellSpec, EpisodeRanges, cel
                                       worker_command, write_spec)
 from ros_hrc.experiment.store import DirectoryLocked, lock_directory
 from ros_hrc.loop import settings
+from ros_hrc.process_tree import processes_naming
 from ros_hrc.loop.settings import SettingError
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -412,8 +413,9 @@ def test_a_link_that_cannot_bind_fails_its_cell_at_once(tmp_path, fake_ros):
 
 
 #: A stack lost in the middle of its cell's first attempt (after two episodes): the wrapper
-#: starts the real roslaunch, then kills its whole process group, itself included. Every
-#: later attempt is the real roslaunch.
+#: starts the real roslaunch, then SIGKILLs its process group, itself and roslaunch included
+#: (not the nodes: roslaunch starts each in a session of its own). Every later attempt is the
+#: real roslaunch.
 LOST_FIRST_ROSLAUNCH = """#!/bin/sh
 echo "start $$ $*" >> "$FAKE_ROSLAUNCH_LOG"
 if [ -e "$FAKE_ROSLAUNCH_LOG.first" ]; then exec "$REAL_ROSLAUNCH" "$@"; fi
@@ -435,7 +437,8 @@ def test_a_stack_lost_mid_cell_runs_again_for_the_missing_episodes_only(tmp_path
     """A cell's stack can fail for a moment's reason (a port another program took between
     its pick and its bind, a node killed): the cell runs again with the episodes still
     missing, on fresh ports, and the rows are those of a run that never failed. Before, the
-    cell failed and the user had to run the grid again."""
+    cell failed and the user had to run the grid again. The nodes the dead roslaunch left
+    are stopped; before, they ran on."""
     grid = ("--human-models", "tired", "--policies", "no_robot", "--seeds", "3",
             "--episodes", "12", "--step-limit", "8", "--no-plots")
     env, log = fake_roslaunch(fake_ros, LOST_FIRST_ROSLAUNCH)
@@ -451,6 +454,8 @@ def test_a_stack_lost_mid_cell_runs_again_for_the_missing_episodes_only(tmp_path
     assert again and 1 <= int(again.group(1)) <= 10, done.stderr
     worker_log = (out / "logs" / "tired-no_robot-seed3.worker.log").read_text()
     assert f"attempt 2 of 3 ({again.group(1)} episodes)" in worker_log, worker_log
+    assert re.search(r"tired-no_robot-seed3: hrc.launch left \d+ processes running", worker_log)
+    assert not processes_naming(str(out / "logs" / "ros")), "the lost stack's nodes run on"
 
     clean = subprocess.run(experiment(*grid, "--out", str(tmp_path / "clean")),
                            capture_output=True, text=True, timeout=600,
