@@ -1,9 +1,12 @@
-"""What every ros_hrc node shares: reading its parameters once, calling Trigger services,
-waiting (however long it takes, saying so) for the services a node needs before it starts,
-and routing the ROS-free rooms' Python logging to the node's terminal."""
+"""What every ros_hrc node shares: starting as a node whose connections one bad client cannot
+stall, reading its parameters once, calling Trigger services, waiting (however long it takes,
+saying so) for the services a node needs before it starts, and routing the ROS-free rooms'
+Python logging to the node's terminal."""
 from __future__ import annotations
 
 import logging
+import socket
+import struct
 import threading
 import time
 from dataclasses import fields
@@ -47,13 +50,92 @@ def route_python_logging(level: int = logging.INFO) -> None:
     logger.setLevel(level)
 
 
+#: Seconds a client that connects to a node's TCPROS port gets to send its whole handshake
+#: header before the node closes the connection.
+HANDSHAKE_WAIT = 10.0
+#: The largest handshake header rospy itself reads (bytes).
+MAX_HEADER = 1_000_000
+
+
+def init_node(name: str, **kwargs: Any) -> None:
+    """``rospy.init_node`` for every ros_hrc node, its TCPROS server guarded first
+    (:func:`guard_inbound_connections`)."""
+    guard_inbound_connections()
+    rospy.init_node(name, **kwargs)
+
+
+def guard_inbound_connections() -> None:
+    """Make this process's rospy TCPROS server take each inbound connection on a thread of its
+    own, and close one whose handshake header has not come whole in :data:`HANDSHAKE_WAIT` s.
+
+    Why: rospy's server accepts connections one at a time and reads each header with no time
+    limit on the accepting thread, so a single client that connects and sends no header stalls
+    every later connection to the node (its services, its topics) for good. It happened in a
+    test that restarts the stack on one master: a new hrc_obs's TCPROS server got the port
+    the previous hrc_obs's XML-RPC server had; a client that still held the old address sent
+    its HTTP request there, which rospy read as a header of 1.4 GB and waited for, and the
+    new hrc_human's first reset (/hrc/obs/reset_planner) hung until the test gave up. The
+    same can follow any node's respawn. Call before rospy.init_node; once per process."""
+    from rospy.impl import tcpros_base
+    server = tcpros_base.TCPROSServer
+    if getattr(server, "_hrc_guarded", False):
+        return
+    handle = server._tcp_server_callback
+
+    def inbound(self, sock, client_addr) -> None:
+        def run() -> None:
+            if handshake_arrives(sock, HANDSHAKE_WAIT):
+                handle(self, sock, client_addr)
+            else:
+                rospy.logdebug("closing a connection from %s that sent no ROS handshake in "
+                               "%.0f s", client_addr, HANDSHAKE_WAIT)
+                sock.close()
+        threading.Thread(target=run, name="tcpros-inbound", daemon=True).start()
+
+    server._tcp_server_callback = inbound
+    server._hrc_guarded = True
+
+
+def handshake_arrives(sock: socket.socket, wait: float) -> bool:
+    """Whether a whole TCPROS handshake header (a 4-byte little-endian length, then that many
+    bytes, at most :data:`MAX_HEADER`) is waiting on ``sock`` within ``wait`` s. It is only
+    peeked at (MSG_PEEK), left for rospy to read; the socket is blocking again after. A
+    connection closed before any byte counts as arrived: rospy then says what it got."""
+    deadline = time.monotonic() + wait
+    need = 4
+    try:
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            sock.settimeout(left)
+            data = sock.recv(need, socket.MSG_PEEK)
+            if not data:
+                return True
+            if len(data) >= 4:
+                size = struct.unpack("<I", data[:4])[0]
+                if size > MAX_HEADER:
+                    return False
+                need = 4 + size
+            if len(data) >= need:
+                return True
+            time.sleep(0.005)   # part of it is in: a blocking peek would return at once
+    except OSError:            # timed out, or reset
+        return False
+    finally:
+        try:
+            sock.settimeout(None)
+        except OSError:
+            pass
+
+
 def init_node_when_master_is_up(name: str, wait: float = 60.0) -> None:
-    """rospy.init_node (anonymous, without rospy's signal handlers), retried while the roscore
-    that the caller has just launched is starting."""
+    """:func:`init_node` (anonymous, without rospy's signal handlers), retried while the
+    roscore that the caller has just launched is starting."""
     deadline = time.monotonic() + wait
     while True:
         try:
-            rospy.init_node(name, anonymous=True, disable_signals=True)
+            init_node(name, anonymous=True, disable_signals=True)
             return
         except Exception:  # the master is not up yet
             if time.monotonic() > deadline:

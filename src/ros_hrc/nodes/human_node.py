@@ -80,8 +80,8 @@ from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort,
                                  WorldPort)
 from ros_hrc.loop.streams import WORLD_EPISODE_PARAM, EpisodeSchedule
 from ros_hrc.msg import Status
-from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, read_config,
-                                  registered_services, route_python_logging)
+from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, init_node,
+                                  read_config, registered_services, route_python_logging)
 from ros_hrc.srv import (Decide, GetWorldState, ResetPlanner, SetHumanState,
                          SetHumanStateResponse)
 
@@ -525,7 +525,7 @@ def _isatty(stream: TextIO) -> bool:
 
 
 def main() -> None:
-    rospy.init_node("hrc_human")
+    init_node("hrc_human")
     route_python_logging()
     try:
         node = HumanNode(read_config(HumanNodeConfig))

@@ -32,7 +32,7 @@ from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import Ack, Decision, Error, Observation, Reset
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, link_url
-from ros_hrc.nodes.common import read_config, route_python_logging
+from ros_hrc.nodes.common import init_node, read_config, route_python_logging
 from ros_hrc.srv import Decide, DecideResponse, ResetPlanner, ResetPlannerResponse
 
 
@@ -100,7 +100,7 @@ class ObsNode:
 
 
 def main() -> None:
-    rospy.init_node("hrc_obs")
+    init_node("hrc_obs")
     route_python_logging()
     try:
         node = ObsNode(read_config(ObsNodeConfig))

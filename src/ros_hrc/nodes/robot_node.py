@@ -37,7 +37,7 @@ from ros_hrc.link.protocol import (ERR_FAILED, ERR_INVALID, ERR_REFUSED, ERR_SEA
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc import tasks
-from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, read_config,
+from ros_hrc.nodes.common import (ServiceUnavailable, TriggerCaller, init_node, read_config,
                                   route_python_logging)
 
 
@@ -128,7 +128,7 @@ class RobotNode:
 
 
 def main() -> None:
-    rospy.init_node("hrc_robot")
+    init_node("hrc_robot")
     route_python_logging()
     try:
         node = RobotNode(read_config(RobotNodeConfig))

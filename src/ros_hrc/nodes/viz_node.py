@@ -33,6 +33,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ros_hrc.loop.display import belief_bars, holder_text, is_reset_caption, status_lines
 from ros_hrc.msg import Status
+from ros_hrc.nodes.common import init_node
 from ros_hrc.world.object import ObjectConfig
 
 #: The object's colour in the world (PyBullet's window and snapshots).
@@ -162,7 +163,7 @@ class VizNode:
 
 def main() -> None:
     """Entry point of ``scripts/hrc_viz``."""
-    rospy.init_node("hrc_viz")
+    init_node("hrc_viz")
     VizNode()
     rospy.loginfo("hrc_viz: the steps of /hrc/status as markers on /hrc/markers")
     rospy.spin()

@@ -102,6 +102,7 @@ from ros_hrc.loop import settings
 from ros_hrc.loop.display import StepCaption
 from ros_hrc.loop.streams import WORLD_EPISODE_PARAM
 from ros_hrc.msg import Status, WorldState
+from ros_hrc.nodes.common import init_node
 from ros_hrc.nodes.guard import is_guard
 from ros_hrc.process_tree import is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
@@ -520,7 +521,7 @@ class WorldNode:
 
 def main() -> None:
     """Entry point of ``scripts/hrc_world``."""
-    rospy.init_node("hrc_world")
+    init_node("hrc_world")
     try:
         config = WorldNodeConfig.from_params()
         node = WorldNode(config)

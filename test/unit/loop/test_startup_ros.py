@@ -203,3 +203,56 @@ def test_with_wait_for_listener_no_episode_starts_before_someone_listens(ros, tm
         assert reset.episode == 1
     finally:
         mdp.close()
+
+
+#: A node started the way every ros_hrc node starts (ros_hrc.nodes.common.init_node), with
+#: one Trigger service; its TCPROS port is printed.
+SERVICE_NODE = textwrap.dedent('''
+    import sys
+    import rosgraph
+    import rospy
+    from std_srvs.srv import Trigger, TriggerResponse
+    from ros_hrc.nodes.common import init_node
+
+    init_node("a_node", disable_signals=True)
+    keep = rospy.Service("/a_node/ping", Trigger, lambda _req: TriggerResponse(True, "pong"))
+    uri = rosgraph.Master("/a_node").lookupService("/a_node/ping")
+    print("service at", uri, flush=True)
+    sys.stdin.read()   # until the test closes our stdin
+''')
+
+
+def test_a_client_that_sends_no_handshake_does_not_stall_a_node(ros, tmp_path):
+    """Before: rospy reads each inbound connection's header on its accepting thread with no
+    time limit. A client that connected to a node's TCPROS port and sent no header (here an
+    HTTP request, as from a client that held an old XML-RPC address on that port) stalled
+    every later connection to the node: its services hung for good, and a whole stack stood
+    still (hrc.test, on CI). Now the node takes each connection on a thread of its own."""
+    import socket
+    env, start = ros
+    script = tmp_path / "service_node.py"
+    script.write_text(SERVICE_NODE)
+    start([sys.executable, str(script)], "node", stdin=subprocess.PIPE)
+    assert wait_for_text(tmp_path, "node", "service at rosrpc://"), read(tmp_path, "node")
+    uri = read(tmp_path, "node").split("service at rosrpc://")[1].split()[0]
+    host, port = uri.rsplit(":", 1)
+    stale = [socket.create_connection((host, int(port)), timeout=10) for _ in range(3)]
+    try:
+        stale[0].sendall(b"POST /RPC2 HTTP/1.1\r\nHost: vm\r\nContent-Length: 300\r\n\r\n")
+        stale[1].sendall(b"\x10\x00")       # a header's first bytes, and no more
+        # (stale[2] sends nothing at all.)
+        answer = subprocess.run(["rosservice", "call", "/a_node/ping"], env=env,
+                                capture_output=True, text=True, timeout=60,
+                                stdin=subprocess.DEVNULL)
+        assert answer.returncode == 0, answer.stderr
+        assert "pong" in answer.stdout, answer.stdout
+        # The stalled connections are closed by the node once their handshake is overdue.
+        for sock in stale:
+            sock.settimeout(60)
+            try:
+                assert sock.recv(100) == b"", "the node answered a connection without a handshake"
+            except ConnectionResetError:   # closed with our bytes unread
+                pass
+    finally:
+        for sock in stale:
+            sock.close()
