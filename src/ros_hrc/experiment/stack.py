@@ -265,7 +265,8 @@ def pick_ports() -> Dict[str, int]:
     """Ports for a cell's master and its three websocket links: all four distinct (the
     kernel may hand the same free port out twice in a row) and each free when picked.
     Another process may still take one before the stack binds it: :class:`StackWatch` then
-    fails the attempt at once, and the cell runs again on fresh ports. Raises CellFailed when no free port turns up."""
+    fails the attempt at once, and the cell runs again on fresh ports. Raises CellFailed
+    when no free port turns up."""
     ports: Dict[str, int] = {}
     for name in PORT_NAMES:
         for _ in range(PORT_ATTEMPTS):
@@ -278,7 +279,8 @@ def pick_ports() -> Dict[str, int]:
     return ports
 
 
-def stack_environment(spec: CellSpec, ports: Mapping[str, int], log_dir: Path) -> Dict[str, str]:
+def stack_environment(spec: CellSpec, ports: Mapping[str, int],
+                      log_dir: Path) -> Dict[str, str]:
     """The environment a cell's processes (roslaunch, and the worker's own node) share: the
     cell's own master, ROS's logs in a folder of the cell's own (:func:`ros_log_dir`)."""
     return {"ROS_MASTER_URI": f"http://127.0.0.1:{ports['master']}",
