@@ -683,13 +683,13 @@ def run_local_cell(cell: CellSpec, deliver, log, stopper: Optional[Stopper] = No
     delivered: Set[int] = set()
 
     def take(row, steps) -> None:
-        if row.episode not in delivered:     # an attempt starts after the last one ended
-            delivered.add(row.episode)
-            deliver(row, steps)
-            if len(delivered) == len(wanted) and on_all_delivered is not None:
-                on_all_delivered()
+        # (Attempts run one after another, each without the episodes delivered before it:
+        # none comes twice.)
+        delivered.add(row.episode)
+        deliver(row, steps)
+        if len(delivered) == len(wanted) and on_all_delivered is not None:
+            on_all_delivered()
 
-    failure = ""
     for attempt in range(1, MAX_ATTEMPTS + 1):
         failure = ""
         missing = without(wanted, delivered)

@@ -408,16 +408,17 @@ def stop_stack(proc: subprocess.Popen, spec: CellSpec, log_dir: Path,
     :data:`LEFTOVER_GRACE` s. Returns the pids of the leftovers."""
     stop_launched(proc, grace)
     marker = f"__log:={ros_log_dir(spec, log_dir)}/"
-    leftovers = processes_naming(marker)
+    leftovers = left = processes_naming(marker)
     for signum in (signal.SIGTERM, signal.SIGKILL):
-        for pid in processes_naming(marker):
+        for pid in left:
             try:
                 os.kill(pid, signum)
             except ProcessLookupError:
                 pass
         deadline = time.monotonic() + LEFTOVER_GRACE
-        while processes_naming(marker) and time.monotonic() < deadline:
+        while left and time.monotonic() < deadline:
             time.sleep(0.1)
+            left = processes_naming(marker)
     return leftovers
 
 

@@ -602,17 +602,7 @@ class _BeliefSet:
         B = np.atleast_2d(B)
         weights = np.broadcast_to(np.asarray(weights, dtype=float), (B.shape[0],))
         for b, w in zip(B, weights):
-            key = _belief_key(b)
-            i = self._keys.get(key)
-            if i is None:
-                if self.capacity is not None and len(self._rows) >= self.capacity:
-                    continue                   # full: the memory budget is spent
-                self._keys[key] = len(self._rows)
-                self._rows.append(b.copy())
-                self._weights.append(float(w))
-                self._expanded.append(False)
-            elif w > self._weights[i]:
-                self._weights[i] = float(w)
+            self.add_one(b, w)
 
     def add_one(self, b: np.ndarray, weight: float, key: Optional[bytes] = None) -> None:
         """``add`` for one belief; ``key``: its ``_belief_key`` if known."""

@@ -7,7 +7,6 @@ no master is needed beforehand), kills the second node's raylet once that node h
 episode, and checks the rows against the same grid run by the local pool. The others need no
 Ray cluster."""
 import contextlib
-import csv
 import importlib.util
 import json
 import os
@@ -24,6 +23,7 @@ import pytest
 from ros_hrc.experiment.cluster import (PortSource, RayNode, cluster_argument, contains,
                                         wait_for_cells, without)
 from ros_hrc.experiment.stack import EpisodeRanges
+from result_rows import TIMED_COLUMNS, rows_of
 
 HAS_RAY = importlib.util.find_spec("ray") is not None
 HAS_STACK = importlib.util.find_spec("rospy") is not None and shutil.which("roslaunch")
@@ -35,8 +35,6 @@ HAS_STACK = importlib.util.find_spec("rospy") is not None and shutil.which("rosl
 EPISODES = 24
 GRID = ["--human-models", "tired,distracted", "--policies", "no_robot,reactive", "--seeds", "0",
         "--episodes", str(EPISODES), "--step-limit", "8", "--no-plots"]
-#: Columns that measure this machine's speed, not the episode.
-TIMED_COLUMNS = {"mean_decision_ms", "wall_seconds"}
 #: Ray's ports for the test's nodes (each taken only when free).
 RAY_PORTS = (23311, 23999)
 
@@ -44,10 +42,6 @@ RAY_PORTS = (23311, 23999)
 def experiment(*args: str) -> list:
     return [sys.executable, "-m", "ros_hrc.experiment.cli", *args]
 
-
-def rows_of(path: Path, drop=frozenset()) -> list:
-    with open(path, newline="") as f:
-        return [{k: v for k, v in row.items() if k not in drop} for row in csv.DictReader(f)]
 
 
 def key(row: dict) -> tuple:

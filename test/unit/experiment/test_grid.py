@@ -25,6 +25,7 @@ from ros_hrc.experiment.stack import (MAX_ATTEMPTS, CellSpec, EpisodeRanges, cel
 from ros_hrc.experiment.store import DirectoryLocked, lock_directory
 from ros_hrc.loop import settings
 from ros_hrc.process_tree import processes_naming
+from result_rows import TIMED_COLUMNS, rows_of
 from ros_hrc.loop.settings import SettingError
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -461,20 +462,16 @@ def test_a_stack_lost_mid_cell_runs_again_for_the_missing_episodes_only(tmp_path
                            capture_output=True, text=True, timeout=600,
                            stdin=subprocess.DEVNULL)
     assert clean.returncode == 0, clean.stderr[-3000:]
-    timed = {"mean_decision_ms", "wall_seconds"}
     for name in ("episodes.csv", "steps.csv"):
-        rows = [csv_rows(path / name, timed) for path in (out, tmp_path / "clean")]
+        rows = [sorted(rows_of(path / name, TIMED_COLUMNS), key=by_episode_and_step)
+                for path in (out, tmp_path / "clean")]
         assert rows[0] == rows[1], name
-    assert [row["episode"] for row in csv_rows(out / "episodes.csv", timed)] == \
-        [str(n) for n in range(12)]
+    assert sorted(int(row["episode"]) for row in rows_of(out / "episodes.csv")) == \
+        list(range(12))
 
 
-def csv_rows(path: Path, drop=frozenset()) -> list:
-    """The rows of a CSV file (without the ``drop`` columns), sorted by episode and step."""
-    import csv
-    with open(path, newline="") as f:
-        rows = [{k: v for k, v in row.items() if k not in drop} for row in csv.DictReader(f)]
-    return sorted(rows, key=lambda row: (int(row["episode"]), int(row.get("step", 0))))
+def by_episode_and_step(row: dict) -> tuple:
+    return int(row["episode"]), int(row.get("step", 0))
 
 
 def test_experiment_launch_defaults_are_the_command_s_own():
