@@ -47,7 +47,7 @@ def parse_launch_options(parser: argparse.ArgumentParser,
     resolved in the directory the user ran roslaunch from. An option on the command line still
     wins. Settings that cannot be read are argparse's one-line error (exit status 2)."""
     from ros_hrc.link.token import TokenError, read_session_settings
-    from ros_hrc.loop.settings import use_as_defaults
+    from ros_hrc.settings import use_as_defaults
 
     words = own_arguments(argv)
     known, _rest = parser.parse_known_args(words)

@@ -11,7 +11,7 @@ import time
 import rospy
 
 from ros_hrc.experiment.stack import stop_launched
-from ros_hrc.loop import task
+from ros_hrc.tasks import seed as task
 from ros_hrc.nodes.guard import children_of
 from ros_hrc.process_tree import parent_of
 from ros_hrc.msg import Status, WorldState

@@ -163,7 +163,7 @@ class TestWholeLoop(unittest.TestCase):
         # HRC_RECORD_SEEDED_RUN=1 rewrites the record (only for a deliberate change of the
         # world's or planners' behaviour, said in the commit). Re-recorded once, on purpose,
         # for issue #21: each episode's human, world and planner now draw from the streams of
-        # (seed, episode, role) (ros_hrc.loop.streams), no longer from seed + episode - 1 and
+        # (seed, episode, role) (ros_hrc.streams), no longer from seed + episode - 1 and
         # streams that ran on across episodes, so every episode of the record changed.
         steps = [list(record) for record in self.run_steps(
             SEEDED_RUN_STEPS, "seed:=5", "time_per_step:=30", "max_trials:=100",

@@ -1,10 +1,10 @@
 """What a watcher is shown of a step (ros_hrc.loop.display) and the agents' descriptions for
-RViz (ros_hrc.description): no ROS, no PyBullet."""
+RViz (ros_hrc.commands.description): no ROS, no PyBullet."""
 from types import SimpleNamespace
 import xml.etree.ElementTree as ElementTree
 
-from ros_hrc.description import main as description_main
-from ros_hrc.description import prefixed_description
+from ros_hrc.commands.description import main as description_main
+from ros_hrc.commands.description import prefixed_description
 from ros_hrc.loop.display import StepCaption, belief_bars, status_lines
 
 STATES = ("S0", "S1", "S2", "S3", "S4", "S5", "S6")

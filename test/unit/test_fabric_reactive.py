@@ -1,17 +1,17 @@
 """FABRIC's reactive MDP robot (issue #22): the authors' observation -> MDP-state rules in
 order (ros_hrc.tasks.fabric_reactive), the MDP's optimal policy computed by our value
 iteration, and the planner that puts them together over the robot model's belief
-(ros_hrc.robot_policies.ReactiveMdpPlanner), as the robot process runs it."""
+(ros_hrc.agents.robots.ReactiveMdpPlanner), as the robot process runs it."""
 import numpy as np
 import pytest
 
 from ros_hrc import tasks
 from ros_hrc.link.protocol import Decision, Observation, Reset
-from ros_hrc.loop.models import load_robot_model
+from ros_hrc.models import load_robot_model
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp.io import load_model
 from ros_hrc.processes.despot_pomdp import PomdpProcess, RobotAgent, build_parser, build_planner
-from ros_hrc.robot_policies import (ReactiveMdpConfig, ReactiveMdpPlanner, ReactivePlanner,
+from ros_hrc.agents.robots import (ReactiveMdpConfig, ReactiveMdpPlanner, ReactivePlanner,
                                     mdp_policy, reactive_planner)
 from ros_hrc.tasks.fabric_reactive import (BY_OBSERVATION, DEFAULT_WAIT, MDP_STATES,
                                            ReactiveStateMap)

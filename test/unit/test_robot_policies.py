@@ -5,15 +5,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ros_hrc.loop import task
+from ros_hrc.tasks import seed as task
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp import belief as belief_mod
 from ros_hrc.pomdp.io import load_model
 from ros_hrc.processes.despot_pomdp import RobotAgent, build_parser, build_planner
-from ros_hrc.robot_policies import (NoRobotConfig, NoRobotPlanner, ReactiveConfig,
+from ros_hrc.agents.robots import (NoRobotConfig, NoRobotPlanner, ReactiveConfig,
                                     ReactivePlanner)
 
-# Observations by what they show (bit sums of ros_hrc.loop.task).
+# Observations by what they show (bit sums of ros_hrc.tasks.seed).
 NOTHING_WRONG = task.VISIBLE | task.IN_RANGE | task.IDLE              # O35
 WARNING = task.WARNING | task.VISIBLE | task.IN_RANGE                 # O19
 HAS_OBJECT = task.HAS_OBJECT | task.IN_RANGE | task.VISIBLE           # O11
@@ -227,7 +227,7 @@ def test_a_model_without_a_needed_observation_is_refused_by_name(model):
 
 
 def test_the_exploring_robot_tries_every_action_the_same_way_for_a_seed(model):
-    from ros_hrc.robot_policies import ExplorePlanner
+    from ros_hrc.agents.robots import ExplorePlanner
 
     def actions(seed):
         planner = ExplorePlanner(model, seed=seed)

@@ -18,9 +18,9 @@ def test_pomdp_world_and_link_import_without_ros():
     # scoring, results store, statistics, plots and stack driver too: rospy comes in only
     # inside a worker (ros_hrc.nodes.experiment_cell), once it knows its own master.
     rooms = ("ros_hrc.pomdp", "ros_hrc.world", "ros_hrc.link", "ros_hrc.errors",
-             "ros_hrc.robot_policies", "ros_hrc.tasks", "ros_hrc.tasks.seed",
-             "ros_hrc.tasks.fabric", "ros_hrc.loop.task", "ros_hrc.loop.settings",
-             "ros_hrc.loop.models", "ros_hrc.loop.check", "ros_hrc.experiment.store",
+             "ros_hrc.agents.robots", "ros_hrc.tasks", "ros_hrc.tasks.seed",
+             "ros_hrc.tasks.fabric", "ros_hrc.tasks.seed", "ros_hrc.settings",
+             "ros_hrc.models", "ros_hrc.commands.check", "ros_hrc.experiment.store",
              "ros_hrc.experiment.statistics", "ros_hrc.experiment.plots",
              "ros_hrc.experiment.episode", "ros_hrc.experiment.stack",
              "ros_hrc.experiment.cli")
@@ -34,7 +34,7 @@ def test_pomdp_world_and_link_import_without_ros():
 
 
 def test_the_loop_uses_no_sockets_library_of_ours_and_no_world():
-    modules = _imported_modules_after("import ros_hrc.loop.settings, ros_hrc.loop.models")
+    modules = _imported_modules_after("import ros_hrc.settings, ros_hrc.models")
     assert not {"ros_hrc.link", "ros_hrc.world", "pybullet", "websockets"} & modules
 
 
@@ -59,5 +59,5 @@ def test_experiment_never_imports_the_nodes():
 
 
 def test_only_the_world_imports_pybullet():
-    for room in ("ros_hrc.pomdp", "ros_hrc.link", "ros_hrc.loop.check", "ros_hrc.experiment.cli"):
+    for room in ("ros_hrc.pomdp", "ros_hrc.link", "ros_hrc.commands.check", "ros_hrc.experiment.cli"):
         assert "pybullet" not in _imported_modules_after(f"import {room}")

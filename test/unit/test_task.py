@@ -1,7 +1,7 @@
 """Observation bits and the robot's true state, as the observer computes them."""
 import pytest
 
-from ros_hrc.loop import task
+from ros_hrc.tasks import seed as task
 
 
 def test_every_legal_pattern_maps_to_itself_and_is_named():

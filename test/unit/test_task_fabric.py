@@ -1,7 +1,7 @@
 """The fabric task (issue #22): a human who hears the robot, the authors' observation table,
 noise and true-state labels (docs/tasks_fabric_facts.md), as ros_hrc.tasks.fabric has them.
 
-Before this issue the loop knew one task only (ros_hrc.loop.task): the human's next state
+Before this issue the loop knew one task only (ros_hrc.tasks.seed): the human's next state
 never depended on the robot, the robot saw the true predicates, and no task but the seed's
 could be chosen."""
 from types import SimpleNamespace
@@ -11,9 +11,9 @@ import pytest
 
 from ros_hrc import tasks
 from ros_hrc.loop.coordinator import Snapshot
-from ros_hrc.loop.models import load_human_model, load_robot_model
-from ros_hrc.loop.streams import generator
-from ros_hrc.processes.human_agent import HumanAgent, HumanAgentConfig
+from ros_hrc.models import load_human_model, load_robot_model
+from ros_hrc.streams import generator
+from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
 from ros_hrc.tasks import fabric
 from ros_hrc.tasks.fabric import (FAILURE, GRASP_ATTEMPT, IDLE, IN_RANGE, SUCCESS, VISIBLE,
                                   WARNING, FabricObservationMap, FabricReaction,

@@ -65,10 +65,10 @@ from ros_hrc.experiment.cluster import without
 from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
                                       lock_directory)
 from ros_hrc import tasks
-from ros_hrc.loop import settings
-from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
+from ros_hrc import settings
+from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
                                  positional_mapping_line, shown_path)
-from ros_hrc.loop.settings import SettingError
+from ros_hrc.settings import SettingError
 from ros_hrc.model_files import user_path
 from ros_hrc.pomdp.output import write_text_atomically
 

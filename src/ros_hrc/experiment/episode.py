@@ -45,7 +45,7 @@ ROBOT_POLICIES: Dict[str, RobotPolicy] = {
                                      "valued once; acting against a warning and pre-empting "
                                      "costly), its T and O fitted to the world (hrc_fit)"),
     "reactive": RobotPolicy("reactive", None, "treats the need for help as observable "
-                                              "(robot_policies.py)"),
+                                              "(agents/robots.py)"),
     "no_robot": RobotPolicy("none", None, "never acts"),
     "explore": RobotPolicy("explore", None, "a uniformly random action each step: hrc_fit's "
                                             "exploring robot"),

@@ -9,7 +9,7 @@ uniformly random robot action each step, seeded), so that every robot action is 
 state the humans reach. From each episode it counts what the robot model describes:
 
 * transitions ``(s, a, s')``: the robot's true state at a step (the observer's label, by the
-  task's tracker: the seed's :class:`ros_hrc.loop.task.RobotStateTracker`), the robot's action
+  task's tracker: the seed's :class:`ros_hrc.tasks.seed.RobotStateTracker`), the robot's action
   then, and the label at the next step. The first step starts from the model's start state
   with the task's idle action (the seed's ``rIdle``), as the robot process does (its first
   belief update). An episode that ends in success adds one more transition into the task's
@@ -61,9 +61,10 @@ from ros_hrc.experiment.cli import task_humans, task_launch_args, task_of
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
 from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
-from ros_hrc.loop import settings, task
-from ros_hrc.loop.settings import SettingError
-from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
+from ros_hrc import settings
+from ros_hrc.tasks import seed as task
+from ros_hrc.settings import SettingError
+from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
                                  shown_path)
 from ros_hrc.model_files import user_path
 from ros_hrc.pomdp.output import check_writable, write_text_atomically
@@ -114,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _seed(text: str) -> int:
-    """A seed as hrc.launch takes it (ros_hrc.loop.settings' ``seed``: its range)."""
+    """A seed as hrc.launch takes it (ros_hrc.settings' ``seed``: its range)."""
     try:
         return settings.parse("seed", text.strip())
     except SettingError as exc:

@@ -32,8 +32,8 @@ from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Seque
 from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
 from ros_hrc.experiment.store import EpisodeRow, StepRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
-from ros_hrc.loop import settings
-from ros_hrc.loop.streams import EpisodeSchedule
+from ros_hrc import settings
+from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.process_tree import processes_naming
 from ros_hrc.pomdp.output import write_text_atomically
 
@@ -112,7 +112,7 @@ class EpisodeRanges:
 
 @dataclass
 class CellSpec:
-    """What one worker runs. Defaults of the launch settings come from ros_hrc.loop.settings.
+    """What one worker runs. Defaults of the launch settings come from ros_hrc.settings.
     Model files are absolute paths (the entry point resolves what the user typed, once:
     roslaunch starts the processes in another directory)."""
     human_model: str                    # as the grid names it (the results' column)
@@ -185,7 +185,7 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     ``spec.max_trials`` (or :data:`EXPERIMENT_TRIALS`) trials per decision and no time budget
     (a cell has no time option), so a cell gives the same rows on any machine and
     under any load. The coordinator plays exactly the spec's episodes, by their numbers
-    (``episodes:=``), each on its own streams (:mod:`ros_hrc.loop.streams`).
+    (``episodes:=``), each on its own streams (:mod:`ros_hrc.streams`).
     ``spec.extra_args`` (``name:=value``) come last and win."""
     try:
         policy = robot_policy(spec.robot_policy)
@@ -224,7 +224,7 @@ def launch_arguments(spec: CellSpec, ports: Mapping[str, int]) -> List[str]:
 
 
 def check_launch_settings(spec: CellSpec) -> Dict[str, Any]:
-    """The cell's launch arguments resolved by ros_hrc.loop.settings (on stand-in ports);
+    """The cell's launch arguments resolved by ros_hrc.settings (on stand-in ports);
     raises SettingError (one line) for a bad one, before any stack starts."""
     stand_in = {"pomdp": settings.default("pomdp_port"), "robot": settings.default("robot_port"),
                 "human": settings.default("human_port")}

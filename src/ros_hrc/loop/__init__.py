@@ -1,12 +1,11 @@
-"""The loop room (DESIGN §2, §8): the settings every entry point shares, model validation
-against the task (:mod:`ros_hrc.tasks`) and the episode coordinator. No ROS, no sockets, no
-PyBullet.
+"""The loop room (DESIGN §2, §8): the episode coordinator, its runner and what it displays.
+No ROS, no sockets, no PyBullet. The foundations it stands on (the task registry
+:mod:`ros_hrc.tasks`, :mod:`ros_hrc.settings`, :mod:`ros_hrc.streams`, :mod:`ros_hrc.models`)
+live on lower floors (docs/architecture.md).
 
-  ros_hrc.loop.task         the seed task's tables under their old name (ros_hrc.tasks.seed)
-  ros_hrc.loop.settings     one source of defaults and checks for every launch argument
-  ros_hrc.loop.models       the human and robot models checked against the task's tables
   ros_hrc.loop.coordinator  the Sans-I/O episode coordinator: step, epoch, order, episodes
   ros_hrc.loop.runner       runs a coordinator's effects against four interfaces, in threads
+  ros_hrc.loop.display      the step's block and caption text, from a step's fields
 
 Nothing is imported here, so each module stays cheap to import.
 """

@@ -37,7 +37,7 @@ early world reset), then resets the world and the planner into the new epoch, an
 tells the MDP, so nothing of the old epoch can act in the new one. Resets asked for while one
 is under way join it (a burst of fifty is one reset).
 
-**Episode numbers.** An episode's number names its random streams (:mod:`ros_hrc.loop.streams`:
+**Episode numbers.** An episode's number names its random streams (:mod:`ros_hrc.streams`:
 the MDP, the world and the planner reseed from (seed, episode) at its reset), so it is the
 study's number, not a count of resets. Without a schedule (a live launch) every reset that
 succeeds starts the next number, 1, 2, 3 ... With one (``CoordinatorConfig.episodes``, an
@@ -51,7 +51,7 @@ After the schedule's last episode ended the loop waits: no reset starts another.
 actions, the world service of each action, the bits -> observation map, the robot's true
 state, the observation noise) is the configuration's :class:`~ros_hrc.tasks.definition.Task`
 (the seed's by default); the coordinator names none. A task with observation noise draws it
-from the stream of (``seed``, episode, "observation") (:mod:`ros_hrc.loop.streams`),
+from the stream of (``seed``, episode, "observation") (:mod:`ros_hrc.streams`),
 restarted at each episode's start, so an episode's noise is its own whatever ran before it.
 
 **Failures.** A call that fails (a fault: the service or process is gone, or answered
@@ -65,7 +65,7 @@ import itertools
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
-from ros_hrc.loop.streams import EpisodeSchedule, generator
+from ros_hrc.streams import EpisodeSchedule, generator
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.seed import SEED
 

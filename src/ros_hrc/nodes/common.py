@@ -17,14 +17,14 @@ import rospy
 from std_srvs.srv import Trigger
 
 from ros_hrc.errors import HrcError
-from ros_hrc.loop import settings
+from ros_hrc import settings
 
 C = TypeVar("C")
 
 
 def read_config(config_type: Type[C]) -> C:
     """Build a config dataclass from the node's private parameters (``~name``). A field that
-    is one of the launch settings (:mod:`ros_hrc.loop.settings`) is parsed and checked there,
+    is one of the launch settings (:mod:`ros_hrc.settings`) is parsed and checked there,
     and an empty value takes the setting's default: the one source of defaults. Other fields
     take the dataclass default when unset; types are coerced."""
     values = {}

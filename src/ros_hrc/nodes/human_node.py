@@ -41,7 +41,7 @@ Parameters: ~task (the collaboration task, ros_hrc.tasks: seed or fabric), ~seed
 seed: the task's observation noise draws from its (seed, episode) streams), ~host, ~port,
 ~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episode_end,
 ~end_on_goal, ~episodes (the episode numbers to play, e.g. ``0-99`` or ``2,5-7``; ``live``: 1,
-2, 3 ...: see :mod:`ros_hrc.loop.streams`), ~wait_for_listener (no step before someone
+2, 3 ...: see :mod:`ros_hrc.streams`), ~wait_for_listener (no step before someone
 subscribes to /hrc/status), ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
 ~service_timeout (s to wait for a service that went away during the run, e.g. a respawning
 hrc_obs; at start-up the node waits however long it takes), ~wait_report_every (s between
@@ -78,7 +78,7 @@ from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE
                                       StepReport, StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
-from ros_hrc.loop.streams import WORLD_EPISODE_PARAM, EpisodeSchedule
+from ros_hrc.streams import WORLD_EPISODE_PARAM, EpisodeSchedule
 from ros_hrc.msg import Status
 from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, init_node,
                                   read_config, registered_services, route_python_logging)

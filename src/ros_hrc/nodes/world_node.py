@@ -24,7 +24,7 @@ and the snapshot):
   /hrc/world/reset (human, robot and object back at their start at once, interrupting any
                     action under way: the coordinator's reset; the world's random stream
                     restarts as the one of episode /hrc/world/episode when that parameter is
-                    set: hrc_human sets it to the episode that starts, ros_hrc.loop.streams)
+                    set: hrc_human sets it to the episode that starts, ros_hrc.streams)
   /hrc/world/state (ros_hrc/GetWorldState: the state now, as /hrc/world_state publishes it)
 
 Topics published:
@@ -43,7 +43,7 @@ Topics published:
                                          frames from /human/robot_description and
                                          /robot/robot_description, which the launch sets from
                                          hrc_description: each agent's URDF with its links
-                                         prefixed by its name (ros_hrc.description).
+                                         prefixed by its name (ros_hrc.commands.description).
   /hrc/camera/image (sensor_msgs/Image)  the snapshot renderer's view, at ~camera_rate Hz
                                          (0: off, the default) while anyone subscribes
   /hrc/caption (std_msgs/String, latched) with ~gui or ~viz: the caption of the step being
@@ -98,9 +98,9 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
 
 from ros_hrc.errors import HrcError, SimulationError
-from ros_hrc.loop import settings
+from ros_hrc import settings
 from ros_hrc.loop.display import StepCaption
-from ros_hrc.loop.streams import WORLD_EPISODE_PARAM
+from ros_hrc.streams import WORLD_EPISODE_PARAM
 from ros_hrc.msg import Status, WorldState
 from ros_hrc.nodes.common import init_node
 from ros_hrc.nodes.guard import is_guard

@@ -30,7 +30,7 @@ the model chooses every next state from then on; restart it to type states again
 A ``reset`` message (Enter in the ROS terminal, ``/hrc/reset``, the end of an episode, a
 recovery) puts the human back to its initial state, step 0, zero reward, and restarts its
 random stream as the one of (``--seed``, the reset's episode, "human")
-(:mod:`ros_hrc.loop.streams`): episode e of seed s is the same human whatever ran before it,
+(:mod:`ros_hrc.streams`): episode e of seed s is the same human whatever ran before it,
 and no two episodes share a stream.
 
 The human node takes only processes of its own launch: this one proves the launch's link token
@@ -58,10 +58,10 @@ from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Error, Message
                                    Reaction, Reset, Step, is_reply_to, reply_error)
 from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
-from ros_hrc.loop import settings
-from ros_hrc.loop.models import load_human_model, positional_mapping_line
-from ros_hrc.loop.streams import stream_seed
-from ros_hrc.processes.human_agent import HumanAgent, HumanAgentConfig
+from ros_hrc import settings
+from ros_hrc.models import load_human_model, positional_mapping_line
+from ros_hrc.streams import stream_seed
+from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
 
 NAME = "despot_mdp"
 

@@ -5,12 +5,12 @@ It loads the robot POMDP (checked against the states, actions and observations o
 on port 7070 for the observer (``hrc_obs``). For each ``observation``: update the belief with
 the robot's previous action and the observation (the task's idle action before the first
 step, ``rIdle`` for the seed: the robot starts idle), plan (DESPOT by default, a saved
-offline policy, or a baseline robot of ``ros_hrc.robot_policies``: the
+offline policy, or a baseline robot of ``ros_hrc.agents.robots``: the
 reactive robot or no robot, which keep the belief but decide without it), and answer with a
 ``decision``. The coordinator has the robot carry it out (hrc_robot), not this process.
 A ``reset`` puts the belief back to the model's initial belief (and the reactive robot's step
 count, or fabric's reactive robot's MDP state, back to the start), in the epoch the reset names, and restarts the planner's random stream as
-the one of (``--seed``, the reset's episode, "planner") (:mod:`ros_hrc.loop.streams`): episode
+the one of (``--seed``, the reset's episode, "planner") (:mod:`ros_hrc.streams`): episode
 e of seed s gets the same decisions whatever ran before it. Observations of any other epoch
 are refused.
 
@@ -46,14 +46,14 @@ from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, Dispat
                                    Message, Observation, Reset, reply_error)
 from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import MessageServer, Peer
-from ros_hrc.loop import settings
-from ros_hrc.loop.models import load_robot_model, positional_mapping_line
-from ros_hrc.loop.streams import stream_seed
+from ros_hrc import settings
+from ros_hrc.models import load_robot_model, positional_mapping_line
+from ros_hrc.streams import stream_seed
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
-from ros_hrc.robot_policies import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
+from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
 
 NAME = "despot_pomdp"
 

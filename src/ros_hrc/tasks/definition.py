@@ -46,7 +46,7 @@ class Tracker(Protocol):
         return the robot's true state."""
 
     # Optional: ``begin_episode(rng)``, called at each episode's start with the episode's
-    # "observation" stream (:mod:`ros_hrc.loop.streams`), before any noise is drawn from it,
+    # "observation" stream (:mod:`ros_hrc.streams`), before any noise is drawn from it,
     # for what the labels take as given per episode (fabric: does this human trust the robot).
 
 
@@ -238,6 +238,11 @@ class Task:
     #: The hrc.launch argument a ``reactive@N`` policy sets to N: how its reactive robot is
     #: tuned (the seed's helps after N observations).
     reactive_parameter: str = "reactive_budget"
+    #: The kind of the task's reactive robot (``planner:=reactive``), built by
+    #: :func:`ros_hrc.agents.robots.reactive_planner`: "rules" (the seed's rules on the
+    #: observation's bits, tuned by reactive_budget), "mdp" (the successor's reactive MDP, its
+    #: observations mapped by the task's rules, tuned by reactive_wait); "" for none.
+    reactive_robot: str = ""
     #: Where a scenario name is looked up, by kind ("human", "robot").
     model_dirs: Mapping[str, Path] = field(default_factory=dict)
     #: A longer description of the rules (docs and ``hrc_check --task NAME``).

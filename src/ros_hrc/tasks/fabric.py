@@ -376,6 +376,7 @@ FABRIC = Task(
     study_policies=("pomdp", "reactive", "no_robot"),
     study_step_limit=300,
     reactive_parameter="reactive_wait",
+    reactive_robot="mdp",
     model_dirs={"human": MODELS_DIR / "fabric" / "human",
                 "robot": MODELS_DIR / "fabric" / "robot"},
     notes=("The human acts in his state (a grasp's outcome drawn first, and shown); after the "

@@ -4,7 +4,7 @@ FABRIC's reactive robot (``docs/tasks_fabric_facts.md``, "The reactive robot") i
 observable MDP of six states whose state is not seen but *named by rules* from each
 observation (the authors' ``MapObservationsToMDP``); it then acts by the MDP's policy
 (``models/fabric/robot/reactive.pomdpx``, solved at start-up by
-:class:`ros_hrc.robot_policies.ReactiveMdpPlanner`). The rules, in order, for each
+:class:`ros_hrc.agents.robots.ReactiveMdpPlanner`). The rules, in order, for each
 observation:
 
 1. ``waited``: the previous state was not HumanNeedsHelp, at least ``wait`` simulated seconds

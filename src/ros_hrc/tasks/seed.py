@@ -12,7 +12,7 @@
   acts) and the robot's observations carry no noise.
 
 :data:`SEED` is all of it as one :class:`~ros_hrc.tasks.definition.Task`; the module's names
-(``LEGAL_BITS``, ``legal_bits`` ...) stay importable as before (also as ``ros_hrc.loop.task``).
+(``LEGAL_BITS``, ``legal_bits`` ...) stay importable as before (also as ``ros_hrc.tasks.seed``).
 No ROS, no PyBullet: plain data and functions.
 """
 from __future__ import annotations
@@ -212,6 +212,7 @@ SEED = Task(
     noise=None,
     default_human_model="humanModel",
     default_robot_model="robot",
+    reactive_robot="rules",
     model_dirs={"human": MODELS_DIR / "human", "robot": MODELS_DIR / "robot"},
     notes=("The human's next state is his MDP's, drawn with his action before the robot "
            "acts; the step shows it (the state his action led to).",

@@ -48,7 +48,7 @@ from typing import Callable, Deque, Dict, Iterator, List, Optional, Sequence, Tu
 import numpy as np
 
 from ..errors import SimulationError
-from ..loop import streams
+from .. import streams
 from .body import ArticulatedBody, Motion
 from .client import PhysicsClient
 from .conveyor import STATIC_GROUP, STATIC_MASK, Conveyor, ConveyorConfig
@@ -813,7 +813,7 @@ class World:
             return getattr(self.human, predicate)()
 
     def reseed(self, episode: int) -> None:
-        """Draw from episode ``episode``'s world stream from now on (:mod:`ros_hrc.loop.streams`),
+        """Draw from episode ``episode``'s world stream from now on (:mod:`ros_hrc.streams`),
         from its start: the coordinator's node calls this as it resets the world for that
         episode, so the episode's draws are the same whichever episodes came before it."""
         fresh = streams.generator(self.config.seed, episode, "world")

@@ -23,10 +23,10 @@ from ros_hrc.experiment.stack import (MAX_ATTEMPTS, CellSpec, EpisodeRanges, cel
                                       check_launch_settings, launch_arguments, read_spec,
                                       worker_command, write_spec)
 from ros_hrc.experiment.store import DirectoryLocked, lock_directory
-from ros_hrc.loop import settings
+from ros_hrc import settings
 from ros_hrc.process_tree import processes_naming
 from result_rows import TIMED_COLUMNS, rows_of
-from ros_hrc.loop.settings import SettingError
+from ros_hrc.settings import SettingError
 
 ROOT = Path(__file__).resolve().parents[3]
 

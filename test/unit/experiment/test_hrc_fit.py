@@ -8,7 +8,7 @@ import pytest
 
 from ros_hrc.experiment import fit
 from ros_hrc.experiment.store import EpisodeRow, StepRow
-from ros_hrc.loop.models import load_robot_model
+from ros_hrc.models import load_robot_model
 
 
 def episode(number, end_reason="success", succeeded_by="robot", steps=3):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ros_hrc.experiment.zoo import NOT_IN_ZOO, ZOO, ZOO_FIT, ZOO_HELD_OUT, zoo_argument
-from ros_hrc.loop.models import load_human_model
+from ros_hrc.models import load_human_model
 from ros_hrc.model_files import MODELS_DIR
 from ros_hrc.pomdp.mdp import value_iteration
 

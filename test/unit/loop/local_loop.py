@@ -19,11 +19,11 @@ from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Coordinator, Coordinat
                                       ObserveWorld, Outcome, PublishStep, ReactionRequest,
                                       ResetPlanner, ResetWorld, Snapshot, StepReport,
                                       StepRequest)
-from ros_hrc.loop.models import load_human_model, load_robot_model
-from ros_hrc.loop.streams import EpisodeSchedule
+from ros_hrc.models import load_human_model, load_robot_model
+from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.processes.despot_mdp import MdpProcess, _ResetRequested
 from ros_hrc.processes.despot_pomdp import RobotAgent, build_planner
-from ros_hrc.processes.human_agent import HumanAgent, HumanAgentConfig
+from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
 from ros_hrc.world import World, WorldConfig
 from ros_hrc.world.human import HumanConfig
 

@@ -10,8 +10,8 @@ import pytest
 import yaml
 
 from ros_hrc.link.transport import free_port
-from ros_hrc.loop import settings
-from ros_hrc.loop.check import CheckError, check, check_display, main, parse_words
+from ros_hrc import settings
+from ros_hrc.commands.check import CheckError, check, check_display, main, parse_words
 
 ROOT = Path(__file__).resolve().parents[3]
 SCRIPT = ROOT / "scripts" / "hrc_check"
@@ -19,7 +19,7 @@ SCRIPT = ROOT / "scripts" / "hrc_check"
 
 def run(*words, script=False):
     command = [sys.executable, str(SCRIPT)] if script else [sys.executable, "-m",
-                                                            "ros_hrc.loop.check"]
+                                                            "ros_hrc.commands.check"]
     return subprocess.run(command + list(words), capture_output=True, text=True, timeout=60)
 
 
@@ -151,7 +151,7 @@ def test_the_words_are_name_value_pairs():
 
 def test_the_script_is_an_executable_shim():
     assert SCRIPT.stat().st_mode & 0o111
-    assert "ros_hrc.loop.check" in SCRIPT.read_text()
+    assert "ros_hrc.commands.check" in SCRIPT.read_text()
     assert len(SCRIPT.read_text().strip().splitlines()) <= 4
 
 

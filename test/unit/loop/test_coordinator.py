@@ -4,7 +4,7 @@ user of the loop would check: step order and reports, faults and recovery, reset
 bursts, failed ones), the MDP's seat, stale steps and episode ends."""
 import pytest
 
-from ros_hrc.loop import task
+from ros_hrc.tasks import seed as task
 from ros_hrc.loop.coordinator import (ActRobot, CoordinatorConfig, Decision, Fault, MdpRefused,
                                       MdpReset, MdpStepDone, Note, ObserveWorld, Outcome,
                                       PublishStep, ResetDone, ResetPlanner, ResetWorld,

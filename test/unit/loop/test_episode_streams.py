@@ -15,13 +15,13 @@ import pytest
 from ros_hrc.link.protocol import Decision, Observation, Reset
 from ros_hrc.loop.coordinator import (EPISODE_OVER, CoordinatorConfig, Fault, MdpReset,
                                       ResetDone, ResetPlanner, ResetWorld)
-from ros_hrc.loop.models import load_human_model, load_robot_model
-from ros_hrc.loop.streams import EpisodeSchedule
+from ros_hrc.models import load_human_model, load_robot_model
+from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.processes.despot_mdp import MdpProcess
 from ros_hrc.processes.despot_pomdp import PomdpProcess, RobotAgent
-from ros_hrc.processes.human_agent import HumanAgent, HumanAgentConfig
-from ros_hrc.robot_policies import ExplorePlanner
+from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
+from ros_hrc.agents.robots import ExplorePlanner
 
 from loop_fakes import Driver, of, one
 

@@ -162,7 +162,7 @@ def test_ros_args_lists_every_argument_as_optional_with_its_doc(launch):
 LAUNCHER = """
 import signal, subprocess, sys, time
 from ros_hrc.link.token import mint_token, write_session_settings
-from ros_hrc.loop import settings
+from ros_hrc import settings
 got = []
 signal.signal(signal.SIGINT, lambda *_: got.append(1))
 config = settings.resolve({})

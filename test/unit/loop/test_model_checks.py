@@ -1,4 +1,4 @@
-"""ros_hrc.loop.models: the shipped models fit the task's tables; a model that does not is
+"""ros_hrc.models: the shipped models fit the task's tables; a model that does not is
 refused in one line naming the file and the offending names.
 
 (Named test_model_checks.py, not test_models.py: pytest's rootdir imports need unique test
@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 
 from ros_hrc.errors import HrcError, ModelError, ModelFormatError
-from ros_hrc.loop import models, task
-from ros_hrc.loop.models import (ModelNotFound, check_human_model, check_robot_model,
+from ros_hrc import models
+from ros_hrc.tasks import seed as task
+from ros_hrc.models import (ModelNotFound, check_human_model, check_robot_model,
                                  load_human_model, load_robot_model)
 
 from loop_fakes import refusal

@@ -1,4 +1,4 @@
-"""ros_hrc.loop.models: a model whose names are generic (s0.., a0.., o0.., as POMDPX
+"""ros_hrc.models: a model whose names are generic (s0.., a0.., o0.., as POMDPX
 <NumValues> names them, e.g. the seed's pomdp_FINAL.pomdpx) in the task's sizes is read by
 position with the task's names, and the mapping is one start-up line; generic names in
 another size are refused in one line; any other names must match as before.
@@ -10,9 +10,10 @@ import pytest
 import yaml
 
 from ros_hrc.errors import ModelError
-from ros_hrc.loop import models, settings, task
-from ros_hrc.loop.check import main as hrc_check
-from ros_hrc.loop.models import (load_human_model, load_robot_model, name_by_position,
+from ros_hrc import models, settings
+from ros_hrc.tasks import seed as task
+from ros_hrc.commands.check import main as hrc_check
+from ros_hrc.models import (load_human_model, load_robot_model, name_by_position,
                                  positional_mapping_line, positional_mapping_lines)
 from ros_hrc.pomdp.io import differences, load_model, save_model
 

@@ -6,7 +6,7 @@ import threading
 import pytest
 
 from ros_hrc.errors import SimulationError
-from ros_hrc.loop import task
+from ros_hrc.tasks import seed as task
 from ros_hrc.loop.coordinator import CoordinatorConfig
 from loop_fakes import MDP_SCRIPT, FakePlanner, Loop
 

@@ -1,4 +1,4 @@
-"""ros_hrc.loop.settings: one default per launch argument, one line per refused value."""
+"""ros_hrc.settings: one default per launch argument, one line per refused value."""
 import argparse
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -6,8 +6,8 @@ from pathlib import Path
 import pytest
 
 from ros_hrc.errors import HrcError
-from ros_hrc.loop import settings
-from ros_hrc.loop.settings import SETTINGS, Setting, SettingError
+from ros_hrc import settings
+from ros_hrc.settings import SETTINGS, Setting, SettingError
 
 LAUNCH = Path(__file__).resolve().parents[3] / "launch" / "hrc.launch"
 

@@ -4,7 +4,7 @@ import itertools
 import numpy as np
 import pytest
 
-from ros_hrc.loop.streams import MAX_EPISODE, ROLES, generator, stream, stream_seed
+from ros_hrc.streams import MAX_EPISODE, ROLES, generator, stream, stream_seed
 
 
 def test_no_two_episodes_of_a_grid_share_a_stream():

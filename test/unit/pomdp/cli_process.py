@@ -14,7 +14,7 @@ GiB = 1 << 30
 def run_hrc_pomdp(args: Sequence[str], address_space: int = 2 * GiB,
                   file_size: Optional[int] = None, cwd=None,
                   timeout: float = 300.0) -> subprocess.CompletedProcess:
-    """Run ``python -m ros_hrc.pomdp.cli ARGS`` with its virtual memory capped at
+    """Run ``python -m ros_hrc.commands.pomdp ARGS`` with its virtual memory capped at
     ``address_space`` bytes (RLIMIT_AS) and, if given, every file it writes at ``file_size``
     bytes (RLIMIT_FSIZE). ``timeout`` only guards against a hang; no test asserts a time."""
     def limit() -> None:
@@ -24,5 +24,5 @@ def run_hrc_pomdp(args: Sequence[str], address_space: int = 2 * GiB,
             resource.setrlimit(resource.RLIMIT_FSIZE, (file_size, file_size))
 
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", OPENBLAS_NUM_THREADS="1")
-    return subprocess.run([sys.executable, "-m", "ros_hrc.pomdp.cli", *args], cwd=cwd, env=env,
+    return subprocess.run([sys.executable, "-m", "ros_hrc.commands.pomdp", *args], cwd=cwd, env=env,
                           preexec_fn=limit, capture_output=True, text=True, timeout=timeout)

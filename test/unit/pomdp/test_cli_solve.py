@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from ros_hrc.pomdp.cli import run
+from ros_hrc.commands.pomdp import run
 
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"
 TIGER = str(FIXTURES / "tiger.95.pomdp")

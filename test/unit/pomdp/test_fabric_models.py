@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ros_hrc.pomdp import pomdpx
-from ros_hrc.pomdp.cli import run
+from ros_hrc.commands.pomdp import run
 
 ROOT = Path(__file__).resolve().parents[3]
 FABRIC = ROOT / "models" / "fabric"

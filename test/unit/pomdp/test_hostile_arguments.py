@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from ros_hrc.pomdp.cli import build_parser, run
+from ros_hrc.commands.pomdp import build_parser, run
 
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"
 TIGER = str(FIXTURES / "tiger.95.pomdp")

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from ros_hrc.pomdp import cassandra, io, output, pomdpx
-from ros_hrc.pomdp.cli import run
+from ros_hrc.commands.pomdp import run
 
 from cli_process import GiB, run_hrc_pomdp
 

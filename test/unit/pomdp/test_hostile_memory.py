@@ -16,7 +16,7 @@ import pytest
 import scipy.sparse as sp
 
 from ros_hrc.pomdp import cassandra, mdp
-from ros_hrc.pomdp.cli import run
+from ros_hrc.commands.pomdp import run
 from ros_hrc.pomdp.model import Model
 
 from cli_process import GiB, run_hrc_pomdp

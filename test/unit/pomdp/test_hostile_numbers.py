@@ -12,7 +12,7 @@ import pytest
 import scipy.sparse as sp
 
 from ros_hrc.errors import ModelError
-from ros_hrc.pomdp.cli import run
+from ros_hrc.commands.pomdp import run
 from ros_hrc.pomdp.model import Model
 
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"

@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from ros_hrc.errors import ModelFormatError
-from ros_hrc.pomdp import cli, io
+from ros_hrc.commands import pomdp as cli
+from ros_hrc.pomdp import io
 
 ROOT = Path(__file__).resolve().parents[3]
 MODELS = sorted((ROOT / "models").glob("*/*.pomdp")) + sorted((ROOT / "models").glob("*/*.pomdpx"))

@@ -15,7 +15,7 @@ import pytest
 
 from ros_hrc.errors import ModelError
 from ros_hrc.pomdp import cassandra, hsvi, pomdpx
-from ros_hrc.pomdp.cli import run
+from ros_hrc.commands.pomdp import run
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from ros_hrc.loop.models import load_robot_model
-from ros_hrc.pomdp import cli
-from ros_hrc.pomdp.policy_table import (SEQUENCES, ObservationSequence, despot_config,
+from ros_hrc.models import load_robot_model
+from ros_hrc.commands import pomdp as cli
+from ros_hrc.agents.policy_table import (SEQUENCES, ObservationSequence, despot_config,
                                         format_table, policy_table)
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -8,7 +8,7 @@ import pytest
 from solver_models import TIGER_OPTIMUM, build_chain, build_tiger, make_model
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import hsvi
-from ros_hrc.pomdp.cli import run
+from ros_hrc.commands.pomdp import run
 from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
 from ros_hrc.pomdp.simulate import (policy_chooser, q_chooser, simulate, simulate_batch)
 

@@ -9,7 +9,7 @@ those differences) and the object's position (a few millimetres).
 HRC_RECORD_PINNED_RUN=1 rewrites the record, for a deliberate change of the world's behaviour.
 
 Re-recorded once, on purpose, for issue #21 (independent episodes): the world's draws now come
-from the stream of (seed, episode 0, "world") (``ros_hrc.loop.streams``) instead of the bare
+from the stream of (seed, episode 0, "world") (``ros_hrc.streams``) instead of the bare
 seed, so the two fumbled grasps miss by other distances (0.14 and 0.13 m instead of 0.10 and
 0.11 m); nothing else changed.
 """

@@ -14,7 +14,7 @@ The search is bounded by a number of trials, not by time (the budget is set so l
 never binds), from a fixed seed, each sequence from a fresh planner: the table is the same on
 every machine and under any load.
 
-The sequences name observations of the robot model (``O<bits>``, :mod:`ros_hrc.loop.task`):
+The sequences name observations of the robot model (``O<bits>``, :mod:`ros_hrc.tasks.seed`):
 1 object visible, 2 in range, 4 grasp attempt, 8 has object, 16 warning, 32 idle. No ROS.
 """
 from __future__ import annotations
@@ -27,7 +27,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ros_hrc import tasks
-from ros_hrc.loop import task
+from ros_hrc.tasks import seed as task
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.model import Model
 

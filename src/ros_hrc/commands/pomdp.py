@@ -561,7 +561,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _register_policy(subparsers) -> None:
-    from ros_hrc.pomdp.policy_table import DEFAULT_TRIALS, SEQUENCES
+    from ros_hrc.agents.policy_table import DEFAULT_TRIALS, SEQUENCES
     p = subparsers.add_parser(
         "policy", help="the robot planner's actions after typical observation sequences",
         description="Step the robot's online planner (DESPOT, the robot's K, D and lambda) "
@@ -587,7 +587,7 @@ def _register_policy(subparsers) -> None:
 
 
 def _policy_sequence(text: str):
-    from ros_hrc.pomdp.policy_table import parse_sequence
+    from ros_hrc.agents.policy_table import parse_sequence
     try:
         return parse_sequence(text)
     except ValueError as exc:
@@ -597,8 +597,8 @@ def _policy_sequence(text: str):
 @_solver_errors_exit_2
 def cmd_policy(args: argparse.Namespace) -> int:
     """``hrc_pomdp policy MODEL``: the planner's actions after the typical sequences."""
-    from ros_hrc.loop.models import load_robot_model
-    from ros_hrc.pomdp.policy_table import SEQUENCES, despot_config, format_table, policy_table
+    from ros_hrc.models import load_robot_model
+    from ros_hrc.agents.policy_table import SEQUENCES, despot_config, format_table, policy_table
 
     model = load_robot_model(args.model)
     sequences = tuple(args.sequence) if args.sequence else SEQUENCES

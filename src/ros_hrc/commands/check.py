@@ -15,7 +15,7 @@ when it fails::
            command="$(find ros_hrc)/scripts/hrc_check human_model:=$(arg human_model) ..."/>
 
 A model whose names are generic (``s0..``, ``a0..``, ``o0..``, as POMDPX ``<NumValues>`` gives
-them) in the task's sizes is read by position (:mod:`ros_hrc.loop.models`); the mapping is one
+them) in the task's sizes is read by position (:mod:`ros_hrc.models`); the mapping is one
 line per such model on stderr, ``hrc.launch: <file>: names by position: states s0=S0 ...``,
 before the YAML. Not on stdout: roslaunch reads stdout as the value of ``/hrc/config`` and
 never shows it, while it passes the command's stderr through to the terminal, so the line is
@@ -51,7 +51,7 @@ import sys
 from typing import Dict, List, Mapping, Optional, Sequence
 
 from ros_hrc.errors import HrcError
-from ros_hrc.loop import settings
+from ros_hrc import settings
 
 NAME = "hrc_check"
 #: What each error line starts with: the user ran the launch file, not this program.
@@ -92,7 +92,7 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
         text = str(given.get(name) or "").strip()
         return str(config[name]).strip() if text in ("", settings.AUTO_WORD) else text
 
-    from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model,
+    from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model,
                                      positional_mapping_line)
 
     loaded = {}

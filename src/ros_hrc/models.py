@@ -42,7 +42,7 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.errors import ModelError
-from ros_hrc.loop import task
+from ros_hrc.tasks import seed as task
 from ros_hrc.model_files import MODELS_DIR, resolve_model
 from ros_hrc.pomdp.fileformat import default_names
 from ros_hrc.pomdp.io import load_model

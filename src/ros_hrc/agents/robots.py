@@ -6,7 +6,7 @@ human needs help; only their *decisions* ignore that belief.
 
 ``ReactivePlanner``
     Treats the human's need for help as directly observable in the current observation and
-    decides deterministically, by the first rule that applies (bits of :mod:`ros_hrc.loop.task`):
+    decides deterministically, by the first rule that applies (bits of :mod:`ros_hrc.tasks.seed`):
 
     1. ``warning``     WARNING (16) set                          -> rStop_all
     2. ``has_object``  HAS_OBJECT (8) set                        -> rIdle
@@ -34,7 +34,8 @@ human needs help; only their *decisions* ignore that belief.
     TaskHuman idle, HumanNeedsHelp grasp, WarningReceived cancel, TaskRobot grasp). The time
     comes with each observation (``observe_time``: the protocol's ``Observation.elapsed``).
 
-Which reactive robot ``planner:=reactive`` is depends on the task: :data:`REACTIVE_ROBOTS`.
+Which reactive robot ``planner:=reactive`` is depends on the task's ``reactive_robot``
+(:data:`REACTIVE_ROBOTS`).
 
 ``NoRobotPlanner``
     Always ``rIdle``: the human works alone.
@@ -55,7 +56,7 @@ from typing import Callable, Dict, Iterable, Optional
 
 import numpy as np
 
-from ros_hrc.loop import task
+from ros_hrc.tasks import seed as task
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp.io import load_model
 from ros_hrc.pomdp.mdp import value_iteration
@@ -265,23 +266,23 @@ class ReactiveMdpPlanner(BeliefPlanner):
         return ", ".join(f"{state}: {action}" for state, action in self.policy.items())
 
 
-def _seed_reactive(task_: Task, model: Model, budget: int, wait: float,
+def _rules_reactive(task_: Task, model: Model, budget: int, wait: float,
                    seed: Optional[int]) -> BeliefPlanner:
     return ReactivePlanner(model, ReactiveConfig(budget=budget), seed=seed)
 
 
-def _fabric_reactive(task_: Task, model: Model, budget: int, wait: float,
+def _mdp_reactive(task_: Task, model: Model, budget: int, wait: float,
                      seed: Optional[int]) -> BeliefPlanner:
     path = resolve_model(fabric_reactive.REACTIVE_MDP_MODEL, "robot", task_.model_dirs["robot"])
     return ReactiveMdpPlanner(model, load_model(path), ReactiveMdpConfig(wait=wait), seed=seed)
 
 
-#: Each task's reactive robot (``planner:=reactive``), by task name: the seed's rules on its
-#: bits (``reactive_budget``), fabric's reactive MDP (``reactive_wait``). A task not here has
-#: none (the pre-flight refuses ``planner:=reactive`` for it).
+#: The reactive robots (``planner:=reactive``) by their kind, a task's ``reactive_robot``: the
+#: seed's rules on its bits (``reactive_budget``), the successor's reactive MDP
+#: (``reactive_wait``). A task of no kind has none (the pre-flight refuses ``planner:=reactive``).
 REACTIVE_ROBOTS: Dict[str, Callable[..., BeliefPlanner]] = {
-    "seed": _seed_reactive,
-    "fabric": _fabric_reactive,
+    "rules": _rules_reactive,
+    "mdp": _mdp_reactive,
 }
 
 
@@ -290,12 +291,9 @@ def reactive_planner(task_: Task, model: Model, budget: int = DEFAULT_REACTIVE_B
                      seed: Optional[int] = None) -> BeliefPlanner:
     """The task's reactive robot over ``model`` (``budget``: the seed's, ``wait``: fabric's);
     ValueError for a task without one."""
-    try:
-        make = REACTIVE_ROBOTS[task_.name]
-    except KeyError:
-        raise ValueError(f"task {task_.name} has no reactive robot (tasks with one: "
-                         f"{', '.join(REACTIVE_ROBOTS)})") from None
-    return make(task_, model, budget, wait, seed)
+    if not task_.reactive_robot:
+        raise ValueError(f"task {task_.name} has no reactive robot")
+    return REACTIVE_ROBOTS[task_.reactive_robot](task_, model, budget, wait, seed)
 
 
 class NoRobotPlanner(BeliefPlanner):

@@ -36,7 +36,7 @@ from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.errors import HrcError
-from ros_hrc.loop.streams import LIVE, EpisodeSchedule
+from ros_hrc.streams import LIVE, EpisodeSchedule
 from ros_hrc.model_files import names_a_file, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
@@ -442,13 +442,11 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
         given = values.get(name)
         if given is None or (isinstance(given, str) and given.strip() in ("", AUTO_WORD)):
             out[name] = task.default_model(kind)
-    if out["planner"] == "reactive":
-        from ros_hrc.robot_policies import REACTIVE_ROBOTS   # numpy's: only when asked
-        if task.name not in REACTIVE_ROBOTS:
-            raise SettingError("planner", values.get("planner"),
-                               f"task {task.name} has no reactive robot (tasks with one: "
-                               f"{', '.join(REACTIVE_ROBOTS)}; use despot, policy, none or "
-                               "explore)")
+    if out["planner"] == "reactive" and not task.reactive_robot:
+        with_one = [name for name in tasks.TASK_NAMES if tasks.get(name).reactive_robot]
+        raise SettingError("planner", values.get("planner"),
+                           f"task {task.name} has no reactive robot (tasks with one: "
+                           f"{', '.join(with_one)}; use despot, policy, none or explore)")
     seen: Dict[int, str] = {}
     for name in PORTS:
         port = out[name]
