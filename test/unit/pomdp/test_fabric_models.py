@@ -1,7 +1,8 @@
 """FABRIC's models (models/fabric/): the seed authors' successor task, written by
-tools/make_fabric_models.py from the authors' figures (cangorur/human_robot_collaboration;
-models/README.md, "FABRIC (the successor task)")."""
+tools/make_fabric_models.py from the authors' figures in tools/fabric_tables/
+(cangorur/human_robot_collaboration; models/README.md, "FABRIC (the successor task)")."""
 import importlib.util
+import re
 import sys
 from pathlib import Path
 
@@ -253,3 +254,31 @@ def test_the_builder_refuses_an_unwritable_folder_in_one_line(tmp_path, capsys):
     assert _builder().main(["--out", str(blocker)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(blocker) in err[0]
+
+
+def test_the_tables_are_beside_the_builder_and_name_their_source():
+    tables = BUILDER.parent / "fabric_tables"
+    assert sorted(p.relative_to(tables).with_suffix(".pomdpx")
+                  for p in tables.rglob("*.toml")) == \
+        sorted(p.relative_to(FABRIC) for p in FABRIC.rglob("*.pomdpx"))
+    builder = _builder()
+    for path in tables.rglob("*.toml"):
+        figures = builder.read_figures(str(path.relative_to(tables).with_suffix("")))
+        assert figures["repository"] == "cangorur/human_robot_collaboration", path
+        assert figures["file"].startswith("code/models/") and len(figures["commit"]) == 40
+
+
+@pytest.mark.parametrize("table, problem", [
+    ({"Nowhere": "stay"}, "unknown state 'Nowhere'"),
+    ({"NoFocus": "stay", "TaskHuman": "stay"}, "TaskHuman is out of order"),
+    ({"TaskHuman": [1.0, 0.0]}, "TaskHuman is [1.0, 0.0], not \"stay\" or a list of 11"),
+    ({"TaskHuman": "go"}, "TaskHuman is 'go'"),
+])
+def test_the_builder_refuses_a_malformed_table_row(table, problem):
+    with pytest.raises(ValueError, match=re.escape(problem)):
+        _builder().table_rows(table, ROBOT_STATES, len(ROBOT_STATES), range(11), "test")
+
+
+def test_the_builder_refuses_a_table_for_an_unknown_action():
+    with pytest.raises(ValueError, match="unknown actions \\['wave'\\]"):
+        _builder().action_rows({"wave": {}}, ROBOT_STATES, ROBOT_ACTIONS, range(11), "test")
