@@ -44,7 +44,7 @@ fit: setup
 	       --out models/robot/robot_considerate_fitted.pomdp $(ARGS)
 
 lint: setup
-	@source env.sh && catkin_lint --strict -W2 .ws/src/ros_hrc
+	@source env.sh && catkin_lint --strict -W2 .ws/src/ros_hrc && PYTHONPATH=src:$$PYTHONPATH lint-imports --no-logo
 
 clean:
 	rm -rf .ws .venv

@@ -85,3 +85,9 @@ def test_ros_outside_the_nodes_breaks_it(tmp_path):
     done = lint_imports(src)
     assert done.returncode == 1
     assert "Only the nodes import ROS (DESIGN §8) BROKEN" in done.stdout
+
+
+def test_the_architecture_page_shows_todays_room_imports():
+    done = subprocess.run([sys.executable, str(ROOT / "tools" / "room_imports.py"), "--check"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
