@@ -134,6 +134,14 @@ class ArticulatedBody:
         position, orientation = self.link_pose(name)
         return np.array(position), quat_to_matrix(orientation)
 
+    def frames(self) -> Dict[str, object]:
+        """Where the body is, as plain data (for /tf and joint states): its URDF file, root
+        link, base pose and movable joints' positions."""
+        c = self.client
+        return {"urdf": self.urdf_path, "root": c.getBodyInfo(self.body_id)[0].decode(),
+                "base": c.getBasePositionAndOrientation(self.body_id),
+                "joints": self.positions(self.joints)}
+
     # --- commanding -----------------------------------------------------------------------
     def command(self, targets: Mapping[str, float]) -> None:
         """Put the named joints at their targets (clamped to the joint limits)."""
@@ -202,3 +210,4 @@ class ArticulatedBody:
     def joint_names(self, prefix: str = "") -> List[str]:
         """Names of the movable joints starting with ``prefix``."""
         return [n for n in self.joints if n.startswith(prefix)]
+
