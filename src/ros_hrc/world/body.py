@@ -67,9 +67,8 @@ class ArticulatedBody:
             split_visuals = client.gui
         ids = self._load(urdf_path, position, yaw, split_visuals)
         self.body_id, self.twins = ids[0], ids[1:]
-        for twin in self.twins:
-            for index in [-1] + list(range(client.getNumJoints(twin))):
-                client.setCollisionFilterGroupMask(twin, index, 0, 0)
+        for twin in self.twins:   # looks only: nothing collides with them, no ray hits them
+            _set_collision_group(client, twin, 0, 0)
         self.joints: Dict[str, Joint] = {}
         self.links: Dict[str, int] = {client.getBodyInfo(self.body_id)[0].decode(): -1}
         for index in range(client.getNumJoints(self.body_id)):
@@ -204,10 +203,14 @@ class ArticulatedBody:
 
     def set_collision_group(self, group: int, mask: int) -> None:
         """Put the root and every link into collision ``group``, colliding with ``mask``."""
-        for index in [-1] + list(range(self.client.getNumJoints(self.body_id))):
-            self.client.setCollisionFilterGroupMask(self.body_id, index, group, mask)
+        _set_collision_group(self.client, self.body_id, group, mask)
 
     def joint_names(self, prefix: str = "") -> List[str]:
         """Names of the movable joints starting with ``prefix``."""
         return [n for n in self.joints if n.startswith(prefix)]
 
+
+def _set_collision_group(client: PhysicsClient, body_id: int, group: int, mask: int) -> None:
+    """Put the root and every link of ``body_id`` into collision ``group``, colliding with ``mask``."""
+    for index in [-1] + list(range(client.getNumJoints(body_id))):
+        client.setCollisionFilterGroupMask(body_id, index, group, mask)
