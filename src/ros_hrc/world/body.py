@@ -67,9 +67,8 @@ class ArticulatedBody:
             split_visuals = client.gui
         ids = self._load(urdf_path, position, yaw, split_visuals)
         self.body_id, self.twins = ids[0], ids[1:]
-        for twin in self.twins:
-            for index in [-1] + list(range(client.getNumJoints(twin))):
-                client.setCollisionFilterGroupMask(twin, index, 0, 0)
+        for twin in self.twins:   # looks only: nothing collides with them, no ray hits them
+            _set_collision_group(client, twin, 0, 0)
         self.joints: Dict[str, Joint] = {}
         self.links: Dict[str, int] = {client.getBodyInfo(self.body_id)[0].decode(): -1}
         for index in range(client.getNumJoints(self.body_id)):
@@ -134,6 +133,14 @@ class ArticulatedBody:
         position, orientation = self.link_pose(name)
         return np.array(position), quat_to_matrix(orientation)
 
+    def frames(self) -> Dict[str, object]:
+        """Where the body is, as plain data (for /tf and joint states): its URDF file, root
+        link, base pose and movable joints' positions."""
+        c = self.client
+        return {"urdf": self.urdf_path, "root": c.getBodyInfo(self.body_id)[0].decode(),
+                "base": c.getBasePositionAndOrientation(self.body_id),
+                "joints": self.positions(self.joints)}
+
     # --- commanding -----------------------------------------------------------------------
     def command(self, targets: Mapping[str, float]) -> None:
         """Put the named joints at their targets (clamped to the joint limits)."""
@@ -196,9 +203,14 @@ class ArticulatedBody:
 
     def set_collision_group(self, group: int, mask: int) -> None:
         """Put the root and every link into collision ``group``, colliding with ``mask``."""
-        for index in [-1] + list(range(self.client.getNumJoints(self.body_id))):
-            self.client.setCollisionFilterGroupMask(self.body_id, index, group, mask)
+        _set_collision_group(self.client, self.body_id, group, mask)
 
     def joint_names(self, prefix: str = "") -> List[str]:
         """Names of the movable joints starting with ``prefix``."""
         return [n for n in self.joints if n.startswith(prefix)]
+
+
+def _set_collision_group(client: PhysicsClient, body_id: int, group: int, mask: int) -> None:
+    """Put the root and every link of ``body_id`` into collision ``group``, colliding with ``mask``."""
+    for index in [-1] + list(range(client.getNumJoints(body_id))):
+        client.setCollisionFilterGroupMask(body_id, index, group, mask)

@@ -15,13 +15,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence, Tuple
 
+import numpy as np
+
 from .client import PhysicsClient
+from .visuals import MATT_SPECULAR
 
 #: Collision group of static scenery (floor, belt, frame): Bullet's default "static" bit.
 #: Scenery collides with the object only (mask 1); PyBullet lets two bodies collide when
 #: either one's group is in the other's mask, so both sides are set explicitly.
 STATIC_GROUP = 2
 STATIC_MASK = 1
+#: An unheld object whose downstream face is this close to the end stop has reached the
+#: belt's end.
+_AT_END_STOP_M = 0.02
 
 
 @dataclass(frozen=True)
@@ -45,9 +51,8 @@ _BELT_THICKNESS = 0.04
 _BELT_COLOUR = (0.15, 0.15, 0.17, 1.0)
 _FRAME_COLOUR = (0.62, 0.64, 0.66, 1.0)
 _STOP_COLOUR = (0.95, 0.75, 0.10, 1.0)
-#: Nearly matt: PyBullet's window puts a glaring highlight on shiny frames and rollers (and
-#: a body without a collision shape cannot be changed after it is made).
-_SPECULAR = (0.08, 0.08, 0.08)
+# Every part is made matt (MATT_SPECULAR) as it is built, not later with the other bodies:
+# a body without a collision shape cannot be changed after it is made.
 
 
 class Conveyor:
@@ -72,7 +77,7 @@ class Conveyor:
         shape = self.client.createCollisionShape(self.client.GEOM_BOX, halfExtents=list(half)) \
             if collide else -1
         visual = self.client.createVisualShape(self.client.GEOM_BOX, halfExtents=list(half),
-                                               rgbaColor=list(colour), specularColor=list(_SPECULAR))
+                                               rgbaColor=list(colour), specularColor=list(MATT_SPECULAR))
         body = self.client.createMultiBody(baseMass=0, baseCollisionShapeIndex=shape,
                                            baseVisualShapeIndex=visual, basePosition=list(position))
         self.client.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK)
@@ -95,7 +100,7 @@ class Conveyor:
         for x in (c.start_x, c.end_x):
             shape = self.client.createVisualShape(self.client.GEOM_CYLINDER, radius=_BELT_THICKNESS / 2 + 0.01,
                                                   length=c.width, rgbaColor=list(_FRAME_COLOUR),
-                                                  specularColor=list(_SPECULAR))
+                                                  specularColor=list(MATT_SPECULAR))
             ids.append(self.client.createMultiBody(
                 baseMass=0, baseVisualShapeIndex=shape,
                 basePosition=[x, c.centre_y, c.surface_height - _BELT_THICKNESS / 2],
@@ -121,6 +126,19 @@ class Conveyor:
         position, orientation = self._surface_pose
         self.client.resetBasePositionAndOrientation(self.belt_id, position, orientation)
         self.client.resetBaseVelocity(self.belt_id, [self.speed, 0.0, 0.0], [0.0, 0.0, 0.0])
+
+    def carry(self, position: Sequence[float], half: float, seconds: float) -> np.ndarray:
+        """Where the belt takes a box of half-size ``half`` resting at ``position`` in
+        ``seconds``: downstream at the belt's speed, and the end stop holds it."""
+        x = position[0] + self.speed * max(0.0, seconds)
+        x = min(x, max(position[0], self.stop_x - half))   # the stop holds it
+        x = max(x, min(position[0], self.config.start_x + half))
+        return np.array([x, position[1], position[2]])
+
+    def at_end(self, position: Sequence[float], half: float) -> bool:
+        """True when a box of half-size ``half`` at ``position`` has reached the belt's end:
+        its downstream face at the end stop (where it rests, its centre ``half`` upstream)."""
+        return position[0] + half >= self.stop_x - _AT_END_STOP_M
 
     def is_on_belt(self, position: Sequence[float], tolerance: float = 0.08) -> bool:
         """True when ``position`` lies over the belt surface, within ``tolerance`` above it."""

@@ -114,11 +114,8 @@ class WorkObject:
         goes where the physics put the object."""
         if self._hand is not None:
             hand_position, hand_orientation = self._hand()
-            position, orientation = self.client.multiplyTransforms(
-                hand_position, hand_orientation, self._in_hand[0], self._in_hand[1])
-            self.physics.resetBasePositionAndOrientation(self.physics_id, position, orientation)
-            self.physics.resetBaseVelocity(self.physics_id, [0, 0, 0], [0, 0, 0])
-            self.client.resetBasePositionAndOrientation(self.body_id, position, orientation)
+            self._put(*self.client.multiplyTransforms(hand_position, hand_orientation,
+                                                      self._in_hand[0], self._in_hand[1]))
             return
         position, orientation = self.pose()
         self.client.resetBasePositionAndOrientation(self.body_id, position, orientation)
@@ -126,6 +123,10 @@ class WorkObject:
     def reset(self) -> None:
         """Release and put the object back at its start on the belt, at rest."""
         self.release()
-        self.physics.resetBasePositionAndOrientation(self.physics_id, self._start, [0, 0, 0, 1])
+        self._put(self._start, [0, 0, 0, 1])
+
+    def _put(self, position: Sequence[float], orientation: Sequence[float]) -> None:
+        """Put the object there at rest, and its copy in the scene with it."""
+        self.physics.resetBasePositionAndOrientation(self.physics_id, position, orientation)
         self.physics.resetBaseVelocity(self.physics_id, [0, 0, 0], [0, 0, 0])
-        self.client.resetBasePositionAndOrientation(self.body_id, self._start, [0, 0, 0, 1])
+        self.client.resetBasePositionAndOrientation(self.body_id, position, orientation)

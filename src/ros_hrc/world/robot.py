@@ -38,6 +38,9 @@ _REST = {
     "l_wrist_roll_joint": -0.09, "l_gripper_l_finger_joint": 0.0, "l_gripper_r_finger_joint": 0.0,
 }
 _FINGERS = ("r_gripper_l_finger_joint", "r_gripper_r_finger_joint")
+#: The right gripper open, and the right arm (with its gripper) at rest.
+_OPEN = {f: 0.045 for f in _FINGERS}
+_RIGHT_REST = {n: v for n, v in _REST.items() if n.startswith("r_")}
 #: Gripper pitches tried for a grasp, most vertical first (a top grasp is the safest on a belt).
 _GRASP_PITCHES = tuple(math.radians(a) for a in (-90, -80, -70, -60, -50, -40, -30))
 
@@ -211,13 +214,11 @@ class Robot(ArticulatedBody):
             # A reach that stops short, and back: a watcher sees the robot try and fail (a
             # refusal that moved only the head looked like nothing happened).
             distance = self.shoulder_distance(self.object.position())
-            opened = {f: 0.045 for f in _FINGERS}
-            self.command(opened)
+            self.command(_OPEN)
             yield from self.track(lambda: self.point_pose(self.object.position(), gap=0.0),
                                   c.reach_time)
             yield from self.pause(c.short_hold_time)
-            yield from self.move({**{n: v for n, v in _REST.items() if n.startswith("r_")},
-                                  **self.look_at(self.object.position())}, c.reach_time)
+            yield from self.move({**_RIGHT_REST, **self.look_at(self.object.position())}, c.reach_time)
             return Outcome(False, f"cannot grasp: the object is out of reach, {distance:.2f} m from "
                                   f"the right shoulder (the arm reaches {self.reach:.2f} m)")
         last: Dict[str, Dict[str, float]] = {}
@@ -231,8 +232,7 @@ class Robot(ArticulatedBody):
                 last["pose"] = {**pose, **self.look_at(target)}
             return last["pose"]
 
-        opened = {f: 0.045 for f in _FINGERS}
-        self.command(opened)
+        self.command(_OPEN)
         yield from self.track(lambda: towards(c.approach), c.reach_time)
         yield from self.track(lambda: towards(0.0), c.descend_time)
         # Close while still following the object, so a moving belt does not pull it away.
@@ -251,8 +251,8 @@ class Robot(ArticulatedBody):
                 return Outcome(True, "grasped the object (no room to lift it: holding it on the belt)")
             yield from self.move(lifted, c.lift_time)
             return Outcome(True, "grasped the object and lifted it off the belt")
-        yield from self.move(opened, 0.2)
-        yield from self.move({n: v for n, v in _REST.items() if n.startswith("r_")}, 1.0)
+        yield from self.move(_OPEN, 0.2)
+        yield from self.move(_RIGHT_REST, 1.0)
         if self.object.holder == "human":
             return Outcome(False, "missed: the human took the object first")
         return Outcome(False, f"missed: the gripper closed {gap:.2f} m from the object")
@@ -274,10 +274,9 @@ class Robot(ArticulatedBody):
         if pitch is None:
             target, where = self.object.position(), "where it is (its predicted place is out of reach)"
             pitch = self.plan_grasp(target)
-        opened = {f: 0.045 for f in _FINGERS}
         if pitch is None:
             distance = self.shoulder_distance(predicted)
-            yield from self.move({**self.point_pose(predicted, gap=c.approach), **opened},
+            yield from self.move({**self.point_pose(predicted, gap=c.approach), **_OPEN},
                                  c.reach_time)
             return Outcome(False, f"cannot plan a grasp: the object's predicted place, x = "
                                   f"{predicted[0]:+.2f} m in {lead:.1f} s, is out of reach, "
@@ -285,7 +284,7 @@ class Robot(ArticulatedBody):
                                   f"{self.reach:.2f} m)")
         pregrasp = target - c.approach * self._gripper_direction(target, pitch)
         pose = self.solve_tool(pregrasp, pitch)   # plan_grasp checked it is reachable
-        yield from self.move({**pose, **opened, **self.look_at(target)}, c.reach_time)
+        yield from self.move({**pose, **_OPEN, **self.look_at(target)}, c.reach_time)
         return Outcome(True, f"gripper open {c.approach:.2f} m back from the object's place at "
                              f"x = {target[0]:+.2f} m ({where}), pitched "
                              f"{math.degrees(-pitch):.0f} deg down: ready to grasp")

@@ -1,15 +1,8 @@
 """The PyBullet world: floor, conveyor, object, human and robot, stepped at a fixed rate.
 
-Two PyBullet servers, because only the object needs dynamics:
-
-* the **physics** server simulates what contact matters for: the floor, the belt (which
-  carries the object by friction), its rails and end stop, and the object. It steps at
-  ``time_step`` (240 Hz), ``substeps`` physics steps per control step.
-* the **scene** server (``World.client``; the window with ``gui``) holds every body as it is
-  seen: the same scenery, a copy of the object, the human and the robot. It is never stepped:
-  the agents' joints are set along their scripted motions (they touch nothing: holding is
-  done by the world, not by contact), and the object's copy is put where the physics put the
-  object. Rays (line of sight), images and the agents' geometry are read here.
+Its bodies live in two PyBullet servers (:mod:`.stage`): the **physics** server simulates the
+object on the belt; the **scene** server (``World.client``; the window with ``gui``) holds
+every body as it is seen, and is never stepped.
 
 One loop steps the world in control steps of ``substeps * time_step`` (1/60 s). Each control
 step it (1) takes the requests that came in (a reset or a cancel interrupts at once; any other
@@ -19,8 +12,10 @@ and the object's copy where the object is, (5) advances the human's and the robo
 to their next command, which finishes a motion whose last step has just been taken.
 Actions are therefore only ever executed by the loop, between two steps, and every
 PyBullet call happens under one lock: callers on other threads (ROS service handlers) submit a
-request and wait for its :class:`Ticket`, and predicate queries read the geometry under the
-lock. Nothing waits for anything while holding the lock, so calls cannot deadlock.
+request and wait for its :class:`~.tickets.Ticket` (:mod:`.tickets`: the queues and who goes
+first), and predicate queries read the geometry under the lock. Nothing waits for anything
+while holding the lock, so calls cannot deadlock. With ``gui`` the scene server is PyBullet's
+window (:mod:`.window`); snapshots come from :mod:`.camera`.
 
 Two ways to drive it:
 
@@ -39,25 +34,24 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import deque
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Callable, Deque, Dict, Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Callable, Iterator, List, Optional, Sequence, Union
 
 import numpy as np
 
 from ..errors import SimulationError
 from .. import streams
-from .body import ArticulatedBody, Motion
+from .camera import Matrices, camera_matrices, rgb, take_image, window_matrices
 from .client import PhysicsClient
-from .conveyor import STATIC_GROUP, STATIC_MASK, Conveyor, ConveyorConfig
-from .human import Human, HumanConfig
-from .object import ObjectConfig, WorkObject
+from .config import WorldConfig, default_model_dir
 from .outcome import Outcome, Reading
 from .png import write_png
-from .robot import Robot, RobotConfig
-from .window import WINDOW_TITLE, WindowClosed, bullet_windows, name_window, screen_points, window_options
+from .stage import build_stage
+from .tickets import ActionQueues, Channel, Ticket
+from .window import View, Window, WindowClosed, window_options
+from .x11 import bullet_windows
 
 LOG = logging.getLogger(__name__)
 
@@ -67,163 +61,8 @@ HUMAN_ACTIONS = ("walk_away", "look_around", "warn_robot", "attempt_grasp", "gra
 ROBOT_ACTIONS = ("point_to_obj", "grasp", "cancel_action", "reset", "grasp_planning")
 #: The human predicates (seed Table 3.2), answered by :meth:`World.query`.
 PREDICATES = ("is_ov", "is_oir", "is_ho", "is_a0", "is_a2", "is_h4")
-#: Requests that take effect at once and interrupt the agent's motion and queue.
-_INTERRUPTING = {("human", "reset"), ("robot", "reset"), ("robot", "cancel_action"), ("world", "reset")}
 #: A synchronous run() gives up after this much simulated time (no action lasts that long).
 _MAX_ACTION_TIME = 60.0
-#: PyBullet's window draws with a fixed vertical field of view (its projection matrix has
-#: 1/tan(fov/2) = 1), whatever the window's size.
-GUI_FOV_DEG = 90.0
-#: Named in the window's overlay.
-_PACKAGE = "ros_hrc"
-#: Specular colour of every body in the window (PyBullet's default glares on large faces).
-_SPECULAR = (0.08, 0.08, 0.08)
-#: The overlay: lines from the window's top-left corner, in pixels; their size and colour.
-_OVERLAY_MARGIN = (14.0, 26.0)
-_OVERLAY_LINE_PX = 22.0
-_OVERLAY_TEXT_SIZE = 1.3
-_OVERLAY_COLOUR = (0.05, 0.06, 0.12)
-#: How often the stepping loop looks whether the user moved the window's view, s.
-_LOOK_PERIOD = 0.3
-#: An unheld object whose downstream face is this close to the belt's end stop has reached
-#: the end: it is missed.
-_AT_END_STOP_M = 0.02
-
-
-def default_model_dir() -> Path:
-    """``models/urdf`` of the source tree this module sits in."""
-    return Path(__file__).resolve().parents[3] / "models" / "urdf"
-
-
-@dataclass(frozen=True)
-class CameraConfig:
-    """The fixed camera of snapshots (:meth:`World.render`, ``/hrc/camera/image``).
-
-    It looks as the window does (:class:`WindowConfig`), from further back through its
-    narrower lens: the belt, both agents and both working arms are in view, and the human
-    stays in it all the way through a walk-away.
-    """
-
-    eye: Tuple[float, float, float] = (-3.31, 1.30, 3.12)
-    target: Tuple[float, float, float] = (-0.5, -0.6, 1.0)
-    fov_deg: float = 50.0
-    width: int = 800
-    height: int = 600
-
-
-@dataclass(frozen=True)
-class WindowConfig:
-    """PyBullet's window (``gui``): its size, the colour of its sky, its initial view.
-
-    The view is PyBullet's camera (distance, yaw, pitch in degrees, target): PyBullet's window
-    sees 90 deg vertically, much wider than the snapshots' 50, so it has a view of its own. It
-    looks from above the belt's upstream end, behind the robot's shoulder, across the belt
-    towards the human: the robot on the left, the human on the right, the belt between them,
-    and room on the right for where the human's walk-away ends (1.5 m from the belt), so
-    both agents stay in frame whatever they do (test_world_window checks every link).
-    """
-
-    width: int = 1024
-    height: int = 768
-    background: Tuple[float, float, float] = (0.86, 0.88, 0.91)
-    distance: float = 1.85
-    yaw_deg: float = -124.0
-    pitch_deg: float = -35.0
-    target: Tuple[float, float, float] = (-0.5, -0.6, 1.0)
-
-
-@dataclass(frozen=True)
-class WorldConfig:
-    """Everything that defines a world; the defaults are the scene of docs/world.md."""
-
-    gui: bool = False
-    seed: int = 0
-    time_step: float = 1.0 / 240.0   # physics step, s
-    substeps: int = 4                # physics steps per control step (motions, clock, requests)
-    # The physics server holds one dynamic body (the object on the belt): 10 iterations carry
-    # it exactly as 20 or PyBullet's 50 do (docs/performance.md), at half the cost of 20.
-    solver_iterations: int = 10
-    belt_speed: float = 0.02  # m/s, downstream (+x)
-    conveyor: ConveyorConfig = field(default_factory=ConveyorConfig)
-    work_object: ObjectConfig = field(default_factory=ObjectConfig)
-    human: HumanConfig = field(default_factory=HumanConfig)
-    robot: RobotConfig = field(default_factory=RobotConfig)
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    #: Load the agents in colour layers (see .visuals): None = only in the window, which
-    #: otherwise draws each link in one colour.
-    split_visuals: Optional[bool] = None
-    window: WindowConfig = field(default_factory=WindowConfig)
-
-
-class Ticket:
-    """A submitted action: wait for it to get its :class:`Outcome`.
-
-    ``caller`` names who asked (for messages); ``driver``: the agents' driver asked (the
-    loop), whose actions go first (see :meth:`World.submit`)."""
-
-    def __init__(self, agent: str, action: str, caller: str = "", driver: bool = False) -> None:
-        self.agent = agent
-        self.action = action
-        self.caller = caller
-        self.driver = driver
-        self.submitted_at: Optional[float] = None  # simulated time it was asked for
-        self.started_at: Optional[float] = None   # simulated time the motion began
-        self.outcome: Optional[Outcome] = None
-        self.error: Optional[SimulationError] = None   # raised by wait(): the world failed
-        self.refused = False                      # answered at once: the agent was busy
-        self.preempted: List[str] = []            # other callers' actions this one cut short
-        self._done = threading.Event()
-
-    @property
-    def name(self) -> str:
-        """``agent/action``, as in the service names."""
-        return f"{self.agent}/{self.action}"
-
-    def asked_by(self) -> str:
-        """``agent/action`` and who asked, for messages."""
-        return self.name + (f" (asked by {self.caller})" if self.caller else "")
-
-    def done(self) -> bool:
-        """True once the action is over (finished, failed or interrupted)."""
-        return self._done.is_set()
-
-    def wait(self, timeout: Optional[float] = None) -> Outcome:
-        """Block until the action is over and return its outcome (``timeout`` in wall seconds)."""
-        if not self._done.wait(timeout):
-            raise SimulationError(f"{self.name} did not finish within {timeout:.0f} s of wall-clock time "
-                                  "(is the world's stepping loop running?)")
-        if self.error is not None:
-            raise self.error
-        return self.outcome
-
-    def finish(self, outcome: Outcome, now: float) -> None:
-        """Record the outcome (with its simulated duration) and wake the waiters."""
-        started = self.started_at if self.started_at is not None else now
-        if self.preempted:   # say why the agent did not start from where the step left it
-            outcome = replace(outcome, message=outcome.message + "; it first interrupted "
-                              + ", ".join(self.preempted))
-        self.outcome = replace(outcome, duration=now - started)
-        self._done.set()
-
-    def refuse(self, message: str, now: float) -> None:
-        """Answer at once that the action will not run (the agent is busy for its driver)."""
-        self.refused = True
-        self.finish(Outcome(False, message), now)
-
-    def fail(self, error: SimulationError, now: float) -> None:
-        """End the action because the world cannot go on: the waiters get ``error``."""
-        self.error = error
-        self.finish(Outcome(False, f"{self.name} abandoned: {error}"), now)
-
-
-class _Channel:
-    """One agent's current motion and the actions queued behind it."""
-
-    def __init__(self, body: ArticulatedBody) -> None:
-        self.body = body
-        self.motion: Optional[Motion] = None
-        self.ticket: Optional[Ticket] = None
-        self.queue: Deque[Ticket] = deque()
 
 
 class World:
@@ -249,110 +88,30 @@ class World:
         self._lock = threading.RLock()
         self._waiters = 0
         self._waiters_lock = threading.Lock()
-        self._requests: Deque[Ticket] = deque()
         self._work = threading.Event()
         self._stop = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._listeners: List[Callable[[float], None]] = []
-        self._closed_listeners: List[Callable[[], None]] = []
-        self._window_closed = False
-        self._overlay: List[Tuple[int, str, Tuple[float, ...]]] = []   # (item id, text, where)
-        self._overlay_view: Tuple[float, ...] = ()   # the window's view the overlay was placed for
-        self._view_seen: Tuple[float, ...] = ()      # the view at the last look
-        self._next_look = 0.0                        # when to look at the view again (monotonic s)
         cfg = self.config
         # The windows PyBullet had open before this one: the new one is ours, to be named.
         others = bullet_windows() if cfg.gui else set()
         options = window_options(cfg.window.width, cfg.window.height, cfg.window.background)
         self.client = PhysicsClient(cfg.gui, options)   # the scene: never stepped
+        self._window = Window(self.client, cfg.window)   # used with gui only
+        self._window.add_closed_listener(self._abandon_actions)   # first: then the others
         try:
             if cfg.gui:
-                self._open_window(others)
+                self._window.open(others)
             self.physics = PhysicsClient(False)
-            self._build()
+            stage = build_stage(self.client, self.physics, cfg, self.model_dir, self.control_period,
+                                self.rng, self._predicted_object, self._window if cfg.gui else None)
+            self.floor_id, self.scenery, self.conveyor, self.object, self.human, self.robot = stage
+            self._actions = ActionQueues({"human": self.human, "robot": self.robot})
             if cfg.gui:
-                self._show_window()
+                self._window.show(self.floor_id)
         except BaseException:
             self.close_clients()
             raise
-
-    def _build(self) -> None:
-        c, physics, cfg = self.client, self.physics, self.config
-        # One stepSimulation() is a control step of `substeps` physics steps of `time_step`.
-        physics.setTimeStep(self.control_period)
-        # Pyramid friction instead of the friction cone: a third cheaper, and on a belt that
-        # pulls along x the object's path is the same to 0.1 mm (docs/performance.md).
-        physics.setPhysicsEngineParameter(numSolverIterations=cfg.solver_iterations,
-                                          numSubSteps=cfg.substeps, enableConeFriction=0)
-        physics.setGravity(0, 0, -9.81)
-        self.floor_id = self._floor(c)
-        if cfg.gui:
-            self._hold_window()
-        self._floor(physics)
-        self.scenery = Conveyor(c, cfg.conveyor, 0.0)   # as seen (and as it blocks a line of sight)
-        self.conveyor = Conveyor(physics, cfg.conveyor, cfg.belt_speed)
-        self.object = WorkObject(c, physics, cfg.work_object, cfg.conveyor.surface_height)
-        self.human = Human(c, str(self.model_dir / "human.urdf"), cfg.human, self.control_period,
-                           self.object, self.rng, cfg.split_visuals)
-        self.robot = Robot(c, str(self.model_dir / "pr2_like.urdf"), cfg.robot, self.control_period,
-                           self.object, cfg.split_visuals, self._predicted_object)
-        self._channels: Dict[str, _Channel] = {"human": _Channel(self.human), "robot": _Channel(self.robot)}
-
-    @staticmethod
-    def _floor(client: PhysicsClient) -> int:
-        plane = client.createCollisionShape(client.GEOM_PLANE)
-        # Wide: from the window's camera the floor, not the sky, fills the background.
-        look = client.createVisualShape(client.GEOM_BOX, halfExtents=[15, 15, 0.005],
-                                        rgbaColor=[0.80, 0.80, 0.78, 1], visualFramePosition=[0, 0, -0.005])
-        floor = client.createMultiBody(0, plane, look)
-        client.setCollisionFilterGroupMask(floor, -1, STATIC_GROUP, STATIC_MASK)
-        return floor
-
-    # --- the window (gui) ------------------------------------------------------------------------
-    # PyBullet's window draws from the moment it opens, before connect() returns: its first
-    # frames show PyBullet's default scene and panels. Then, with rendering off, it shows the
-    # last frame drawn. So: panels off and the camera set at once (an empty scene draws in no
-    # time); the floor and a "loading" line drawn; rendering off while the rest loads (ten
-    # times faster: no frame per shape, no body appearing one by one); rendering on.
-    def _open_window(self, others: set) -> None:
-        """Right after the window opened: its title, PyBullet's panels off, light and camera."""
-        c = self.client
-        if not name_window(WINDOW_TITLE, others):
-            LOG.info("PyBullet's window keeps PyBullet's title (no X11 window found to rename)")
-        for flag in (c.COV_ENABLE_GUI, c.COV_ENABLE_RGB_BUFFER_PREVIEW, c.COV_ENABLE_DEPTH_BUFFER_PREVIEW,
-                     c.COV_ENABLE_SEGMENTATION_MARK_PREVIEW, c.COV_ENABLE_MOUSE_PICKING):
-            c.configureDebugVisualizer(flag, 0)
-        # Light from above, behind the camera's left, as in the snapshots; shadows sized to
-        # the scene.
-        c.configureDebugVisualizer(lightPosition=[-3.0, -2.0, 6.0], shadowMapWorldSize=6,
-                                   shadowMapResolution=1024, shadowMapIntensity=0.35)
-        self._aim_gui_camera()
-
-    def _hold_window(self) -> None:
-        """With the floor in place: a frame with it and a "loading" line, then rendering off."""
-        c = self.client
-        c.changeVisualShape(self.floor_id, -1, specularColor=[0.0, 0.0, 0.0])   # no glare on it
-        self._show_overlay_locked([f"{_PACKAGE}: loading the scene ..."])
-        c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 0)
-
-    def _show_window(self) -> None:
-        """The scene is complete: matt bodies, the first overlay, rendering on."""
-        c = self.client
-        for body in (c.getBodyUniqueId(i) for i in range(c.getNumBodies())):
-            if body != self.floor_id:
-                for link in range(-1, c.getNumJoints(body)):
-                    c.changeVisualShape(body, link, specularColor=list(_SPECULAR))
-        self._show_overlay_locked([f"{_PACKAGE}: the scene is ready; waiting for the first step"])
-        c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 1)
-
-    def gui_camera(self) -> Tuple[float, float, float, Tuple[float, float, float]]:
-        """The window's initial view as PyBullet takes it: distance, yaw, pitch (degrees), target."""
-        w = self.config.window
-        return w.distance, w.yaw_deg, w.pitch_deg, tuple(float(x) for x in w.target)
-
-    def _aim_gui_camera(self) -> None:
-        distance, yaw, pitch, target = self.gui_camera()
-        self.client.resetDebugVisualizerCamera(distance, yaw, pitch, list(target))
 
     # --- context manager ---------------------------------------------------------------------
     def __enter__(self) -> "World":
@@ -379,76 +138,32 @@ class World:
                 self._waiters -= 1
 
     def _check_window(self, settle: float = 0.0) -> None:
-        """Raise :class:`WindowClosed` if the window (the scene server) is gone (under the lock).
+        """Raise :class:`WindowClosed` if the window (the scene server) is gone (under the
+        lock; ``settle``: see :meth:`.Window.vanished`)."""
+        if self.config.gui or self._window.closed:
+            self._window.check(settle)
 
-        ``settle``: after a PyBullet call failed, give the closing window this long (s) to show
-        it is gone (its threads end first, the connection a moment later): a failure when the
-        window closes is not the action's.
-        """
-        gone = self._window_closed or (self.config.gui and not self.client.connected)
-        deadline = time.monotonic() + settle
-        while not gone and self.config.gui and time.monotonic() < deadline:
-            time.sleep(0.01)
-            gone = not self.client.connected
-        if gone:
-            self._on_window_closed()
-            raise WindowClosed("the PyBullet window was closed: the scene is gone, the world stops")
-
-    def _on_window_closed(self) -> None:
-        """Once: end every pending action with :class:`WindowClosed`, tell the listeners."""
-        if self._window_closed:
-            return
-        self._window_closed = True
-        LOG.info("the PyBullet window was closed: the world stops")
-        error = WindowClosed("the PyBullet window was closed: the scene is gone, the world stops")
-        for ticket in self._pending():
+    def _abandon_actions(self) -> None:
+        """The window is gone: every pending action ends with :class:`WindowClosed`."""
+        error = WindowClosed()
+        for ticket in self._actions.pending():
             ticket.fail(error, self.sim_time)
-        for listener in self._closed_listeners:
-            try:
-                listener()
-            except Exception:  # a listener's bug must not hide the closing
-                LOG.exception("window-closed listener %r failed", listener)
-
-    def _pending(self) -> List[Ticket]:
-        """Take every request, running action and queued action out of the world."""
-        pending = list(self._requests)
-        self._requests.clear()
-        for channel in self._channels.values():
-            if channel.ticket is not None:
-                pending.append(channel.ticket)
-            pending.extend(channel.queue)
-            channel.queue.clear()
-            channel.motion, channel.ticket = None, None
-        return pending
 
     def _step_locked(self) -> None:
         if self.config.gui:
             self._check_window()
             try:
                 self._step_scene()
-                self._follow_view()
+                self._window.follow_view()
             except Exception:
                 self._check_window(settle=0.2)   # the window went during the step: say so
                 raise
         else:
             self._step_scene()
 
-    def _follow_view(self) -> None:
-        """A few times a second: once the user has moved the window's view and let it rest,
-        the overlay goes back to the window's corner (not while the view moves: each line
-        placed costs a frame)."""
-        now = time.monotonic()
-        if now < self._next_look:
-            return
-        self._next_look = now + _LOOK_PERIOD
-        view = tuple(self.client.getDebugVisualizerCamera()[2])
-        if self._overlay and view != self._overlay_view and view == self._view_seen:
-            self._show_overlay_locked([text for _, text, _ in self._overlay])
-        self._view_seen = view
-
     def _step_scene(self) -> None:
         self._take_requests()
-        for channel in self._channels.values():
+        for channel in self._actions.channels.values():
             if channel.motion is None:
                 self._advance(channel)   # start a queued action: its first command
         self.conveyor.before_step()
@@ -458,90 +173,46 @@ class World:
         self.sim_time = self.step_count * self.time_step
         # The next command of each motion, right after the step: a motion of n steps is over
         # n steps after it began (its last command has had its step), not one step later.
-        for channel in self._channels.values():
+        for channel in self._actions.channels.values():
             if channel.motion is not None:
                 self._advance(channel)
 
     def _take_requests(self) -> None:
-        while self._requests:
-            ticket = self._requests.popleft()
-            if (ticket.agent, ticket.action) not in _INTERRUPTING:
-                channel = self._channels[ticket.agent]
-                if ticket.driver:
-                    self._preempt(channel, ticket)
-                channel.queue.append(ticket)
-                continue
+        """Queue the actions asked for since the last step; carry out resets and cancels at once."""
+        for ticket in self._actions.take(self.sim_time):
             ticket.started_at = self.sim_time
-            if ticket.agent == "world":
-                for agent in self._channels:
-                    self._interrupt(agent, "reset")
-                self.object.reset()
-                self.human.reset()
-                self.robot.reset()
-                outcome = Outcome(True, "world reset: human, robot and object back at their start")
-            elif ticket.agent == "human":
-                self._interrupt("human", "reset")
-                self.object.reset()  # the seed's /human/reset puts the object back too
-                outcome = self.human.reset()
-                outcome = replace(outcome, message=outcome.message + "; object back at the start of the belt")
-            elif ticket.action == "reset":
-                self._interrupt("robot", "reset")
-                if self.object.holder == "robot":
-                    self.object.reset()  # a released object would drop anywhere: put it back
-                outcome = self.robot.reset()
-            else:
-                outcome = self.robot.cancel(self._interrupt("robot", "cancel_action"))
-            ticket.finish(outcome, self.sim_time)
+            ticket.finish(self._carry_out(ticket), self.sim_time)
 
-    def _interrupt(self, agent: str, by: str) -> Optional[str]:
-        """Stop ``agent``'s motion and drop its queue; return the interrupted action's name."""
-        channel = self._channels[agent]
-        interrupted = None
-        if channel.motion is not None:
-            channel.motion.close()
-            interrupted = channel.ticket.action
-            channel.ticket.finish(Outcome(False, f"{channel.ticket.name} interrupted by {agent}/{by} after "
-                                                 f"{self.sim_time - channel.ticket.started_at:.1f} s"),
-                                  self.sim_time)
-            channel.motion, channel.ticket = None, None
-            channel.body.moving = False   # its joints stay where the last step put them
-        while channel.queue:
-            channel.queue.popleft().finish(
-                Outcome(False, f"cancelled by {agent}/{by} before it started"), self.sim_time)
-        return interrupted
+    def _carry_out(self, ticket: Ticket) -> Outcome:
+        """A reset or a cancel: it interrupts the agent's motion and queue (both agents' for
+        the world's reset) and takes effect at once."""
+        actions, now = self._actions, self.sim_time
+        if ticket.agent == "world":
+            for agent in actions.channels:
+                actions.interrupt(agent, "reset", now)
+            self.object.reset()
+            self.human.reset()
+            self.robot.reset()
+            return Outcome(True, "world reset: human, robot and object back at their start")
+        if ticket.agent == "human":
+            actions.interrupt("human", "reset", now)
+            self.object.reset()  # the seed's /human/reset puts the object back too
+            outcome = self.human.reset()
+            return replace(outcome, message=outcome.message + "; object back at the start of the belt")
+        if ticket.action == "reset":
+            actions.interrupt("robot", "reset", now)
+            if self.object.holder == "robot":
+                self.object.reset()  # a released object would drop anywhere: put it back
+            return self.robot.reset()
+        return self.robot.cancel(actions.interrupt("robot", "cancel_action", now))
 
-    def _preempt(self, channel: _Channel, by: Ticket) -> None:
-        """The driver's ``by`` goes first: another caller's action under way on ``channel``
-        is interrupted, those queued are cancelled (the driver's own stay in order)."""
-        running = channel.ticket
-        if running is not None and not running.driver:
-            if channel.motion is not None:
-                channel.motion.close()
-            running.finish(Outcome(False, f"{running.name} interrupted by {by.asked_by()} after "
-                                          f"{self.sim_time - running.started_at:.1f} s"),
-                           self.sim_time)
-            by.preempted.append(running.asked_by())
-            channel.motion, channel.ticket = None, None
-            channel.body.moving = False   # its joints stay where the last step put them
-        kept: Deque[Ticket] = deque()
-        for queued in channel.queue:
-            if queued.driver:
-                kept.append(queued)
-            else:
-                queued.finish(Outcome(False, f"cancelled by {by.asked_by()} before it started"),
-                              self.sim_time)
-        channel.queue = kept
-
-    def _advance(self, channel: _Channel) -> None:
+    def _advance(self, channel: Channel) -> None:
         # Loop: a motion may end at its first step (e.g. "already away"), letting the next start.
         while True:
             if channel.motion is None:
                 if not channel.queue:
                     return
-                channel.ticket = channel.queue.popleft()
-                channel.ticket.started_at = self.sim_time
-                channel.motion = getattr(channel.body, channel.ticket.action)()
-                channel.body.moving = True
+                channel.start_next(self.sim_time)
             try:
                 next(channel.motion)
                 return
@@ -558,12 +229,7 @@ class World:
                     self._check_window(settle=0.2)   # PyBullet answers some calls with None once it is gone
                 LOG.exception("%s raised", channel.ticket.name)
                 outcome = Outcome(False, f"{channel.ticket.name} failed with an internal error: {error!r}")
-            channel.ticket.finish(outcome, self.sim_time)
-            channel.motion, channel.ticket = None, None
-            channel.body.moving = False
-
-    def _busy(self) -> bool:
-        return bool(self._requests) or any(ch.motion is not None or ch.queue for ch in self._channels.values())
+            channel.end(outcome, self.sim_time)
 
     def _notify(self) -> None:
         for listener in self._listeners:
@@ -581,14 +247,14 @@ class World:
     def _run_loop(self, real_time_factor: float, pause_when_idle: bool) -> None:
         anchor_wall, anchor_sim = time.monotonic(), self.sim_time
         while not self._stop.is_set():
-            if pause_when_idle and not self._busy():
+            if pause_when_idle and not self._actions.busy():
                 self._work.clear()
-                if not self._busy():
+                if not self._actions.busy():
                     self._work.wait(0.05)
                 if self.config.gui:   # idle, the window may still be closed, or looked round
                     with self._lock:
                         self._check_window()
-                        self._follow_view()
+                        self._window.follow_view()
                 anchor_wall, anchor_sim = time.monotonic(), self.sim_time
                 continue
             with self._lock:
@@ -638,7 +304,7 @@ class World:
         """Stop the loop, end every pending action, disconnect from PyBullet."""
         self.stop()
         with self._lock:
-            for ticket in self._pending():
+            for ticket in self._actions.pending():
                 ticket.finish(Outcome(False, f"{ticket.name} abandoned: the world was closed"), self.sim_time)
             self.close_clients()
 
@@ -665,17 +331,17 @@ class World:
         protocol, so the window manager cuts its X connection and Xlib ends the whole process,
         exit status 1.)
         """
-        if self.config.gui and not self._window_closed and self.client.client_id >= 0 \
+        if self.config.gui and not self._window.closed and self.client.client_id >= 0 \
                 and not self.client.connected:
             with self._lock:
-                self._on_window_closed()
-        return self._window_closed
+                self._window.mark_closed()
+        return self._window.closed
 
     def add_window_closed_listener(self, listener: Callable[[], None]) -> None:
         """Call ``listener()`` once when the window is found closed, on the thread that found
         it (the stepping thread, or a caller's) with the world's lock held: keep it short (set a
         flag, ask the process to shut down); it may call :meth:`close`."""
-        self._closed_listeners.append(listener)
+        self._window.add_closed_listener(listener)
 
     def show_overlay(self, lines: Sequence[str]) -> None:
         """Show ``lines`` at the window's top-left corner, replacing what was shown (no-op
@@ -690,33 +356,16 @@ class World:
         if not self.config.gui:
             return
         with self._locked():
-            self._show_overlay_locked([str(line) for line in lines])
+            self._window.show_overlay([str(line) for line in lines])
 
     def overlay(self) -> List[str]:
         """The lines the overlay shows now (empty without ``gui``)."""
         with self._locked():
-            return [text for _, text, _ in self._overlay]
+            return self._window.lines()
 
-    def _show_overlay_locked(self, lines: List[str]) -> None:
-        c = self.client
-        camera = c.getDebugVisualizerCamera()
-        self._overlay_view = self._view_seen = tuple(camera[2])
-        x, y = _OVERLAY_MARGIN
-        places = screen_points(camera, [(x, y + i * _OVERLAY_LINE_PX) for i in range(len(lines))])
-        shown: List[Tuple[int, str, Tuple[float, ...]]] = []
-        for i, (text, place) in enumerate(zip(lines, places)):
-            where = tuple(round(v, 4) for v in place)
-            old = self._overlay[i] if i < len(self._overlay) else None
-            if old is not None and old[1] == text and old[2] == where:
-                shown.append(old)
-                continue
-            replace_id = old[0] if old is not None else -1
-            item = c.addUserDebugText(text, list(where), list(_OVERLAY_COLOUR), textSize=_OVERLAY_TEXT_SIZE,
-                                      replaceItemUniqueId=replace_id)
-            shown.append((item, text, where))
-        for item, _, _ in self._overlay[len(lines):]:
-            c.removeUserDebugItem(item)
-        self._overlay = shown
+    def gui_camera(self) -> View:
+        """The window's initial view as PyBullet takes it: distance, yaw, pitch (degrees), target."""
+        return self.config.window.view()
 
     def step(self, count: int = 1) -> None:
         """Advance the world by ``count`` control steps on the calling thread (no stepping thread)."""
@@ -753,33 +402,10 @@ class World:
                 f"{a}/{x}" for a, xs in known.items() for x in xs))
         ticket = Ticket(agent, action, caller, driver)
         with self._locked():
-            ticket.submitted_at = self.sim_time
-            busy = None if driver else self._driven(agent)
-            if busy is not None:
-                doing = "resetting" if busy.agent == "world" else f"doing {busy.action}"
-                ticket.refuse(f"busy: the {busy.agent} is {doing} for "
-                              f"{busy.caller or 'its driver'}, which drives it; call again "
-                              "when that is done", self.sim_time)
-                return ticket
-            self._requests.append(ticket)
+            if not self._actions.submit(ticket, self.sim_time):
+                return ticket   # refused: a driver's request holds the agent
         self._work.set()
         return ticket
-
-    def _driven(self, agent: str) -> Optional[Ticket]:
-        """The driver's request that holds ``agent`` (any agent for "world"): under way,
-        queued or just submitted; None if none does. (Under the lock.)"""
-        agents = tuple(self._channels) if agent == "world" else (agent,)
-        for ticket in self._requests:
-            if ticket.driver and (agent == "world" or ticket.agent in (agent, "world")):
-                return ticket
-        for name in agents:
-            channel = self._channels[name]
-            if channel.ticket is not None and channel.ticket.driver:
-                return channel.ticket
-            for ticket in channel.queue:
-                if ticket.driver:
-                    return ticket
-        return None
 
     def run(self, agent: str, action: str, timeout: Optional[float] = None,
             caller: str = "", driver: bool = False) -> Outcome:
@@ -839,11 +465,7 @@ class World:
         position = self.object.position()
         if self.object.holder != "none" or not self.conveyor.is_on_belt(position):
             return position
-        half = self.object.config.size / 2
-        x = position[0] + self.conveyor.speed * max(0.0, seconds)
-        x = min(x, max(position[0], self.conveyor.stop_x - half))   # the stop holds it
-        x = max(x, min(position[0], self.config.conveyor.start_x + half))
-        return np.array([x, position[1], position[2]])
+        return self.conveyor.carry(position, self.object.config.size / 2, seconds)
 
     def state(self) -> dict:
         """A snapshot of the world as plain data (JSON-ready)."""
@@ -851,10 +473,8 @@ class World:
             position, orientation = self.object.pose()
             on_belt = self.conveyor.is_on_belt(position)
             # Nobody took it before the belt's end (a real belt drops it there), or it fell off.
-            # The object rests against the stop with its centre half its size upstream of it.
-            front = position[0] + self.object.config.size / 2
             left_belt = self.object.holder == "none" and (
-                not on_belt or front >= self.conveyor.stop_x - _AT_END_STOP_M)
+                not on_belt or self.conveyor.at_end(position, self.object.config.size / 2))
             return {
                 "sim_time": self.sim_time,
                 "step": self.step_count,
@@ -870,35 +490,22 @@ class World:
             }
 
     def camera_matrices(self, width: Optional[int] = None, height: Optional[int] = None,
-                        window_view: bool = False) -> Tuple[Sequence[float], Sequence[float]]:
+                        window_view: bool = False) -> Matrices:
         """View and projection matrices (PyBullet's, column-major) of the snapshot camera, or
         with ``window_view`` of the window's initial view (its camera and 90 deg lens)."""
-        if window_view:
-            w = self.config.window
-            width, height = width or w.width, height or w.height
-            distance, yaw, pitch, target = self.gui_camera()
-            view = self.client.computeViewMatrixFromYawPitchRoll(list(target), distance, yaw, pitch, 0.0, 2)
-            return view, self.client.computeProjectionMatrixFOV(GUI_FOV_DEG, width / height, 0.01, 100.0)
-        cam = self.config.camera
-        width, height = width or cam.width, height or cam.height
-        view = self.client.computeViewMatrix(list(cam.eye), list(cam.target), [0, 0, 1])
-        return view, self.client.computeProjectionMatrixFOV(cam.fov_deg, width / height, 0.05, 20.0)
+        lens = self.config.window if window_view else self.config.camera
+        matrices = window_matrices if window_view else camera_matrices
+        return matrices(self.client, lens, width or lens.width, height or lens.height)
 
     def render(self, width: Optional[int] = None, height: Optional[int] = None,
                window_view: bool = False) -> np.ndarray:
         """An RGB image ``(height, width, 3)`` from the fixed camera (software renderer: works
         headless); with ``window_view``, of what the window shows at first."""
-        if window_view:
-            width, height = width or self.config.window.width, height or self.config.window.height
-        else:
-            width, height = width or self.config.camera.width, height or self.config.camera.height
+        lens = self.config.window if window_view else self.config.camera
+        width, height = width or lens.width, height or lens.height
         with self._locked():
-            c = self.client
-            view, projection = self.camera_matrices(width, height, window_view)
-            image = c.getCameraImage(width, height, view, projection, shadow=1,
-                                     lightDirection=[-1.0, -2.0, 4.0], renderer=c.ER_TINY_RENDERER)
-        pixels = np.reshape(np.asarray(image[2], dtype=np.uint8), (height, width, 4))
-        return pixels[:, :, :3]
+            pixels = take_image(self.client, self.camera_matrices(width, height, window_view), width, height)
+        return rgb(pixels, width, height)
 
     def snapshot(self, path: Union[str, Path], width: Optional[int] = None,
                  height: Optional[int] = None) -> Path:
@@ -917,12 +524,7 @@ class World:
         (position, quaternion x y z w); the simulated time."""
         with self._locked():
             out: dict = {"sim_time": self.sim_time}
-            for name, body in (("human", self.human), ("robot", self.robot)):
-                c = body.client
-                out[name] = {"urdf": body.urdf_path,
-                             "root": c.getBodyInfo(body.body_id)[0].decode(),
-                             "base": c.getBasePositionAndOrientation(body.body_id),
-                             "joints": body.positions(body.joints)}
+            out["human"], out["robot"] = self.human.frames(), self.robot.frames()
             out["object"] = self.object.pose()
             out["belt"] = self.conveyor.surface_pose
             return out

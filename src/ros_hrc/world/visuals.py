@@ -25,6 +25,9 @@ from typing import Dict, List, Optional, Tuple
 from xml.etree import ElementTree
 
 Colour = Optional[Tuple[float, ...]]
+#: Specular colour of the scenery and the agents: nearly matt, since PyBullet's window puts a
+#: glaring highlight on large or shiny faces with its default.
+MATT_SPECULAR = (0.08, 0.08, 0.08)
 
 
 def _materials(robot: ElementTree.Element) -> Dict[str, Colour]:

@@ -1,13 +1,17 @@
-"""PyBullet's window (``gui``): its title, where the overlay's lines go, and its closing.
+"""PyBullet's window (``gui``): its size and view, its set-up as it opens, the overlay's lines
+and its closing.
 
 What PyBullet 3.2.x offers and what it does not:
 
 * **Title.** The example browser that draws the window takes ``--width``, ``--height``,
   ``--background_color_red/green/blue`` (and ``--mp4``, ``--opengl2`` ...) as connect
-  ``options``, but its title is fixed in the library ("Bullet Physics ExampleBrowser using
-  OpenGL3+ [btgl] Release build"): there is no title option. :func:`name_window` renames the
-  window through Xlib (``XStoreName`` and ``_NET_WM_NAME``, from a connection of its own),
-  once, right after the window opened: X11 only, best effort (no X11, no rename).
+  ``options`` (:func:`window_options`), but no title: :func:`~.x11.name_window` renames the
+  window through Xlib.
+* **Opening.** The window draws from the moment it opens, before connect() returns: its first
+  frames show PyBullet's default scene and panels. Then, with rendering off, it shows the last
+  frame drawn. So :class:`Window` turns the panels off and sets the camera at once (an empty
+  scene draws in no time); draws the floor and a "loading" line; turns rendering off while the
+  rest loads (ten times faster: no frame per shape, no body appearing one by one); turns it on.
 * **Overlay.** PyBullet draws debug text at a 3-D point, at a fixed size in pixels.
   :func:`screen_points` gives the points in front of the camera that land at given pixels,
   so lines can be pinned to a corner of the window as it is framed.
@@ -18,29 +22,68 @@ What PyBullet 3.2.x offers and what it does not:
 """
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import logging
-import os
-import sys
 import time
-from typing import List, Optional, Sequence, Set
+from dataclasses import dataclass
+from typing import Callable, List, Sequence, Set, Tuple
 
 import numpy as np
 
 from ..errors import SimulationError
+from .client import PhysicsClient
+from .visuals import MATT_SPECULAR
+from .x11 import name_window
 
 LOG = logging.getLogger(__name__)
 
 #: The window's title.
 WINDOW_TITLE = "ros_hrc: human-robot collaboration (PyBullet)"
-#: How PyBullet's example browser names its window (the start of it).
-BULLET_TITLE = "Bullet Physics ExampleBrowser"
+#: Named in the window's overlay.
+_PACKAGE = "ros_hrc"
+#: The overlay: lines from the window's top-left corner, in pixels; their size and colour.
+_OVERLAY_MARGIN = (14.0, 26.0)
+_OVERLAY_LINE_PX = 22.0
+_OVERLAY_TEXT_SIZE = 1.3
+_OVERLAY_COLOUR = (0.05, 0.06, 0.12)
+#: How often the stepping loop looks whether the user moved the window's view, s.
+_LOOK_PERIOD = 0.3
+
+#: PyBullet's camera view: distance, yaw and pitch (degrees), target.
+View = Tuple[float, float, float, Tuple[float, float, float]]
 
 
 class WindowClosed(SimulationError):
     """The PyBullet window was closed (Esc, or the window manager): the scene server is gone,
     so the world cannot go on. Raised by every later call of the world."""
+
+    def __init__(self, message: str = "the PyBullet window was closed: the scene is gone, "
+                                      "the world stops") -> None:
+        super().__init__(message)
+
+
+@dataclass(frozen=True)
+class WindowConfig:
+    """PyBullet's window (``gui``): its size, the colour of its sky, its initial view.
+
+    The view is PyBullet's camera (distance, yaw, pitch in degrees, target): PyBullet's window
+    sees 90 deg vertically, much wider than the snapshots' 50, so it has a view of its own. It
+    looks from above the belt's upstream end, behind the robot's shoulder, across the belt
+    towards the human: the robot on the left, the human on the right, the belt between them,
+    and room on the right for where the human's walk-away ends (1.5 m from the belt), so
+    both agents stay in frame whatever they do (test_world_window checks every link).
+    """
+
+    width: int = 1024
+    height: int = 768
+    background: Tuple[float, float, float] = (0.86, 0.88, 0.91)
+    distance: float = 1.85
+    yaw_deg: float = -124.0
+    pitch_deg: float = -35.0
+    target: Tuple[float, float, float] = (-0.5, -0.6, 1.0)
+
+    def view(self) -> View:
+        """The initial view as PyBullet takes it: distance, yaw, pitch (degrees), target."""
+        return self.distance, self.yaw_deg, self.pitch_deg, tuple(float(x) for x in self.target)
 
 
 def window_options(width: int, height: int, background: Sequence[float]) -> str:
@@ -68,114 +111,133 @@ def screen_points(camera: Sequence, pixels: Sequence[Sequence[float]], depth: fl
     return out
 
 
-# --- the title, through Xlib -----------------------------------------------------------------
-_ERROR_HANDLER = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p)
-_ignore_errors = _ERROR_HANDLER(lambda display, event: 0)   # kept alive: Xlib holds it
+class Window:
+    """PyBullet's window on the world's scene server ``client``: set up as it opens (see the
+    module docstring), the overlay's lines kept in its top-left corner, and whether it is gone.
 
+    The world calls it with ``gui`` only (:meth:`lines` and :attr:`closed` are read in any
+    case), under the world's lock once the world is built.
+    """
 
-def _xlib() -> Optional[ctypes.CDLL]:
-    if not sys.platform.startswith("linux") or not os.environ.get("DISPLAY"):
-        return None
-    name = ctypes.util.find_library("X11") or "libX11.so.6"
-    try:
-        x = ctypes.CDLL(name)
-    except OSError:
-        return None
-    x.XOpenDisplay.restype = ctypes.c_void_p
-    x.XOpenDisplay.argtypes = [ctypes.c_char_p]
-    x.XDefaultRootWindow.restype = ctypes.c_ulong
-    x.XDefaultRootWindow.argtypes = [ctypes.c_void_p]
-    x.XQueryTree.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.POINTER(ctypes.c_ulong),
-                             ctypes.POINTER(ctypes.c_ulong), ctypes.POINTER(ctypes.POINTER(ctypes.c_ulong)),
-                             ctypes.POINTER(ctypes.c_uint)]
-    x.XFetchName.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.POINTER(ctypes.c_char_p)]
-    x.XStoreName.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.c_char_p]
-    x.XInternAtom.restype = ctypes.c_ulong
-    x.XInternAtom.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int]
-    x.XChangeProperty.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong,
-                                  ctypes.c_int, ctypes.c_int, ctypes.c_char_p, ctypes.c_int]
-    x.XFree.argtypes = [ctypes.c_void_p]
-    x.XSync.argtypes = [ctypes.c_void_p, ctypes.c_int]
-    x.XCloseDisplay.argtypes = [ctypes.c_void_p]
-    x.XSetErrorHandler.restype = ctypes.c_void_p
-    x.XSetErrorHandler.argtypes = [ctypes.c_void_p]
-    return x
+    def __init__(self, client: PhysicsClient, config: WindowConfig) -> None:
+        self.client = client
+        self.config = config
+        self._overlay: List[Tuple[int, str, Tuple[float, ...]]] = []   # (item id, text, where)
+        self._overlay_view: Tuple[float, ...] = ()   # the window's view the overlay was placed for
+        self._view_seen: Tuple[float, ...] = ()      # the view at the last look
+        self._next_look = 0.0                        # when to look at the view again (monotonic s)
+        self.closed = False                          # found gone (see check)
+        self._closed_listeners: List[Callable[[], None]] = []
 
+    # --- opening -----------------------------------------------------------------------------------
+    def open(self, others: Set[int]) -> None:
+        """Right after the window opened: its title (``others``: the example browser's windows
+        that were open before, not ours), PyBullet's panels off, light and camera."""
+        c = self.client
+        if not name_window(WINDOW_TITLE, others):
+            LOG.info("PyBullet's window keeps PyBullet's title (no X11 window found to rename)")
+        for flag in (c.COV_ENABLE_GUI, c.COV_ENABLE_RGB_BUFFER_PREVIEW, c.COV_ENABLE_DEPTH_BUFFER_PREVIEW,
+                     c.COV_ENABLE_SEGMENTATION_MARK_PREVIEW, c.COV_ENABLE_MOUSE_PICKING):
+            c.configureDebugVisualizer(flag, 0)
+        # Light from above, behind the camera's left, as in the snapshots; shadows sized to
+        # the scene.
+        c.configureDebugVisualizer(lightPosition=[-3.0, -2.0, 6.0], shadowMapWorldSize=6,
+                                   shadowMapResolution=1024, shadowMapIntensity=0.35)
+        distance, yaw, pitch, target = self.config.view()
+        c.resetDebugVisualizerCamera(distance, yaw, pitch, list(target))
 
-def _windows(x: ctypes.CDLL, display: int, prefix: str) -> Set[int]:
-    """Ids of the windows whose name starts with ``prefix`` (the whole tree, depth first)."""
-    found: Set[int] = set()
-    stack = [x.XDefaultRootWindow(display)]
-    while stack:
-        window = stack.pop()
-        name = ctypes.c_char_p()
-        if x.XFetchName(display, window, ctypes.byref(name)) and name.value is not None:
-            if name.value.decode("utf-8", "replace").startswith(prefix):
-                found.add(window)
-            x.XFree(name)
-        root, parent = ctypes.c_ulong(), ctypes.c_ulong()
-        children, count = ctypes.POINTER(ctypes.c_ulong)(), ctypes.c_uint()
-        if x.XQueryTree(display, window, ctypes.byref(root), ctypes.byref(parent),
-                        ctypes.byref(children), ctypes.byref(count)):
-            stack.extend(children[i] for i in range(count.value))
-            if children:
-                x.XFree(children)
-    return found
+    def hold(self, floor_id: int) -> None:
+        """With the floor in place: a frame with it and a "loading" line, then rendering off."""
+        c = self.client
+        c.changeVisualShape(floor_id, -1, specularColor=[0.0, 0.0, 0.0])   # no glare on it
+        self.show_overlay([f"{_PACKAGE}: loading the scene ..."])
+        c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 0)
 
+    def show(self, floor_id: int) -> None:
+        """The scene is complete: matt bodies, the first overlay, rendering on."""
+        c = self.client
+        for body in (c.getBodyUniqueId(i) for i in range(c.getNumBodies())):
+            if body != floor_id:
+                for link in range(-1, c.getNumJoints(body)):
+                    c.changeVisualShape(body, link, specularColor=list(MATT_SPECULAR))
+        self.show_overlay([f"{_PACKAGE}: the scene is ready; waiting for the first step"])
+        c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 1)
 
-class _Display:
-    """An Xlib connection of our own, X errors ignored while it is open (a window may vanish
-    between two calls; Xlib's default handler would end the process)."""
+    # --- the overlay -------------------------------------------------------------------------------
+    def lines(self) -> List[str]:
+        """The lines the overlay shows now."""
+        return [text for _, text, _ in self._overlay]
 
-    def __init__(self) -> None:
-        self.x = _xlib()
-        self.display = self.x.XOpenDisplay(None) if self.x is not None else None
-        self._previous = None
+    def show_overlay(self, lines: List[str]) -> None:
+        """Show ``lines`` at the top-left corner of the view as it is, each line replaced in
+        place and only if it changed (each change costs a frame of the window)."""
+        c = self.client
+        camera = c.getDebugVisualizerCamera()
+        self._overlay_view = self._view_seen = tuple(camera[2])
+        x, y = _OVERLAY_MARGIN
+        places = screen_points(camera, [(x, y + i * _OVERLAY_LINE_PX) for i in range(len(lines))])
+        shown: List[Tuple[int, str, Tuple[float, ...]]] = []
+        for i, (text, place) in enumerate(zip(lines, places)):
+            where = tuple(round(v, 4) for v in place)
+            old = self._overlay[i] if i < len(self._overlay) else None
+            if old is not None and old[1] == text and old[2] == where:
+                shown.append(old)
+                continue
+            replace_id = old[0] if old is not None else -1
+            item = c.addUserDebugText(text, list(where), list(_OVERLAY_COLOUR), textSize=_OVERLAY_TEXT_SIZE,
+                                      replaceItemUniqueId=replace_id)
+            shown.append((item, text, where))
+        for item, _, _ in self._overlay[len(lines):]:
+            c.removeUserDebugItem(item)
+        self._overlay = shown
 
-    def __enter__(self) -> "_Display":
-        if self.display:
-            self._previous = self.x.XSetErrorHandler(ctypes.cast(_ignore_errors, ctypes.c_void_p))
-        return self
+    def follow_view(self) -> None:
+        """A few times a second: once the user has moved the window's view and let it rest,
+        the overlay goes back to the window's corner (not while the view moves: each line
+        placed costs a frame)."""
+        now = time.monotonic()
+        if now < self._next_look:
+            return
+        self._next_look = now + _LOOK_PERIOD
+        view = tuple(self.client.getDebugVisualizerCamera()[2])
+        if self._overlay and view != self._overlay_view and view == self._view_seen:
+            self.show_overlay(self.lines())
+        self._view_seen = view
 
-    def __exit__(self, *exc: object) -> None:
-        if self.display:
-            self.x.XSync(self.display, 0)
-            self.x.XSetErrorHandler(self._previous)
-            self.x.XCloseDisplay(self.display)
+    # --- closing -------------------------------------------------------------------------------------
+    def add_closed_listener(self, listener: Callable[[], None]) -> None:
+        """Call ``listener()`` once, when the window is found gone (see :meth:`mark_closed`)."""
+        self._closed_listeners.append(listener)
 
+    def check(self, settle: float = 0.0) -> None:
+        """Raise :class:`WindowClosed` if the window is gone (see :meth:`vanished` for
+        ``settle``), telling the listeners the first time."""
+        if self.closed or self.vanished(settle):
+            self.mark_closed()
+            raise WindowClosed()
 
-def bullet_windows() -> Set[int]:
-    """X ids of the windows PyBullet's example browser has named (empty without X11)."""
-    try:
-        with _Display() as d:
-            return _windows(d.x, d.display, BULLET_TITLE) if d.display else set()
-    except Exception:  # best effort: never stop a world for its title
-        LOG.debug("could not list the X windows", exc_info=True)
-        return set()
+    def mark_closed(self) -> None:
+        """Once: the window is gone; call the closed listeners, in the order they were added."""
+        if self.closed:
+            return
+        self.closed = True
+        LOG.info("the PyBullet window was closed: the world stops")
+        for listener in self._closed_listeners:
+            try:
+                listener()
+            except Exception:  # a listener's bug must not hide the closing
+                LOG.exception("window-closed listener %r failed", listener)
 
+    def vanished(self, settle: float = 0.0) -> bool:
+        """True if the window (the scene server) is gone.
 
-def name_window(title: str = WINDOW_TITLE, before: Optional[Set[int]] = None, wait: float = 2.0) -> bool:
-    """Give PyBullet's window ``title``: the example-browser windows not in ``before`` (those
-    that were there before this process opened its own), waiting up to ``wait`` s for one to
-    appear. True if a window was renamed."""
-    before = before or set()
-    deadline = time.monotonic() + wait
-    try:
-        with _Display() as d:
-            if not d.display:
-                return False
-            while True:
-                mine = _windows(d.x, d.display, BULLET_TITLE) - before
-                if mine or time.monotonic() > deadline:
-                    break
-                time.sleep(0.05)
-            encoded = title.encode("utf-8")
-            utf8 = d.x.XInternAtom(d.display, b"UTF8_STRING", 0)
-            net_name = d.x.XInternAtom(d.display, b"_NET_WM_NAME", 0)
-            for window in mine:
-                d.x.XStoreName(d.display, window, encoded)
-                d.x.XChangeProperty(d.display, window, net_name, utf8, 8, 0, encoded, len(encoded))
-            return bool(mine)
-    except Exception:
-        LOG.debug("could not name the PyBullet window", exc_info=True)
-        return False
+        ``settle``: after a PyBullet call failed, give the closing window this long (s) to show
+        it is gone (its threads end first, the connection a moment later): a failure when the
+        window closes is not the action's.
+        """
+        gone = not self.client.connected
+        deadline = time.monotonic() + settle
+        while not gone and time.monotonic() < deadline:
+            time.sleep(0.01)
+            gone = not self.client.connected
+        return gone
