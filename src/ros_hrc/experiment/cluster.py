@@ -58,7 +58,7 @@ from ros_hrc.experiment.stack import (EPISODE_LINE, MAX_ATTEMPTS, CellSpec, Epis
                                       cell_name, decode_episode, log_tail, port_is_free, say,
                                       stack_log, worker_command, write_spec)
 from ros_hrc.link.transport import free_port
-from ros_hrc.process_tree import command_line, group_alive, parent_of, processes_naming
+from ros_hrc.process_tree import children_of, command_line, group_alive, processes_naming
 
 #: The custom resource a cell asks for (one unit), beside one CPU: a machine offers it when
 #: the package is installed there (``make setup``) and Ray was started with it.
@@ -807,11 +807,10 @@ class RayNode:
 
     def raylet_pid(self) -> Optional[int]:
         """The node's raylet (its scheduler), one of ``ray start``'s children."""
-        for entry in os.listdir("/proc"):
-            if entry.isdigit() and parent_of(int(entry)) == self.proc.pid:
-                words = command_line(int(entry))
-                if words and os.path.basename(words[0]) == "raylet":
-                    return int(entry)
+        for child in children_of(self.proc.pid):
+            words = command_line(child)
+            if words and os.path.basename(words[0]) == "raylet":
+                return child
         return None
 
     def stop(self, grace: float = 20.0) -> None:
