@@ -1,7 +1,8 @@
 """Experiments: the grid of human models x robot policies x seeds x episodes, and its results.
 
-  ros_hrc.experiment.store       rows, the CSV store an interrupted run resumes from, the
-                                 lock on the results directory
+  ros_hrc.experiment.rows        the rows: one per episode, one per step, each checked
+  ros_hrc.experiment.store       their CSV store, which an interrupted run resumes from
+  ros_hrc.experiment.lock        one run at a time on a results directory
   ros_hrc.experiment.statistics  confidence intervals (Wilson, Student's t), summary tables
   ros_hrc.experiment.plots       the PNG plots
   ros_hrc.experiment.episode     scoring one episode from its steps

@@ -62,8 +62,9 @@ from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc.experiment.cluster import without
-from ros_hrc.experiment.store import (DirectoryLocked, EpisodeRow, ResultsStore, StepRow,
-                                      lock_directory)
+from ros_hrc.experiment.lock import DirectoryLocked, lock_directory
+from ros_hrc.experiment.rows import EpisodeRow, StepRow
+from ros_hrc.experiment.store import ResultsStore
 from ros_hrc import tasks
 from ros_hrc.loop import settings
 from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,

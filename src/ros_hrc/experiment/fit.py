@@ -60,7 +60,8 @@ from ros_hrc import tasks
 from ros_hrc.experiment.cli import task_humans, task_launch_args, task_of
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
-from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
+from ros_hrc.experiment.rows import EpisodeRow, StepRow
+from ros_hrc.experiment.store import ResultsStore
 from ros_hrc.loop import settings, task
 from ros_hrc.loop.settings import SettingError
 from ros_hrc.loop.models import (ModelNotFound, load_human_model, load_robot_model, model_path,

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
 from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
-from ros_hrc.experiment.store import EpisodeRow, StepRow
+from ros_hrc.experiment.rows import EpisodeRow, StepRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
 from ros_hrc.loop import settings
 from ros_hrc.loop.streams import EpisodeSchedule

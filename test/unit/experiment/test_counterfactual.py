@@ -17,7 +17,8 @@ from ros_hrc.experiment.episode import (against_warning, pair, pair_alone, robot
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256, read_fitted_on
 from ros_hrc.experiment.stack import launch_arguments
 from ros_hrc.experiment.statistics import POOLED, best_reactive, markdown, summarize
-from ros_hrc.experiment.store import EpisodeRow, ResultsStore
+from ros_hrc.experiment.rows import EpisodeRow
+from ros_hrc.experiment.store import ResultsStore
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp.io import load_model
 

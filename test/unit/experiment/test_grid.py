@@ -22,7 +22,7 @@ from ros_hrc.experiment import stack
 from ros_hrc.experiment.stack import (MAX_ATTEMPTS, CellSpec, EpisodeRanges, cell_name,
                                       check_launch_settings, launch_arguments, read_spec,
                                       worker_command, write_spec)
-from ros_hrc.experiment.store import DirectoryLocked, lock_directory
+from ros_hrc.experiment.lock import DirectoryLocked, lock_directory
 from ros_hrc.loop import settings
 from ros_hrc.process_tree import processes_naming
 from result_rows import TIMED_COLUMNS, rows_of

@@ -13,8 +13,8 @@ import pytest
 from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_success
 from ros_hrc.experiment.statistics import (POOLED, SUMMARY_COLUMNS, format_ci, mean_ci,
                                            proportion_ci, summarize, write_summary)
-from ros_hrc.experiment.store import (EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, ResultsStore,
-                                      ResultsWarning, StepRow)
+from ros_hrc.experiment.rows import EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, StepRow
+from ros_hrc.experiment.store import ResultsStore, ResultsWarning
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
