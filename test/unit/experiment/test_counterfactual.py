@@ -9,9 +9,9 @@ from types import SimpleNamespace
 import pytest
 
 from ros_hrc.experiment import fit, paired
-from ros_hrc.experiment.cli import (DEFAULT_EPISODES, AloneEpisodes, GridError, PairedRecorder,
-                                    build_parser, main, plan_alone_cells, plan_cells,
-                                    validate_grid)
+from ros_hrc.experiment.cli import DEFAULT_EPISODES, build_parser, main, validate_grid
+from ros_hrc.experiment.grid import GridError, plan_alone_cells, plan_cells
+from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder
 from ros_hrc.experiment.episode import (against_warning, pair, pair_alone, robot_policy,
                                         score_episode, step_rows, wasted_actions)
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256, read_fitted_on
