@@ -14,7 +14,7 @@ import unittest
 
 import rostest
 
-from ros_hrc.experiment.store import EPISODE_COLUMNS, STEP_COLUMNS
+from ros_hrc.experiment.rows import EPISODE_COLUMNS, STEP_COLUMNS
 
 GRID = ["--human-models", "expert", "--policies", "pomdp,reactive", "--seeds", "0",
         "--episodes", "2", "--step-limit", "8", "--jobs", "2"]

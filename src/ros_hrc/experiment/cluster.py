@@ -16,8 +16,8 @@ directory: resume, the lock and the summary are the local run's.
   again with only the episodes it does not have (a cell's episodes already delivered are kept;
   an episode that comes twice is dropped, by its (human model, policy, seed, episode)). Ray's
   own task retry would replay a cell from its first episode, so the tasks ask for none. A cell
-  that fails :data:`MAX_ATTEMPTS` times is reported with the last lines of its logs, read on the
-  node where it last ran.
+  that fails :data:`~ros_hrc.experiment.attempts.MAX_ATTEMPTS` times is reported with the
+  last lines of its logs, read on the node where it last ran.
 - **Stopping.** SIGINT or SIGTERM to the driver cancels the remote tasks; each task then sends
   SIGTERM to its worker, which stops its stack as it does locally. A worker whose task's
   process dies (the driver gone before its tasks ended, a node lost) gets SIGTERM from the
@@ -28,47 +28,36 @@ directory: resume, the lock and the summary are the local run's.
   ``logs/<run>/``); the driver's ``logs/<cell>.worker.log`` says which node ran each attempt
   and where its logs are there.
 
-Ray is imported here only, and only when ``--cluster`` is given (DESIGN §15); no ROS here.
-:class:`RayNode` starts and stops a node of one's own (``ray start --block``): ``--cluster
-local``, the tests and the benchmark use it.
+The pieces: this module is the option and the driver (:class:`ClusterRun`, which retries a
+cell as the local pool does, :class:`ros_hrc.experiment.attempts.CellAttempts`);
+:mod:`ros_hrc.experiment.cluster_task` is the task on the node;
+:mod:`ros_hrc.experiment.ray_node` starts and stops a node of one's own (``ray start
+--block``): ``--cluster local``, the tests and the benchmark use it. Ray is imported here and
+in the task only, and only when ``--cluster`` is given (DESIGN §15); no ROS here.
 """
 from __future__ import annotations
 
 import argparse
-import bisect
-import contextlib
 import dataclasses
 import ipaddress
 import math
 import os
-import queue
 import shutil
 import signal
 import socket
-import subprocess
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterator, List, Optional, Set, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc.errors import HrcError
-from ros_hrc.experiment.stack import (EPISODE_LINE, MAX_ATTEMPTS, CellSpec, EpisodeRanges,
-                                      cell_name, decode_episode, log_tail, port_is_free, say,
-                                      stack_log, worker_command, write_spec)
-from ros_hrc.link.transport import free_port
-from ros_hrc.process_tree import command_line, group_alive, parent_of, processes_naming
+from ros_hrc.experiment.attempts import CellAttempts
+from ros_hrc.experiment.cluster_task import STOP_WAIT, run_cell_on_node
+from ros_hrc.experiment.ray_node import RESOURCE, RayNode, RayNodeError
+from ros_hrc.experiment.stack import CellSpec, decode_episode
+from ros_hrc.process_tree import processes_naming
 
-#: The custom resource a cell asks for (one unit), beside one CPU: a machine offers it when
-#: the package is installed there (``make setup``) and Ray was started with it.
-RESOURCE = "ros_hrc"
-#: Lines of a failed cell's logs brought back from its node.
-TAIL_LINES = 8
-#: How often a task looks whether the driver cancelled it (s).
-CANCEL_POLL = 0.25
-#: Seconds a cancelled task gives its worker to stop its stack (the worker's own grace is 20 s).
-STOP_WAIT = 60.0
 #: Seconds the driver waits for cancelled tasks to end before it lets go of the cluster.
 CANCEL_WAIT = 90.0
 #: How long the node count shown on the progress bar is kept before it is asked again (s).
@@ -125,176 +114,6 @@ def _seconds(text: str) -> float:
 
 
 # --------------------------------------------------------------------------------------------
-# Episode ranges
-
-
-def contains(ranges: EpisodeRanges, episode: int) -> bool:
-    """Whether ``episode`` is one of ``ranges``' numbers (without listing them)."""
-    i = bisect.bisect_right(ranges.spans, (episode, float("inf"))) - 1
-    return i >= 0 and ranges.spans[i][0] <= episode < ranges.spans[i][1]
-
-
-def without(ranges: EpisodeRanges, taken: Set[int]) -> EpisodeRanges:
-    """``ranges`` but the numbers in ``taken``: memory in proportion to ``taken``."""
-    spans: List[Tuple[int, int]] = []
-    for start, stop in ranges.spans:
-        rest = EpisodeRanges.missing(stop - start, (n - start for n in taken))
-        spans.extend((start + a, start + b) for a, b in rest.spans)
-    return EpisodeRanges(tuple(spans))
-
-
-# --------------------------------------------------------------------------------------------
-# On the node: one attempt at a cell
-
-
-def node_directory() -> Path:
-    """Where cells keep their files on this node: beside Ray's own logs, in the node's
-    session directory (a temporary directory when that cannot be found)."""
-    try:
-        import ray._private.worker as ray_worker   # the node's own session, not the driver's
-        return Path(ray_worker.global_worker.node.get_session_dir_path()) / "ros_hrc"
-    except Exception:   # noqa: BLE001 - any failure: the plain temporary directory
-        return Path(tempfile.gettempdir()) / "ros_hrc_cluster"
-
-
-#: The worker's keeper: the one process of a cell that is the Ray worker's child. Ray kills a
-#: worker's children (SIGKILL) when the worker exits (the job over, the node lost), which would
-#: leave the cell's stack running with nobody to stop it; the keeper's death instead sends the
-#: cell's worker SIGTERM (``setpriv --pdeathsig``), and the worker stops its stack as Ctrl-C
-#: would. A SIGTERM to the keeper (a cancelled task) goes on to the worker, and the keeper waits
-#: for it.
-KEEPER = """
-import signal, subprocess, sys
-child = subprocess.Popen(sys.argv[1:])
-signal.signal(signal.SIGTERM, lambda signum, frame: child.send_signal(signum))
-code = child.wait()
-sys.exit(code if code >= 0 else 128 - code)
-"""
-
-
-def _guarded(command: List[str]) -> List[str]:
-    """``command`` under a keeper (:data:`KEEPER`) that dies with the task's process and whose
-    death sends SIGTERM to the command (without ``setpriv``, the command alone)."""
-    setpriv = shutil.which("setpriv")
-    if setpriv is None:
-        return command
-    return [setpriv, "--pdeathsig", "KILL", "--", sys.executable, "-c", KEEPER,
-            setpriv, "--pdeathsig", "TERM", "--"] + command
-
-
-def run_cell_on_node(spec_json: str, files: Dict[str, Tuple[str, bytes]], run_id: str,
-                     attempt: int, here: Optional[str] = None) -> Iterator[Tuple[str, Any]]:
-    """The body of a cell's Ray task (a generator; it runs on the node). Writes the cell's
-    model files and spec into the node's own directory (``here``, a directory of the node's,
-    instead: ``--cluster local``), runs the worker command there and
-    yields ``("start", where)``, then ``("episode", line)`` per episode as the worker prints it,
-    and, unless every episode was delivered (the task then ends while the stack shuts down,
-    so that the next cell starts meanwhile), ``("end", how)``: the worker's exit status and the
-    last lines of its messages and of its stack's log. A cancelled task stops its worker (which
-    stops its stack) before it ends."""
-    import ray
-
-    spec = CellSpec.from_json(spec_json)
-    name = cell_name(spec)
-    directory = Path(here or node_directory()) / run_id / f"{name}.attempt{attempt}"
-    models = directory / "models"
-    models.mkdir(parents=True, exist_ok=True)
-    changes: Dict[str, str] = {}
-    for field_name, (base, data) in files.items():
-        path = models / base
-        path.write_bytes(data)
-        changes[field_name] = str(path)
-    spec = dataclasses.replace(spec, log_dir=str(directory), **changes)
-    context = ray.get_runtime_context()
-    where = {"node_id": context.get_node_id(), "ip": ray.util.get_node_ip_address(),
-             "host": socket.gethostname(), "directory": str(directory), "pid": None}
-    if shutil.which("roslaunch") is None:
-        yield "start", where
-        yield "end", {"returncode": None, "lines": [
-            "roslaunch is not on this node's PATH: start Ray there from a shell where "
-            "`source env.sh` ran (docs/cluster.md)"], "stack_lines": []}
-        return
-    worker_log = directory / f"{name}.worker.log"
-    proc = _start_worker(_guarded(worker_command(write_spec(spec, directory))))
-    where["pid"] = proc.pid
-    lines: "queue.Queue[Optional[str]]" = queue.Queue()
-    messages: List[str] = []
-
-    def read_stdout() -> None:
-        for line in proc.stdout:
-            lines.put(line)
-        lines.put(None)
-
-    def read_stderr() -> None:
-        with open(worker_log, "a") as log:
-            for line in proc.stderr:
-                messages.append(line)
-                log.write(line)
-                log.flush()
-
-    readers = [threading.Thread(target=read_stdout, daemon=True),
-               threading.Thread(target=read_stderr, daemon=True)]
-    for reader in readers:
-        reader.start()
-    delivered = 0
-    try:
-        yield "start", where
-        while True:
-            try:
-                line = lines.get(timeout=CANCEL_POLL)
-            except queue.Empty:
-                if context.is_canceled():
-                    _stop_worker(proc)
-                    return
-                continue
-            if line is None:
-                break
-            if line.startswith(EPISODE_LINE):
-                yield "episode", line
-                delivered += 1
-                if delivered == len(spec.episodes):
-                    # Every episode is in: the worker stops its stack while the next cell of
-                    # this node starts; it is waited for here, in the background.
-                    threading.Thread(target=proc.wait, daemon=True).start()
-                    return
-        proc.wait()
-        readers[1].join(5.0)
-        yield "end", {"returncode": proc.returncode,
-                      "lines": [m.rstrip("\n") for m in messages[-TAIL_LINES:]],
-                      "stack_log": str(stack_log(spec, directory)),
-                      "stack_lines": log_tail(stack_log(spec, directory), TAIL_LINES)}
-    except BaseException:
-        # Cancelled at a yield, or the task is going down: the stack must not run on.
-        _stop_worker(proc)
-        raise
-
-
-def _start_worker(command: List[str]) -> subprocess.Popen:
-    """Start a cell's worker in a session of its own, with no signal blocked. A Ray worker
-    blocks SIGINT in the thread that runs the task, and a child inherits that mask through
-    fork and exec: the worker stops its stack with SIGINT, as Ctrl-C would, and a stack
-    started with SIGINT blocked would never stop."""
-    blocked = signal.pthread_sigmask(signal.SIG_SETMASK, set())
-    try:
-        return subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, start_new_session=True)
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
-
-
-def _stop_worker(proc: subprocess.Popen) -> None:
-    """SIGTERM to a cell's worker (it stops its stack as Ctrl-C would) and wait for it."""
-    if proc.poll() is None:
-        with contextlib.suppress(ProcessLookupError):
-            proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(STOP_WAIT)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
-# --------------------------------------------------------------------------------------------
 # The driver
 
 
@@ -314,7 +133,7 @@ class NodeFigures:
 
 
 class _RemoteCell:
-    """A running task as :class:`ros_hrc.experiment.cli.Stopper` sees a worker process:
+    """A running task as :class:`ros_hrc.experiment.pool.Stopper` sees a worker process:
     ``poll()`` and ``send_signal()``, which cancels the task (it then stops its stack)."""
 
     def __init__(self, ray_module, generator) -> None:
@@ -369,7 +188,7 @@ def check_reachable(address: str) -> None:
 class ClusterRun:
     """The driver's side of a run on a Ray cluster: connects (or starts the private cluster of
     ``--cluster local``), runs cells as Ray tasks (:meth:`run_cell`, what
-    :func:`ros_hrc.experiment.cli.run_grid` calls for each cell), says what runs where
+    :func:`ros_hrc.experiment.pool.run_grid` calls for each cell), says what runs where
     (:meth:`status`, :meth:`report`) and lets go of the cluster (:meth:`close`)."""
 
     def __init__(self, address: str, program: str, slots: int = 0,
@@ -404,7 +223,7 @@ class ClusterRun:
             directory = Path(tempfile.mkdtemp(prefix="ros_hrc_ray_"))
             try:
                 self._private = RayNode.start(directory, cpus=slots, ros_hrc=slots)
-            except ClusterError as exc:
+            except RayNodeError as exc:
                 raise ClusterError(f"--cluster local: {exc}") from None
             address, node_ip = self._private.address, self._private.node_ip
         elif self.address != "auto":
@@ -528,86 +347,78 @@ class ClusterRun:
 
     def run_cell(self, cell: CellSpec, deliver, log, stopper=None,
                  on_all_delivered: Optional[Callable[[], None]] = None) -> None:
-        """Run one cell on the cluster, as :func:`ros_hrc.experiment.cli.run_local_cell` runs it
-        locally: ``deliver(row, steps)`` per episode as it arrives, ``on_all_delivered()``
+        """Run one cell on the cluster, as :func:`ros_hrc.experiment.pool.run_local_cell` runs
+        it locally: ``deliver(row, steps)`` per episode as it arrives, ``on_all_delivered()``
         once the last one is in. A failed attempt (its node lost, its stack failed) is
-        submitted again with the episodes still missing, up to :data:`MAX_ATTEMPTS` attempts;
-        then RuntimeError with the last lines of its logs."""
-        ray = self._ray
-        name = cell_name(cell)
-        wanted = EpisodeRanges.of(cell.episodes)
-        delivered: Set[int] = set()
+        submitted again with the episodes still missing, up to
+        :data:`~ros_hrc.experiment.attempts.MAX_ATTEMPTS` attempts
+        (:class:`~ros_hrc.experiment.attempts.CellAttempts`); then RuntimeError with the last
+        lines of its logs."""
+        attempts = CellAttempts(cell, deliver, log, self.program, on_all_delivered)
         files = self._model_files(cell)
-        failure, attempt = "", 0
-        while attempt < MAX_ATTEMPTS and len(delivered) < len(wanted):
-            if stopper is not None and stopper.stopping:
-                return
-            attempt += 1
-            missing = without(wanted, delivered)
-            spec = dataclasses.replace(cell, episodes=missing)
-            # The private cluster's node is this machine: its cells keep their files beside
-            # the driver's logs, which outlive the cluster.
-            here = cell.log_dir if self._private is not None else None
-            generator = self._remote.remote(spec.to_json(), files, self.run_id, attempt, here)
-            handle = _RemoteCell(ray, generator)
+
+        def attempt(number: int, spec: CellSpec) -> Tuple[str, Sequence[str]]:
+            return self._attempt(number, spec, files, attempts, stopper)
+
+        attempts.run(attempt, stopper, again="go back to the queue", where=" on the cluster",
+                     on_retry=self._count_retry)
+
+    def _count_retry(self) -> None:
+        with self._lock:
+            self.retried_cells += 1
+
+    def _attempt(self, number: int, spec: CellSpec, files: Dict[str, Tuple[str, bytes]],
+                 attempts: CellAttempts, stopper) -> Tuple[str, Sequence[str]]:
+        """One attempt at ``spec``'s episodes as a Ray task: (why it ended short, its worker's
+        last lines). RuntimeError when no living node offers the resource for
+        ``no_node_wait`` seconds."""
+        ray = self._ray
+        # The private cluster's node is this machine: its cells keep their files beside
+        # the driver's logs, which outlive the cluster.
+        here = spec.log_dir if self._private is not None else None
+        generator = self._remote.remote(spec.to_json(), files, self.run_id, number, here)
+        handle = _RemoteCell(ray, generator)
+        if stopper is not None:
+            stopper.add(handle)
+        node: Optional[NodeFigures] = None
+        end: Optional[Dict[str, Any]] = None
+        lost: Optional[str] = None
+        if not self._started_or_stopped(generator, stopper):
+            handle.send_signal(signal.SIGTERM)    # it never started: out of the queue
             if stopper is not None:
-                stopper.add(handle)
-            node: Optional[NodeFigures] = None
-            end: Optional[Dict[str, Any]] = None
-            lost: Optional[str] = None
-            if not self._started_or_stopped(generator, stopper):
-                handle.send_signal(signal.SIGTERM)    # it never started: out of the queue
-                if stopper is not None:
-                    stopper.discard(handle)
-                raise RuntimeError(
-                    f"no living node of the cluster has offered the {RESOURCE} resource for "
-                    f"{self.no_node_wait:g} s (every such node lost); start Ray on a machine "
-                    f"where make setup ran with --resources '{{\"{RESOURCE}\": N}}' and run "
-                    "again to resume (docs/cluster.md)")
-            try:
-                for ref in generator:
-                    kind, payload = ray.get(ref)
-                    if kind == "start":
-                        node = self._started(payload)
-                        log.write(f"{self.program}: {name}: attempt {attempt} of "
-                                  f"{MAX_ATTEMPTS} ({len(missing)} episodes) on "
-                                  f"{node.label()}; its logs there: {payload['directory']}\n")
-                        log.flush()
-                    elif kind == "episode":
-                        if self._take(payload, wanted, delivered, deliver, node, log) and \
-                                len(delivered) == len(wanted) and on_all_delivered is not None:
-                            on_all_delivered()
-                    elif kind == "end":
-                        end = payload
-            except ray.exceptions.RayError as exc:
-                lost = " ".join(str(exc).split())
-            except BaseException:
-                # An episode could not be recorded (a full disk): the task must not run on.
-                handle.send_signal(signal.SIGTERM)
-                _drain(ray, generator)
-                raise
-            finally:
-                handle.returncode = 0
-                if stopper is not None:
-                    stopper.discard(handle)
-                if node is not None:
-                    with self._lock:
-                        node.in_flight -= 1
-            if len(delivered) == len(wanted) or (stopper is not None and stopper.stopping):
-                return
-            failure = self._failure(node, end, lost, wanted, delivered)
-            log.write(f"{self.program}: {name}: attempt {attempt} failed: {failure}\n")
-            if end:
-                log.writelines(f"  {line}\n" for line in end.get("lines", []))
-            log.flush()
-            if attempt < MAX_ATTEMPTS:
+                stopper.discard(handle)
+            raise RuntimeError(
+                f"no living node of the cluster has offered the {RESOURCE} resource for "
+                f"{self.no_node_wait:g} s (every such node lost); start Ray on a machine "
+                f"where make setup ran with --resources '{{\"{RESOURCE}\": N}}' and run "
+                "again to resume (docs/cluster.md)")
+        try:
+            for ref in generator:
+                kind, payload = ray.get(ref)
+                if kind == "start":
+                    node = self._started(payload)
+                    attempts.began(number, len(spec.episodes), f" on {node.label()}; its logs "
+                                                               f"there: {payload['directory']}")
+                elif kind == "episode":
+                    self._take(payload, attempts, node)
+                elif kind == "end":
+                    end = payload
+        except ray.exceptions.RayError as exc:
+            lost = " ".join(str(exc).split())
+        except BaseException:
+            # An episode could not be recorded (a full disk): the task must not run on.
+            handle.send_signal(signal.SIGTERM)
+            _drain(ray, generator)
+            raise
+        finally:
+            handle.returncode = 0
+            if stopper is not None:
+                stopper.discard(handle)
+            if node is not None:
                 with self._lock:
-                    self.retried_cells += 1
-                say(f"{self.program}: cell {name}: {failure}; its "
-                    f"{len(wanted) - len(delivered)} episodes still missing go back to the "
-                    f"queue (attempt {attempt + 1} of {MAX_ATTEMPTS})")
-        if len(delivered) < len(wanted):
-            raise RuntimeError(f"failed {attempt} times on the cluster, the last: {failure}")
+                    node.in_flight -= 1
+        missing = len(attempts.wanted) - len(attempts.delivered)
+        return self._failure(node, end, lost, missing), (end or {}).get("lines", [])
 
     def _started_or_stopped(self, generator, stopper) -> bool:
         """Wait until the cell's task has something to say (it started on a node: its first
@@ -630,40 +441,33 @@ class ClusterRun:
             if now - none_since >= self.no_node_wait:
                 return False
 
-    def _take(self, line: str, wanted: EpisodeRanges, delivered: Set[int], deliver,
-              node: Optional[NodeFigures], log) -> bool:
-        """Deliver one episode's line unless it is not the cell's or already delivered (an
-        attempt that ran it again): each episode is counted once. Whether it was delivered."""
+    def _take(self, line: str, attempts: CellAttempts, node: Optional[NodeFigures]) -> None:
+        """Deliver one episode's line (:meth:`CellAttempts.take`: each episode once), counted
+        for its node, or as dropped when it came again."""
         try:
             episode = decode_episode(line)
         except (ValueError, KeyError) as exc:   # a line cut short: the episode reruns
-            log.write(f"unreadable episode line ({exc}): {line[:80]!r}\n")
-            return False
+            attempts.log.write(f"unreadable episode line ({exc}): {line[:80]!r}\n")
+            return
         if episode is None:
-            return False
-        row, steps = episode
-        if row.episode in delivered or not contains(wanted, row.episode):
-            with self._lock:
+            return
+        delivered = attempts.take(*episode)
+        with self._lock:
+            if not delivered:
                 self.dropped_duplicates += 1
-            log.write(f"{self.program}: episode {row.key} came again; dropped\n")
-            return False
-        deliver(row, steps)
-        delivered.add(row.episode)
-        if node is not None:
-            with self._lock:
+            elif node is not None:
                 node.episodes += 1
-        return True
 
     @staticmethod
     def _failure(node: Optional[NodeFigures], end: Optional[Dict[str, Any]],
-                 lost: Optional[str], wanted: EpisodeRanges, delivered: Set[int]) -> str:
-        """One line: why an attempt ended short, with its logs' last lines from the node."""
+                 lost: Optional[str], missing: int) -> str:
+        """One line: why an attempt ended short (``missing`` episodes still missing), with
+        its logs' last lines from the node."""
         where = node.label() if node is not None else "a node"
         if lost is not None:
             return f"on {where}: {lost[:400]}"
         if end is None:
-            return f"on {where}: the task ended with {len(wanted) - len(delivered)} episodes " \
-                   "missing"
+            return f"on {where}: the task ended with {missing} episodes missing"
         code = end.get("returncode")
         lines = [line for line in end.get("lines", []) if line.strip()]
         text = f"on {where}: " + (lines[-1].strip() if lines else f"exit code {code}")
@@ -702,129 +506,3 @@ def wait_for_cells(marker: str, wait: float) -> bool:
             return False
         time.sleep(0.2)
     return True
-
-
-# --------------------------------------------------------------------------------------------
-# A node of one's own
-
-
-#: What a node listens on besides its workers' ports (the head also on its GCS and dashboard).
-NODE_PORTS = ("node-manager-port", "object-manager-port", "dashboard-agent-listen-port",
-              "dashboard-agent-grpc-port", "runtime-env-agent-port", "metrics-export-port")
-HEAD_PORTS = ("port", "dashboard-port")
-#: Where a node of one's own listens by default: this machine's loopback, but not 127.0.0.1,
-#: which Ray turns into the machine's network address when a node or a driver joins.
-LOOPBACK_NODE_IP = "127.0.0.2"
-#: Seconds ``ray start`` gets to say it is up.
-START_WAIT = 120.0
-
-
-class PortSource:
-    """Ports for a node: each free when taken, none taken twice; from ``first`` upwards
-    (a range of one's own) or, without one, wherever the system finds a free one."""
-
-    def __init__(self, first: Optional[int] = None, last: int = 65535) -> None:
-        self.next = first
-        self.last = last
-        self.taken: Set[int] = set()
-
-    def take(self) -> int:
-        for _ in range(1000):
-            if self.next is None:
-                port = free_port()
-            else:
-                if self.next > self.last:
-                    break
-                port, self.next = self.next, self.next + 1
-            if port not in self.taken and port_is_free(port) and port_is_free(port, "0.0.0.0"):
-                self.taken.add(port)
-                return port
-        raise ClusterError("no free port for a Ray node")
-
-
-@dataclasses.dataclass
-class RayNode:
-    """A Ray node started here (``ray start --block`` in a session of its own): the head of a
-    cluster, or a node joining one. :meth:`stop` stops it and every process it started."""
-    proc: subprocess.Popen
-    directory: Path
-    node_ip: str
-    address: str          # the cluster's head, host:port
-    log_path: Path
-
-    @classmethod
-    def start(cls, directory: Path, cpus: int, ros_hrc: int, head_address: Optional[str] = None,
-              node_ip: Optional[str] = None, ports: Optional[PortSource] = None,
-              worker_ports: Optional[int] = None) -> "RayNode":
-        """Start a node with ``cpus`` CPUs and ``ros_hrc`` units of the resource, its files
-        under ``directory`` (its own ``--temp-dir``), every port it listens on named
-        (``ports``: from a range of one's own, or free ones), and return once it is up.
-        ``head_address``: join that head; otherwise start a head. ``node_ip``: the node's
-        address (127.0.0.x, x > 1, runs several nodes on one machine's loopback); without
-        one, :data:`LOOPBACK_NODE_IP`. ClusterError with the last lines of its output
-        when it does not come up."""
-        ports = ports or PortSource()
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        env = dict(os.environ)
-        env.update(RAY_USAGE_STATS_ENABLED="0", RAY_GRACEFUL_SHUTDOWN_DRAIN_TIMEOUT_S="0")
-        node_ip = node_ip or LOOPBACK_NODE_IP
-        cmd = [sys.executable, "-m", "ray.scripts.scripts", "start", "--block",
-               "--node-ip-address", node_ip, "--num-cpus", str(cpus),
-               "--resources", f'{{"{RESOURCE}": {ros_hrc}}}', "--temp-dir", str(directory),
-               "--object-store-memory", str(100 * 1024 * 1024), "--disable-usage-stats"]
-        if head_address is None:
-            head_port = ports.take()
-            cmd += ["--head", "--port", str(head_port), "--include-dashboard=false",
-                    "--dashboard-port", str(ports.take())]
-            address = f"{node_ip}:{head_port}"
-        else:
-            cmd += ["--address", head_address]
-            address = head_address
-        for option in NODE_PORTS:
-            cmd += [f"--{option}", str(ports.take())]
-        count = worker_ports or 2 * cpus + 8
-        cmd += ["--worker-port-list", ",".join(str(ports.take()) for _ in range(count))]
-        log_path = directory / "ray_start.log"
-        with open(log_path, "wb") as log:
-            proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
-                                    stderr=subprocess.STDOUT, start_new_session=True, env=env)
-        node = cls(proc, directory, node_ip, address, log_path)
-        node._wait_up()
-        return node
-
-    def _wait_up(self) -> None:
-        deadline = time.monotonic() + START_WAIT
-        while True:
-            text = self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
-            if "Ray runtime started" in text:
-                return
-            if self.proc.poll() is not None or time.monotonic() > deadline:
-                self.stop()
-                tail = " | ".join(log_tail(self.log_path, 3))
-                raise ClusterError(f"ray start did not come up ({tail or 'no output'})")
-            time.sleep(0.2)
-
-    def raylet_pid(self) -> Optional[int]:
-        """The node's raylet (its scheduler), one of ``ray start``'s children."""
-        for entry in os.listdir("/proc"):
-            if entry.isdigit() and parent_of(int(entry)) == self.proc.pid:
-                words = command_line(int(entry))
-                if words and os.path.basename(words[0]) == "raylet":
-                    return int(entry)
-        return None
-
-    def stop(self, grace: float = 20.0) -> None:
-        """SIGTERM to the node's whole process group (``ray start`` and what it started),
-        SIGKILL after ``grace`` s."""
-        for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, 10.0)):
-            try:
-                os.killpg(self.proc.pid, sig)
-            except ProcessLookupError:
-                pass
-            deadline = time.monotonic() + wait
-            while time.monotonic() < deadline:
-                self.proc.poll()        # reaps ray start, the group's leader
-                if not group_alive(self.proc.pid):
-                    return
-                time.sleep(0.1)

@@ -17,7 +17,7 @@ import numpy as np
 from ros_hrc import tasks
 from ros_hrc.tasks.definition import Task
 from ros_hrc.experiment.paired import counterfactual_outcome
-from ros_hrc.experiment.store import UNPAIRED, EpisodeKey, EpisodeRow, StepRow
+from ros_hrc.experiment.rows import UNPAIRED, EpisodeKey, EpisodeRow, StepRow
 from ros_hrc.pomdp.model import Model
 
 

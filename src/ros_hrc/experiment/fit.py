@@ -50,17 +50,19 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
-from ros_hrc.experiment.cli import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
-                                    file_error_line, names_argument, open_results,
-                                    run_stoppable)
+from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
+                                          file_error_line, names_argument)
 from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc import tasks
-from ros_hrc.experiment.cli import task_humans, task_launch_args, task_of
+from ros_hrc.experiment.grid import task_humans, task_launch_args, task_of
+from ros_hrc.experiment.pool import run_stoppable
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
+from ros_hrc.experiment.recording import open_results
 from ros_hrc.experiment.stack import MAX_EPISODES, CellSpec, EpisodeRanges
-from ros_hrc.experiment.store import EpisodeRow, ResultsStore, StepRow
+from ros_hrc.experiment.rows import EpisodeRow, StepRow
+from ros_hrc.experiment.store import ResultsStore
 from ros_hrc import settings
 from ros_hrc.tasks import seed as task
 from ros_hrc.settings import SettingError

@@ -14,7 +14,8 @@ import os
 import warnings
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Union
 
-from ros_hrc.experiment.store import EpisodeKey, ResultsWarning, StepRow, ensure_parent
+from ros_hrc.experiment.rows import EpisodeKey, StepRow
+from ros_hrc.experiment.store import ResultsWarning, ensure_parent
 from ros_hrc.pomdp.output import write_atomically
 
 def _new_figure(width: float, height: float):

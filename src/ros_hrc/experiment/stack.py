@@ -17,6 +17,7 @@ in ``ros_hrc.experiment`` imports ``ros_hrc.nodes``.
 """
 from __future__ import annotations
 
+import bisect
 import json
 import os
 import re
@@ -27,10 +28,11 @@ import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import (Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Set, Tuple,
+                    Union)
 
 from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
-from ros_hrc.experiment.store import EpisodeRow, StepRow
+from ros_hrc.experiment.rows import EpisodeRow, StepRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
 from ros_hrc import settings
 from ros_hrc.streams import EpisodeSchedule
@@ -108,6 +110,21 @@ class EpisodeRanges:
 
     def __bool__(self) -> bool:
         return bool(self.spans)
+
+
+def contains(ranges: EpisodeRanges, episode: int) -> bool:
+    """Whether ``episode`` is one of ``ranges``' numbers (without listing them)."""
+    i = bisect.bisect_right(ranges.spans, (episode, float("inf"))) - 1
+    return i >= 0 and ranges.spans[i][0] <= episode < ranges.spans[i][1]
+
+
+def without(ranges: EpisodeRanges, taken: Set[int]) -> EpisodeRanges:
+    """``ranges`` but the numbers in ``taken``: memory in proportion to ``taken``."""
+    spans: List[Tuple[int, int]] = []
+    for start, stop in ranges.spans:
+        rest = EpisodeRanges.missing(stop - start, (n - start for n in taken))
+        spans.extend((start + a, start + b) for a, b in rest.spans)
+    return EpisodeRanges(tuple(spans))
 
 
 @dataclass
@@ -229,20 +246,6 @@ def check_launch_settings(spec: CellSpec) -> Dict[str, Any]:
     stand_in = {"pomdp": settings.default("pomdp_port"), "robot": settings.default("robot_port"),
                 "human": settings.default("human_port")}
     return settings.resolve(launch_settings(spec, stand_in))
-
-
-#: Attempts per cell, on this machine's pool as on a cluster: a cell that fails this many
-#: times (its stack failed, its node lost) is reported as failed, with its logs' last lines.
-MAX_ATTEMPTS = 3
-
-
-def say(text: str) -> None:
-    """A line on stderr, above the progress bar of a grid when there is one."""
-    try:
-        from tqdm import tqdm
-        tqdm.write(text, file=sys.stderr)
-    except ImportError:
-        print(text, file=sys.stderr, flush=True)
 
 
 #: What a cell's stack listens on: its roscore and its three websocket links.

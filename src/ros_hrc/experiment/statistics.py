@@ -22,7 +22,8 @@ from scipy import stats
 
 from ros_hrc.experiment import paired
 from ros_hrc.experiment.episode import ALONE_POLICY, is_reactive, robot_policy
-from ros_hrc.experiment.store import UNPAIRED, EpisodeRow, ensure_parent
+from ros_hrc.experiment.rows import UNPAIRED, EpisodeRow
+from ros_hrc.experiment.store import ensure_parent
 from ros_hrc.pomdp.output import write_text_atomically
 
 def _check_confidence(confidence: float) -> None:

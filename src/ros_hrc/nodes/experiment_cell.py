@@ -38,7 +38,7 @@ from ros_hrc.experiment.episode import score_episode, step_rows
 from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch, cell_name,
                                       encode_episode, pick_ports, read_spec, stack_environment,
                                       stack_log, start_stack, stop_launched, stop_stack)
-from ros_hrc.experiment.store import EpisodeRow
+from ros_hrc.experiment.rows import EpisodeRow
 from ros_hrc.models import load_robot_model, positional_mapping_line
 from ros_hrc.msg import Status
 from ros_hrc.nodes.common import init_node_when_master_is_up

@@ -44,7 +44,8 @@ import sys
 import time
 from typing import Dict, Iterable, List, Optional, Sequence
 
-from ros_hrc.process_tree import all_pids, command_line, group_alive, is_roslaunch, stat_fields
+from ros_hrc.process_tree import (alive, children_of, command_line, group_alive, group_of,
+                                  is_roslaunch, is_stopped)
 
 #: Signals the guard passes on to the world: how roslaunch (or a user) stops a node.
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -68,33 +69,16 @@ def is_guard(pid: int) -> bool:
     return "ros_hrc.nodes.guard" in words[1:3] and _GUARDING in words
 
 
-def _alive(pid: int) -> bool:
-    """Running or stopped; a zombie (ended, not yet reaped) is not alive."""
-    fields = stat_fields(pid)
-    return fields is not None and fields[0] != "Z"
-
-
-def children_of(pid: int) -> List[int]:
-    """The processes whose parent is ``pid``, alive, oldest first."""
-    found = []
-    for other in all_pids():
-        fields = stat_fields(other)
-        if fields and int(fields[1]) == pid and fields[0] != "Z":
-            found.append(other)
-    return sorted(found)
-
-
 class _Target:
     """One child of roslaunch, signalled as roslaunch does: its whole process group when it
     leads one (roslaunch starts every child in a session of its own), else itself."""
 
     def __init__(self, pid: int) -> None:
         self.pid = pid
-        fields = stat_fields(pid)
-        self.group = fields is not None and int(fields[2]) == pid
+        self.group = group_of(pid) == pid
 
     def alive(self) -> bool:
-        return group_alive(self.pid) if self.group else _alive(self.pid)
+        return group_alive(self.pid) if self.group else alive(self.pid)
 
     def send(self, signum: int) -> None:
         try:
@@ -144,7 +128,7 @@ def stop_launch(launcher: int, guard: int) -> bool:
     except (ProcessLookupError, PermissionError):
         return False
     deadline = time.monotonic() + 2.0   # the stop takes effect at once; be sure before looking
-    while time.monotonic() < deadline and (stat_fields(launcher) or ["T"])[0] not in ("T", "t"):
+    while time.monotonic() < deadline and alive(launcher) and not is_stopped(launcher):
         time.sleep(0.005)
     children = [pid for pid in children_of(launcher) if pid != guard]
     core: Dict[str, List[int]] = {"rosout": [], "master": []}

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import pytest
 
-from ros_hrc.experiment.cluster import (PortSource, RayNode, cluster_argument, contains,
-                                        wait_for_cells, without)
-from ros_hrc.experiment.stack import EpisodeRanges
+from ros_hrc.experiment.cluster import cluster_argument, wait_for_cells
+from ros_hrc.experiment.ray_node import PortSource, RayNode
+from ros_hrc.experiment.stack import EpisodeRanges, contains, without
 from result_rows import TIMED_COLUMNS, rows_of
 
 HAS_RAY = importlib.util.find_spec("ray") is not None

@@ -9,15 +9,16 @@ from types import SimpleNamespace
 import pytest
 
 from ros_hrc.experiment import fit, paired
-from ros_hrc.experiment.cli import (DEFAULT_EPISODES, AloneEpisodes, GridError, PairedRecorder,
-                                    build_parser, main, plan_alone_cells, plan_cells,
-                                    validate_grid)
+from ros_hrc.experiment.cli import DEFAULT_EPISODES, build_parser, main, validate_grid
+from ros_hrc.experiment.grid import GridError, plan_alone_cells, plan_cells
+from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder
 from ros_hrc.experiment.episode import (against_warning, pair, pair_alone, robot_policy,
                                         score_episode, step_rows, wasted_actions)
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256, read_fitted_on
 from ros_hrc.experiment.stack import launch_arguments
 from ros_hrc.experiment.statistics import POOLED, best_reactive, markdown, summarize
-from ros_hrc.experiment.store import EpisodeRow, ResultsStore
+from ros_hrc.experiment.rows import EpisodeRow
+from ros_hrc.experiment.store import ResultsStore
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp.io import load_model
 

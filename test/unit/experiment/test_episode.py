@@ -4,7 +4,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from ros_hrc.experiment.cli import build_parser, plan_cells
+from ros_hrc.experiment.cli import build_parser
+from ros_hrc.experiment.grid import plan_cells
 from ros_hrc.experiment.episode import (ROBOT_POLICIES, discounted_robot_reward,
                                         needs_help_mass, score_episode, step_rows)
 from ros_hrc.experiment.stack import (CellSpec, decode_episode, encode_episode,

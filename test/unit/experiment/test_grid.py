@@ -16,13 +16,14 @@ from pathlib import Path
 
 import pytest
 
-from ros_hrc.experiment.cli import (budgets_argument, build_parser, main, names_argument,
-                                    plan_cells, validate_grid)
+from ros_hrc.experiment.arguments import names_argument
+from ros_hrc.experiment.attempts import MAX_ATTEMPTS
+from ros_hrc.experiment.cli import budgets_argument, build_parser, main, validate_grid
+from ros_hrc.experiment.grid import plan_cells
 from ros_hrc.experiment import stack
-from ros_hrc.experiment.stack import (MAX_ATTEMPTS, CellSpec, EpisodeRanges, cell_name,
-                                      check_launch_settings, launch_arguments, read_spec,
-                                      worker_command, write_spec)
-from ros_hrc.experiment.store import DirectoryLocked, lock_directory
+from ros_hrc.experiment.stack import (CellSpec, EpisodeRanges, cell_name, check_launch_settings,
+                                      launch_arguments, read_spec, worker_command, write_spec)
+from ros_hrc.experiment.lock import DirectoryLocked, lock_directory
 from ros_hrc import settings
 from ros_hrc.process_tree import processes_naming
 from result_rows import TIMED_COLUMNS, rows_of

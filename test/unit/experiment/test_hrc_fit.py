@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ros_hrc.experiment import fit
-from ros_hrc.experiment.store import EpisodeRow, StepRow
+from ros_hrc.experiment.rows import EpisodeRow, StepRow
 from ros_hrc.models import load_robot_model
 
 

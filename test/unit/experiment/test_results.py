@@ -13,8 +13,8 @@ import pytest
 from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_success
 from ros_hrc.experiment.statistics import (POOLED, SUMMARY_COLUMNS, format_ci, mean_ci,
                                            proportion_ci, summarize, write_summary)
-from ros_hrc.experiment.store import (EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, ResultsStore,
-                                      ResultsWarning, StepRow)
+from ros_hrc.experiment.rows import EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, StepRow
+from ros_hrc.experiment.store import ResultsStore, ResultsWarning
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -412,7 +412,7 @@ def test_an_episode_that_cannot_be_recorded_stops_its_worker(tmp_path, monkeypat
     (and so its stack) is stopped rather than left running unread."""
     import errno
     import io as text_io
-    from ros_hrc.experiment import cli
+    from ros_hrc.experiment import pool
     from ros_hrc.experiment.stack import CellSpec, encode_episode
     row = episode(human="tired", policy="no_robot", number=0)
     pid_file = tmp_path / "worker.pid"
@@ -420,13 +420,13 @@ def test_an_episode_that_cannot_be_recorded_stops_its_worker(tmp_path, monkeypat
               f"open({str(pid_file)!r}, 'w').write(str(os.getpid()))\n"
               f"print({encode_episode(row, steps_of(row))!r}, flush=True)\n"
               f"while True: time.sleep(0.1)\n")
-    monkeypatch.setattr(cli, "worker_command", lambda spec_file: [sys.executable, "-c", worker])
+    monkeypatch.setattr(pool, "worker_command", lambda spec_file: [sys.executable, "-c", worker])
 
     def full(row, steps):
         raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "episodes.csv"))
     cell = CellSpec("tired", "no_robot", 0, [0, 1], log_dir=str(tmp_path / "logs"))
     with pytest.raises(OSError, match="No space left on device"):
-        cli._run_worker(cell, full, text_io.StringIO())
+        pool._run_worker(cell, full, text_io.StringIO())
     pid = int(pid_file.read_text())
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
