@@ -48,7 +48,7 @@ from typing import Callable, Deque, Dict, Iterator, List, Optional, Sequence, Tu
 import numpy as np
 
 from ..errors import SimulationError
-from .. import streams
+from .. import settings, streams
 from .body import ArticulatedBody, Motion
 from .client import PhysicsClient
 from .conveyor import STATIC_GROUP, STATIC_MASK, Conveyor, ConveyorConfig
@@ -136,14 +136,14 @@ class WindowConfig:
 class WorldConfig:
     """Everything that defines a world; the defaults are the scene of docs/world.md."""
 
-    gui: bool = False
-    seed: int = 0
+    gui: bool = settings.default("gui")
+    seed: int = settings.default("seed")
     time_step: float = 1.0 / 240.0   # physics step, s
     substeps: int = 4                # physics steps per control step (motions, clock, requests)
     # The physics server holds one dynamic body (the object on the belt): 10 iterations carry
     # it exactly as 20 or PyBullet's 50 do (docs/performance.md), at half the cost of 20.
     solver_iterations: int = 10
-    belt_speed: float = 0.02  # m/s, downstream (+x)
+    belt_speed: float = settings.default("belt_speed")  # m/s, downstream (+x)
     conveyor: ConveyorConfig = field(default_factory=ConveyorConfig)
     work_object: ObjectConfig = field(default_factory=ObjectConfig)
     human: HumanConfig = field(default_factory=HumanConfig)
@@ -610,7 +610,8 @@ class World:
         """True while the stepping thread runs."""
         return self._thread is not None and self._thread.is_alive()
 
-    def start(self, real_time_factor: float = 1.0, pause_when_idle: bool = False) -> None:
+    def start(self, real_time_factor: float = settings.default("real_time_factor"),
+              pause_when_idle: bool = False) -> None:
         """Step the physics in a thread of its own.
 
         ``real_time_factor``: simulated seconds per wall second (0: as fast as possible).
