@@ -1,8 +1,12 @@
 """One source of defaults and checks for every launch argument (no ROS, no sockets).
 
-``hrc.launch`` (through ``hrc_check``), the command-line programs and ``hrc_experiment`` read
-their defaults from :data:`SETTINGS` and check values with :func:`parse`, so a value means the
-same thing, and is refused the same way, whichever entry point it comes through.
+``hrc.launch`` (through ``hrc_check``), the command-line programs, the nodes and
+``hrc_experiment`` read their defaults from :data:`SETTINGS` and check values with
+:func:`parse`, so a value means the same thing, and is refused the same way, whichever entry
+point it comes through. The table is the only place a default is written: hrc.launch's
+``<arg>`` lines and the reference ``docs/settings.md`` are written from it
+(``python tools/make_settings_files.py``; a unit test fails when either differs), and a module
+whose parameter is a setting takes its default with :func:`default`.
 
 A refused value raises :class:`SettingError`, whose text is one line naming the argument, the
 value and what is wrong::
@@ -31,10 +35,11 @@ import ipaddress
 import math
 import os
 import re
-from dataclasses import dataclass
-from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
+from dataclasses import dataclass, replace
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 from ros_hrc import tasks
+from ros_hrc.tasks import fabric_reactive
 from ros_hrc.errors import HrcError
 from ros_hrc.streams import LIVE, EpisodeSchedule
 from ros_hrc.model_files import names_a_file, user_path
@@ -103,6 +108,13 @@ class Setting:
     exclusive_minimum: bool = False    # value > minimum rather than >=
     unit: str = ""
     smallest_nonzero: Optional[float] = None   # 0, or at least this (a float's off switch)
+    #: The heading it is listed under (hrc.launch's comments, docs/settings.md).
+    group: str = ""
+    #: hrc.launch's default when it is a roslaunch expression (``$(optenv ...)``,
+    #: ``$(eval ...)``) rather than a word :meth:`parse` reads as ``default``.
+    launch_expression: Optional[str] = None
+    #: An argument of hrc.launch (False: of world.launch alone).
+    in_hrc_launch: bool = True
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -114,6 +126,32 @@ class Setting:
     def flag(self) -> str:
         """The command-line option of the same name: ``--time-per-step``."""
         return "--" + self.name.replace("_", "-")
+
+    @property
+    def launch_default(self) -> str:
+        """The default as a launch file writes it: the table's expression, or the word
+        :meth:`parse` reads as the default (``auto`` for an automatic setting, and for a model:
+        :func:`resolve` gives the task's; ``none`` for no file; ``true``/``false``)."""
+        if self.launch_expression is not None:
+            return self.launch_expression
+        if self.default is None or self.kind == "model":
+            return AUTO_WORD
+        if self.kind == "file" and self.default == "":
+            return NO_FILE_WORD
+        return _shown(self.default)
+
+    def accepted(self) -> str:
+        """The values it takes, e.g. ``an integer from 1 to 65535`` (what :meth:`requirement`
+        says a value must be), with the words for "the default" where they differ from it."""
+        if self.kind == "model":
+            text = "a scenario name or a model file"
+        else:
+            text = self.requirement()[len("must be "):]
+        if self.default is None or self.kind == "model":
+            text += f", or {AUTO_WORD}"
+        elif self.kind == "file":
+            text += f", or {NO_FILE_WORD}"
+        return text
 
     def requirement(self) -> str:
         """What a value must be, as the second half of an error line."""
@@ -292,108 +330,143 @@ def _port(name: str, default: int, doc: str) -> Setting:
     return _s(name, "int", default, doc, minimum=1, maximum=65535)
 
 
-_TABLE: Iterable[Setting] = (
-    # what runs
-    _s("human_model", "model", "humanModel",
-       "human scenario (humanModel, expert, beginner, tired, distracted) or a .pomdpx path; "
-       "auto (or empty): the task's default (seed: humanModel)"),
-    _s("robot_model", "model", "robot",
-       "robot POMDP name in models/robot/ or a .pomdp/.pomdpx path; auto (or empty): the "
-       "task's default (seed: robot)"),
-    _s("task", "choice", tasks.DEFAULT_TASK, "the collaboration task (docs/tasks.md): seed (the "
-       "manual's) or fabric (the seed authors' successor: a human who reacts to the robot)",
-       choices=tasks.TASK_NAMES),
-    _s("mode", "choice", "auto", "auto: the MDP picks the human's next state; manual: you type "
-       "it (or call /hrc/set_human_state)", choices=("auto", "manual")),
-    _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
-    _s("seed", "int", 0, "random seed of the world and both solvers: same seed, same run",
-       minimum=0, maximum=INT32_MAX),
-    _s("use_sim_time", "bool", False,
-       "the world publishes /clock and every node runs on simulated time"),
-    # (a factor below 0.001 would have the world sleep longer than a clock can count)
-    _s("real_time_factor", "float", 1.0,
-       "simulated seconds per wall second; 0 = as fast as possible", minimum=0, maximum=1000,
-       smallest_nonzero=0.001),
-    _s("pause_when_idle", "bool", None, "freeze simulated time between actions; auto (or "
-       "empty): true when real_time_factor is 0 (the run then depends only on the seed) or in "
-       "manual mode (the world waits while you type a state)"),
-    _s("belt_speed", "float", 0.02, "conveyor belt speed", minimum=0, maximum=0.5, unit="m/s"),
-    _s("away_time", "float", None, "how long a walk away lasts when the human is "
-       "already away: he stays away and the belt runs on; auto: the task's (seed 0, no time, "
-       "its study's world; fabric 0.8, as long as an idle, so that a human waiting in "
-       "recovery lets the object reach the belt's end)", minimum=0, maximum=60, unit="s"),
-    # watching it
-    _s("viz", "bool", True, "publish what RViz shows: each agent's description and joint "
-       "states, /tf (robot_state_publisher per agent) and the step's markers"),
-    _s("rviz", "bool", False, "start RViz with launch/hrc.rviz (needs a display; implies viz)"),
-    _s("snapshot_dir", "dir", "", "where /hrc/world/snapshot writes its PNGs (empty: "
-       "$ROS_HOME/hrc_snapshots); names are unique per run"),
-    _s("camera_rate", "float", 0.0, "rate of /hrc/camera/image, the snapshot renderer's view "
-       "(0: off)", minimum=0, maximum=30, unit="Hz"),
-    _s("publish_rate", "float", 10.0, "rate of /hrc/world_state while anyone subscribes "
-       "(wall clock)", minimum=0, maximum=1000, exclusive_minimum=True, unit="Hz"),
-    # links
-    _s("host", "host", "127.0.0.1",
-       "address the websocket servers bind and the clients connect to"),
-    _port("pomdp_port", 7070, "POMDP process's server, for observations from hrc_obs"),
-    _port("robot_port", 8080, "hrc_robot's server, for actions from the POMDP process"),
-    _port("human_port", 9090, "hrc_human's server, for steps from the MDP process"),
-    # the human (MDP)
-    _s("start_mdp", "bool", True,
-       "start the MDP process; false to run 'rosrun ros_hrc despot_mdp' by hand"),
-    _s("mdp_xterm", "bool", None, "give the MDP process its own xterm; empty = automatic: in "
-       "manual mode when a display exists"),
-    _s("human_choice", "choice", "optimal", "how the human picks actions: optimal, softmax or "
-       "random", choices=("optimal", "softmax", "random")),
-    _s("temperature", "float", 1.0, "softmax temperature of human_choice:=softmax", minimum=0,
-       exclusive_minimum=True),
-    _s("manual_share", "float", 0.8, "belief share of a manually entered state", minimum=0,
-       maximum=1, exclusive_minimum=True),
-    _s("step_delay", "float", 1.0, "pause between steps in auto mode", minimum=0,
-       maximum=3600, unit="s"),
-    _s("max_steps", "int", 0, "end an episode after this many steps (0: no limit)", minimum=0,
-       maximum=INT32_MAX),
-    _s("on_episode_end", "choice", "wait", "wait (for Enter or /hrc/reset), reset (start a new "
-       "episode) or continue", choices=("wait", "reset", "continue")),
-    _s("end_on_goal", "bool", True,
-       "an episode also ends when the human MDP reaches its goal state success"),
-    _s("episodes", "episodes", LIVE, "live: episodes 1, 2, 3 ..., each reset the next; or the "
-       "episode numbers to play, in order, e.g. 0-99 or 2,5-7 (experiments: each names its "
-       "random streams, so (seed, episode) is the same episode whatever ran before it; an "
-       "episode cut short is played again; after the last the loop waits)"),
-    _s("wait_for_listener", "bool", False, "take no step before someone subscribes to "
-       "/hrc/status (an experiment cell, which must see every step of every episode it "
-       "records)"),
-    # the robot (POMDP)
-    _s("start_pomdp", "bool", True, "start the POMDP process"),
-    _s("planner", "choice", "despot", "despot; policy with policy_file; reactive (baseline: "
-       "the task's reactive robot, rules on the current observation: seed's see "
-       "reactive_budget, fabric's reactive MDP see reactive_wait); none (baseline: the robot "
-       "never acts); explore (a uniformly random action each step, seeded: hrc_fit's "
-       "exploring robot)", choices=("despot", "policy", "reactive", "none", "explore")),
-    _s("policy_file", "file", "",
-       "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that planner "
-       "(none: no file)"),
-    _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision (0: none, the "
-       "decision is bounded by max_trials alone, the same on any machine: experiments)",
-       minimum=0, maximum=60, smallest_nonzero=0.001, unit="s"),
-    _s("scenarios", "int", 500, "DESPOT's number of sampled scenarios K", minimum=1,
-       maximum=100000),
-    _s("depth", "int", 90, "DESPOT's maximum search depth", minimum=1, maximum=1000),
-    _s("lambda", "float", 0.1, "DESPOT's regularisation constant", minimum=0, maximum=1000),
-    _s("max_trials", "int", 0, "cap on DESPOT trials per decision (0: time only; set it for "
-       "reproducible runs)", minimum=0, maximum=INT32_MAX),
-    _s("reactive_budget", "int", 8, "planner:=reactive helps after this many steps since the "
-       "reset without the human getting the object (0: never for that reason); task seed",
-       minimum=0, maximum=INT32_MAX),
-    _s("reactive_wait", "float", 15.0, "planner:=reactive of task fabric declares that the "
-       "human needs help (and grasps) once this many simulated seconds have passed since the "
-       "episode's reset without success: the authors' 15 s (0: never for that reason)",
-       minimum=0, maximum=1e6, unit="s"),
-    _s("read_stdin", "bool", True, "Enter on the roslaunch terminal resets everything"),
+def _group(heading: str, *members: Setting) -> Tuple[Setting, ...]:
+    """``members`` listed under ``heading`` (hrc.launch's comments, docs/settings.md)."""
+    return tuple(replace(member, group=heading) for member in members)
+
+
+#: The only place a default is written: hrc.launch's ``<arg>`` lines and docs/settings.md are
+#: made from it (tools/make_settings_files.py; a unit test fails when they differ), and the
+#: programs, nodes and modules that need a default ask :func:`default`.
+_TABLE: Tuple[Setting, ...] = (
+    *_group(
+        "what runs",
+        _s("human_model", "model", "humanModel",
+           "human scenario (humanModel, expert, beginner, tired, distracted) or a .pomdpx path; "
+           "auto (or empty): the task's default (seed: humanModel)"),
+        _s("robot_model", "model", "robot",
+           "robot POMDP name in models/robot/ or a .pomdp/.pomdpx path; auto (or empty): the "
+           "task's default (seed: robot)"),
+        _s("task", "choice", tasks.DEFAULT_TASK, "the collaboration task (docs/tasks.md): seed "
+           "(the manual's) or fabric (the seed authors' successor: a human who reacts to the "
+           "robot)", choices=tasks.TASK_NAMES),
+        _s("mode", "choice", "auto", "auto: the MDP picks the human's next state; manual: you "
+           "type it (or call /hrc/set_human_state)", choices=("auto", "manual")),
+        _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
+        _s("seed", "int", 0, "random seed of the world and both solvers: same seed, same run",
+           minimum=0, maximum=INT32_MAX),
+        _s("use_sim_time", "bool", False,
+           "the world publishes /clock and every node runs on simulated time"),
+        # (a factor below 0.001 would have the world sleep longer than a clock can count)
+        _s("real_time_factor", "float", 1.0,
+           "simulated seconds per wall second; 0 = as fast as possible", minimum=0, maximum=1000,
+           smallest_nonzero=0.001),
+        _s("pause_when_idle", "bool", None, "freeze simulated time between actions; auto (or "
+           "empty): true when real_time_factor is 0 (the run then depends only on the seed) or "
+           "in manual mode (the world waits while you type a state)"),
+        _s("belt_speed", "float", 0.02, "conveyor belt speed", minimum=0, maximum=0.5,
+           unit="m/s"),
+        _s("away_time", "float", None, "how long a walk away lasts when the human is "
+           "already away: he stays away and the belt runs on; auto: the task's (seed 0, no "
+           "time, its study's world; fabric 0.8, as long as an idle, so that a human waiting "
+           "in recovery lets the object reach the belt's end)", minimum=0, maximum=60,
+           unit="s"),
+    ),
+    *_group(
+        "watching it: RViz and the camera",
+        _s("viz", "bool", True, "publish what RViz shows: each agent's description and joint "
+           "states, /tf (robot_state_publisher per agent) and the step's markers"),
+        _s("rviz", "bool", False,
+           "start RViz with launch/hrc.rviz (needs a display; implies viz)"),
+        _s("snapshot_dir", "dir", "", "where /hrc/world/snapshot writes its PNGs (empty: "
+           "$ROS_HOME/hrc_snapshots); names are unique per run",
+           launch_expression="$(optenv ROS_HOME ~/.ros)/hrc_snapshots"),
+        _s("camera_rate", "float", 0.0, "rate of /hrc/camera/image, the snapshot renderer's "
+           "view (0: off)", minimum=0, maximum=30, unit="Hz"),
+        _s("publish_rate", "float", 10.0, "rate of /hrc/world_state while anyone subscribes "
+           "(wall clock)", minimum=0, maximum=1000, exclusive_minimum=True, unit="Hz",
+           in_hrc_launch=False),
+    ),
+    *_group(
+        "links (DESIGN §2): the websocket servers and their clients",
+        _s("host", "host", "127.0.0.1",
+           "address the websocket servers bind and the clients connect to"),
+        _port("pomdp_port", 7070, "POMDP process's server, for observations from hrc_obs"),
+        _port("robot_port", 8080,
+              "hrc_robot's server, for the robot actions the coordinator orders"),
+        _port("human_port", 9090, "hrc_human's server, for the steps of the MDP process"),
+    ),
+    *_group(
+        "the human (MDP) and the episodes",
+        _s("start_mdp", "bool", True,
+           "start the MDP process; false to run 'rosrun ros_hrc despot_mdp' by hand"),
+        # roslaunch needs a word for it (the xterm, the MDP's stdin), before hrc_check runs.
+        _s("mdp_xterm", "bool", None, "give the MDP process its own xterm (by default: in "
+           "manual mode when a display exists)",
+           launch_expression="$(eval 'true' if arg('mode') == 'manual' and "
+                             "optenv('DISPLAY', '') else 'false')"),
+        _s("human_choice", "choice", "optimal", "how the human picks actions: optimal, softmax "
+           "or random", choices=("optimal", "softmax", "random")),
+        _s("temperature", "float", 1.0, "softmax temperature of human_choice:=softmax",
+           minimum=0, exclusive_minimum=True),
+        _s("manual_share", "float", 0.8, "belief share of a manually entered state", minimum=0,
+           maximum=1, exclusive_minimum=True),
+        _s("step_delay", "float", 1.0, "pause between steps in auto mode", minimum=0,
+           maximum=3600, unit="s"),
+        _s("max_steps", "int", 0, "end an episode after this many steps (0: no limit)",
+           minimum=0, maximum=INT32_MAX),
+        _s("on_episode_end", "choice", "wait", "wait (for Enter or /hrc/reset), reset (start a "
+           "new episode) or continue", choices=("wait", "reset", "continue")),
+        _s("end_on_goal", "bool", True, "also end an episode when the human MDP reaches its "
+           "goal state success, as the seed does; it always ends when someone holds the object "
+           "or the object left the belt"),
+        _s("episodes", "episodes", LIVE, "live: episodes 1, 2, 3 ..., each reset the next; or "
+           "the episode numbers to play, in order, e.g. 0-99 or 2,5-7 (experiments: each names "
+           "its random streams, so (seed, episode) is the same episode whatever ran before it; "
+           "an episode cut short is played again; after the last the loop waits)"),
+        _s("wait_for_listener", "bool", False, "take no step before someone subscribes to "
+           "/hrc/status (an experiment cell, which must see every step of every episode it "
+           "records)"),
+    ),
+    *_group(
+        "the robot (POMDP)",
+        _s("start_pomdp", "bool", True, "start the POMDP process"),
+        _s("planner", "choice", "despot", "despot; policy with policy_file; reactive "
+           "(baseline: the task's reactive robot, rules on the current observation: seed's see "
+           "reactive_budget, fabric's reactive MDP see reactive_wait); none (baseline: the "
+           "robot never acts); explore (a uniformly random action each step, seeded: hrc_fit's "
+           "exploring robot)", choices=("despot", "policy", "reactive", "none", "explore")),
+        _s("policy_file", "file", "",
+           "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that "
+           "planner (none: no file)"),
+        _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision (0: none, the "
+           "decision is bounded by max_trials alone, the same on any machine: experiments)",
+           minimum=0, maximum=60, smallest_nonzero=0.001, unit="s"),
+        _s("scenarios", "int", 500, "DESPOT's number of sampled scenarios K", minimum=1,
+           maximum=100000),
+        _s("depth", "int", 90, "DESPOT's maximum search depth", minimum=1, maximum=1000),
+        _s("lambda", "float", 0.1, "DESPOT's regularisation constant", minimum=0,
+           maximum=1000),
+        _s("max_trials", "int", 0, "cap on DESPOT trials per decision (0: time only; set it "
+           "for reproducible runs)", minimum=0, maximum=INT32_MAX),
+        _s("reactive_budget", "int", 8, "planner:=reactive of task seed helps after this many "
+           "steps since the reset without the human getting the object (0: never for that "
+           "reason)", minimum=0, maximum=INT32_MAX),
+        # The task's own figure: its reactive robot's rules are data of the task.
+        _s("reactive_wait", "float", fabric_reactive.DEFAULT_WAIT, "planner:=reactive of task "
+           "fabric declares that the human needs help (and grasps) once this many simulated "
+           "seconds have passed since the episode's reset without success: the authors' "
+           f"{_number(fabric_reactive.DEFAULT_WAIT)} s (0: never for that reason)",
+           minimum=0, maximum=1e6, unit="s"),
+    ),
+    *_group(
+        "the terminal",
+        _s("read_stdin", "bool", True, "Enter on the roslaunch terminal resets everything"),
+    ),
 )
 
-#: Every launch argument, by name, in hrc.launch's order.
+#: Every launch argument (hrc.launch's, and world.launch's publish_rate), by name, in the
+#: table's order: hrc.launch's.
 SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
 
 #: The three websocket ports, which must differ.

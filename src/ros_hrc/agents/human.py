@@ -24,11 +24,12 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from ros_hrc import settings
 from ros_hrc.pomdp.mdp import value_iteration
 from ros_hrc.pomdp.model import Model
 from ros_hrc.tasks.definition import ReactionRules
 
-ACTION_CHOICES = ("optimal", "softmax", "random")
+ACTION_CHOICES = settings.SETTINGS["human_choice"].choices
 
 
 @dataclass
@@ -36,10 +37,10 @@ class HumanAgentConfig:
     """How the human chooses: ``optimal`` (argmax of expected Q), ``softmax`` with a
     temperature, or ``random``; the belief share of a manually given state; the seed."""
 
-    choice: str = "optimal"
-    temperature: float = 1.0
-    manual_share: float = 0.8
-    seed: int = 0
+    choice: str = settings.default("human_choice")
+    temperature: float = settings.default("temperature")
+    manual_share: float = settings.default("manual_share")
+    seed: int = settings.default("seed")
 
     def __post_init__(self) -> None:
         if self.choice not in ACTION_CHOICES:

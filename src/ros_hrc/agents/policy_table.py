@@ -26,7 +26,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ros_hrc import tasks
+from ros_hrc import settings, tasks
 from ros_hrc.tasks import seed as task
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.model import Model
@@ -92,8 +92,9 @@ class PolicyRow:
                 "belief": self.belief}
 
 
-def despot_config(trials: int = DEFAULT_TRIALS, scenarios: int = 500, depth: int = 90,
-                  pruning: float = 0.1) -> DespotConfig:
+def despot_config(trials: int = DEFAULT_TRIALS, scenarios: int = settings.default("scenarios"),
+                  depth: int = settings.default("depth"),
+                  pruning: float = settings.default("lambda")) -> DespotConfig:
     """The robot's online DESPOT settings, bounded by ``trials`` per decision instead of time."""
     return DespotConfig(scenarios=scenarios, depth=depth, pruning=pruning,
                         time_per_step=UNBOUNDED_SECONDS, max_trials=trials)

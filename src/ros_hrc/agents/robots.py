@@ -56,6 +56,7 @@ from typing import Callable, Dict, Iterable, Optional
 
 import numpy as np
 
+from ros_hrc import settings
 from ros_hrc.tasks import seed as task
 from ros_hrc.model_files import resolve_model
 from ros_hrc.pomdp.io import load_model
@@ -68,7 +69,7 @@ from ros_hrc.tasks.definition import Task
 IDLE_ACTION = "rIdle"
 STOP_ACTION = "rStop_all"
 DEFAULT_HELP_ACTION = "rGrasp_obj"
-DEFAULT_REACTIVE_BUDGET = 8
+DEFAULT_REACTIVE_BUDGET: int = settings.default("reactive_budget")
 
 
 @dataclass

@@ -258,7 +258,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     prefix = "world.launch" if world_only else PREFIX
     try:
         if any(w in ("-h", "--help") for w in words):
-            lines = [__doc__.split("\n\n")[0], "", USAGE]
+            lines = [__doc__.split("\n\n")[0], "", USAGE,
+                     "(docs/settings.md lists them too, with the values each takes)"]
             for s in settings.SETTINGS.values():
                 shown = "automatic" if s.default is None else repr(s.default)
                 lines.append(f"  {s.name:<17} {s.doc} (default: {shown})")

@@ -59,6 +59,7 @@ import websocket  # websocket-client
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.server import Server, ServerConnection, serve
 
+from ros_hrc import settings
 from ros_hrc.errors import LinkError
 from ros_hrc.link.protocol import (ERR_FAILED, ERR_REFUSED, ERR_UNAUTHORIZED, ERR_VERSION,
                                    MAX_MESSAGE_BYTES,
@@ -67,7 +68,8 @@ from ros_hrc.link.protocol import (ERR_FAILED, ERR_REFUSED, ERR_UNAUTHORIZED, ER
 from ros_hrc.link.protocol import is_reply_to  # noqa: F401  (its home is the protocol module)
 from ros_hrc.link.token import new_nonce, proof, proof_matches
 
-DEFAULT_HOST = "127.0.0.1"
+#: Where a server binds and a client connects unless told otherwise: the host setting's.
+DEFAULT_HOST: str = settings.default("host")
 #: Frames above this size are not read at all (close code 1009). Between the protocol's limit
 #: and this one, an oversized message is still answered with an error and the link stays up.
 FRAME_LIMIT_BYTES = 4 * MAX_MESSAGE_BYTES

@@ -65,6 +65,7 @@ import itertools
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
+from ros_hrc import settings
 from ros_hrc.streams import EpisodeSchedule, generator
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.seed import SEED
@@ -310,7 +311,7 @@ class PublishStep:
 Effect = Any
 
 #: Episode policies after an episode ends (the ``on_episode_end`` setting).
-EPISODE_END_POLICIES = ("wait", "reset", "continue")
+EPISODE_END_POLICIES = settings.SETTINGS["on_episode_end"].choices
 
 #: The phases of the loop.
 IDLE, RESETTING, READY, STEPPING, EPISODE_OVER, BROKEN = (
@@ -356,10 +357,10 @@ class CoordinatorConfig:
     observation noise draws from. ``human_model``: the human model's name or path, for the
     task's labels of the robot's true state (fabric: a tired human's)."""
 
-    max_steps: int = 0
-    end_on_goal: bool = True
+    max_steps: int = settings.default("max_steps")
+    end_on_goal: bool = settings.default("end_on_goal")
     goal_state: Optional[str] = None
-    on_episode_end: str = "wait"
+    on_episode_end: str = settings.default("on_episode_end")
     retry_delay: float = RETRY_DELAY
     max_retry_delay: float = MAX_RETRY_DELAY
     first_epoch: int = 1
@@ -368,7 +369,7 @@ class CoordinatorConfig:
     world_call_timeout: float = WORLD_CALL_TIMEOUT
     episodes: Optional[EpisodeSchedule] = None
     task: Task = SEED
-    seed: int = 0
+    seed: int = settings.default("seed")
     human_model: str = ""
 
     def __post_init__(self) -> None:

@@ -9,7 +9,7 @@ import socket
 import struct
 import threading
 import time
-from dataclasses import fields
+from dataclasses import MISSING, field, fields
 from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Tuple, Type, TypeVar
 
 import rosgraph
@@ -20,25 +20,54 @@ from ros_hrc.errors import HrcError
 from ros_hrc import settings
 
 C = TypeVar("C")
+#: How a node reads a parameter: ``get_param(name, default)`` (rospy's; the tests give a fake).
+ParamReader = Callable[[str, Any], Any]
+#: A config field's metadata key naming the parameter it is read from, when that is not the
+#: node's private parameter of the field's name (:func:`parameter`).
+_PARAM = "ros_param"
 
 
-def read_config(config_type: Type[C]) -> C:
-    """Build a config dataclass from the node's private parameters (``~name``). A field that
-    is one of the launch settings (:mod:`ros_hrc.settings`) is parsed and checked there,
-    and an empty value takes the setting's default: the one source of defaults. Other fields
-    take the dataclass default when unset; types are coerced."""
+def parameter(default: Any, name: str) -> Any:
+    """A config dataclass field read from the parameter ``name`` (e.g. ``/use_sim_time``)
+    rather than the node's private ``~<field name>``."""
+    return field(default=default, metadata={_PARAM: name})
+
+
+def read_config(config_type: Type[C], get_param: Optional[ParamReader] = None) -> C:
+    """The node's configuration: the config dataclass ``config_type`` built from the node's
+    parameters, read once (``get_param``: rospy's by default). The one way a node reads its
+    parameters.
+
+    Each field is read from the node's private parameter of its name (``~name``), or from the
+    one its :func:`parameter` names. A field named after a launch setting
+    (:mod:`ros_hrc.settings`) is parsed and checked there, and takes the table's default when
+    unset or empty (the one source of defaults; a bad value raises the table's one-line
+    :class:`~ros_hrc.settings.SettingError`). Any other field takes the dataclass default when
+    unset, coerced to the default's type: a bool from a word (true/1/yes/on), a number, a
+    tuple from a list or a text of items apart by spaces or commas."""
+    read = rospy.get_param if get_param is None else get_param
     values = {}
     for f in fields(config_type):
-        default = f.default
-        value = rospy.get_param(f"~{f.name}", default)
+        name = f.metadata.get(_PARAM, f"~{f.name}")
         if f.name in settings.SETTINGS:
-            value = settings.parse(f.name, value)
-        elif isinstance(default, bool) and isinstance(value, str):
-            value = value.strip().lower() in ("1", "true", "yes", "on")
-        elif isinstance(default, (int, float)) and not isinstance(default, bool):
-            value = type(default)(value)
-        values[f.name] = value
+            values[f.name] = settings.parse(f.name, read(name, ""))
+            continue
+        default = f.default if f.default is not MISSING else f.default_factory()  # type: ignore[misc]
+        values[f.name] = _coerced(read(name, default), default)
     return config_type(**values)
+
+
+def _coerced(value: Any, default: Any) -> Any:
+    """A parameter's ``value`` as the type of the field's ``default``."""
+    if isinstance(default, bool):
+        return value.strip().lower() in settings.TRUE_WORDS if isinstance(value, str) else value
+    if isinstance(default, (int, float)):
+        return type(default)(value)
+    if isinstance(default, tuple):
+        items = value.replace(",", " ").split() if isinstance(value, str) else value
+        kind = type(default[0]) if default else str
+        return tuple(kind(item) for item in items)
+    return value
 
 
 def route_python_logging(level: int = logging.INFO) -> None:

@@ -15,16 +15,17 @@ every change of the caption:
 * ``scenery``: the belt (frame ``belt``) and the object (frame ``object``) as boxes, which no
   URDF describes (published once, latched, and with every step).
 
-Parameters: ``~frame`` (``world``), ``~bars_origin`` ([x, y, z] of the first bar's foot; the bars run along +y,
-m, default [-1.3, -1.55, 1.15]), ``~bar_spacing`` (0.13 m), ``~bar_height`` (0.5 m: a
-belief of 1), ``~text_position`` ([x, y, z], default [-1.1, -0.5, 2.15]), ``~belt_size``
-([length, width, thickness], m, default [2.0, 0.4, 0.04], the world's ConveyorConfig),
-``~object_size`` (edge, m, default 0.06, the world's ObjectConfig).
+Parameters (:class:`VizNodeConfig`, read once: :func:`ros_hrc.nodes.common.read_config`):
+``~frame`` (``world``), ``~bars_origin`` ([x, y, z] of the first bar's foot, m; the bars run
+along +y), ``~bar_spacing`` (m), ``~bar_height`` (m: a belief of 1), ``~text_position``
+([x, y, z]), ``~belt_size`` ([length, width, thickness], m; default the world's belt) and
+``~object_size`` (edge, m; default the world's object).
 """
 from __future__ import annotations
 
 import threading
-from typing import List, Optional, Sequence
+from dataclasses import dataclass
+from typing import List, Optional, Sequence, Tuple
 
 import rospy
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
@@ -33,7 +34,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ros_hrc.loop.display import belief_bars, holder_text, is_reset_caption, status_lines
 from ros_hrc.msg import Status
-from ros_hrc.nodes.common import init_node
+from ros_hrc.nodes.common import init_node, read_config
+from ros_hrc.world.conveyor import BELT_THICKNESS, ConveyorConfig
 from ros_hrc.world.object import ObjectConfig
 
 #: The object's colour in the world (PyBullet's window and snapshots).
@@ -117,16 +119,30 @@ def status_markers(status, frame: str, origin: Sequence[float], spacing: float,
     return MarkerArray(markers=markers)
 
 
+_BELT = ConveyorConfig()
+
+
+@dataclass(frozen=True)
+class VizNodeConfig:
+    """The node's parameters (module docstring); the scenery's sizes are the world's."""
+
+    frame: str = "world"
+    bars_origin: Tuple[float, ...] = (-1.3, -1.55, 1.15)
+    bar_spacing: float = 0.13
+    bar_height: float = 0.5
+    text_position: Tuple[float, ...] = (-1.1, -0.5, 2.15)
+    belt_size: Tuple[float, ...] = (_BELT.length, _BELT.width, BELT_THICKNESS)
+    object_size: float = ObjectConfig().size
+
+
 class VizNode:
-    def __init__(self) -> None:
-        self.frame = rospy.get_param("~frame", "world")
-        self.origin = [float(v) for v in rospy.get_param("~bars_origin", [-1.3, -1.55, 1.15])]
-        self.spacing = float(rospy.get_param("~bar_spacing", 0.13))
-        self.height = float(rospy.get_param("~bar_height", 0.5))
-        self.text_at = [float(v) for v in rospy.get_param("~text_position", [-1.1, -0.5, 2.15])]
-        self.scenery = scenery_markers(
-            [float(v) for v in rospy.get_param("~belt_size", [2.0, 0.4, 0.04])],
-            float(rospy.get_param("~object_size", 0.06)))
+    def __init__(self, config: VizNodeConfig) -> None:
+        self.frame = config.frame
+        self.origin = config.bars_origin
+        self.spacing = config.bar_spacing
+        self.height = config.bar_height
+        self.text_at = config.text_position
+        self.scenery = scenery_markers(config.belt_size, config.object_size)
         self.caption: Optional[str] = None   # hrc_world's caption of the step being played
         self.step: List[Marker] = []          # the last step's bars and labels
         self.lock = threading.Lock()
@@ -164,6 +180,6 @@ class VizNode:
 def main() -> None:
     """Entry point of ``scripts/hrc_viz``."""
     init_node("hrc_viz")
-    VizNode()
+    VizNode(read_config(VizNodeConfig))
     rospy.loginfo("hrc_viz: the steps of /hrc/status as markers on /hrc/markers")
     rospy.spin()

@@ -58,25 +58,18 @@ Closing the window (Esc) logs one line and asks the roslaunch that started the n
 as Ctrl-C does (the node ends with status 0); calls that come in meanwhile get a service error
 without a traceback.
 
-Parameters (read once at start-up):
-  ~gui (bool, false)              open PyBullet's window
-  ~seed (int, 0)                  seed of the world's randomness
-  ~belt_speed (float, 0.02)       conveyor speed, m/s
-  ~away_time (float, 0)           how long a walk away lasts when the human is already away, s
-  ~real_time_factor (float, 1.0)  simulated seconds per wall second; 0 = as fast as possible
-  ~pause_when_idle (bool or "")  freeze simulated time while no action runs ("": when
-                                  real_time_factor is 0)
-  ~publish_rate (float, 10.0)     /hrc/world_state rate, Hz
+Parameters (read once at start-up, nodes.common.read_config): the launch settings ~gui,
+~seed, ~belt_speed, ~away_time (auto: 0), ~real_time_factor, ~pause_when_idle (auto: when
+real_time_factor is 0), ~publish_rate, ~snapshot_dir (empty: $ROS_HOME/hrc_snapshots; file
+names carry the run's start time and a counter: never overwritten), ~viz (joint states and
+/tf, above), ~camera_rate (0: /hrc/camera/image not published) and /use_sim_time (publish
+/clock from the simulated time), each with its default and checks from ros_hrc.settings
+(docs/settings.md); and the node's own:
   ~action_timeout (float, 120.0)  wall seconds a service call waits for its action
-  ~snapshot_dir (str, $ROS_HOME/hrc_snapshots)  where /hrc/world/snapshot writes (file names
-                                  carry the run's start time and a counter: never overwritten)
-  ~viz (bool, true)               publish joint states and /tf (above)
-  ~tf_rate (float, 30.0)          their rate, Hz (wall clock)
-  ~camera_rate (float, 0.0)       /hrc/camera/image's rate, Hz (wall clock); 0: not published
+  ~tf_rate (float, 30.0)          the rate of the joint states and /tf, Hz (wall clock)
   ~model_dir (str, <package>/models/urdf)       where the URDF models are
   ~loop_nodes (list, [hrc_human, hrc_robot])   the nodes whose calls drive the agents (names
                                   relative to this node's namespace)
-  /use_sim_time (bool, false)     publish /clock from the simulated time
 """
 from __future__ import annotations
 
@@ -85,7 +78,7 @@ import os
 import signal
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import rospkg
@@ -102,7 +95,7 @@ from ros_hrc import settings
 from ros_hrc.loop.display import StepCaption
 from ros_hrc.streams import WORLD_EPISODE_PARAM
 from ros_hrc.msg import Status, WorldState
-from ros_hrc.nodes.common import init_node
+from ros_hrc.nodes.common import ParamReader, init_node, parameter, read_config
 from ros_hrc.nodes.guard import is_guard
 from ros_hrc.process_tree import is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
@@ -117,65 +110,45 @@ _CLOCK_MAX_RATE = 1000.0
 
 @dataclass(frozen=True)
 class WorldNodeConfig:
-    """The node's parameters, with the launch file's defaults."""
+    """The node's parameters (module docstring), read by :meth:`from_params`; a launch
+    setting's default is the table's (:mod:`ros_hrc.settings`)."""
 
-    gui: bool = False
-    seed: int = 0
-    belt_speed: float = 0.02
-    away_time: float = 0.0
-    real_time_factor: float = 1.0
-    pause_when_idle: bool = False
-    publish_rate: float = 10.0
+    gui: bool = settings.default("gui")
+    seed: int = settings.default("seed")
+    belt_speed: float = settings.default("belt_speed")
+    #: Not given (world.launch alone, an older launch): no time, the default task's.
+    away_time: Optional[float] = settings.default("away_time")
+    real_time_factor: float = settings.default("real_time_factor")
+    #: None (not given, or auto): decided by :func:`ros_hrc.settings.resolve`.
+    pause_when_idle: Optional[bool] = settings.default("pause_when_idle")
+    publish_rate: float = settings.default("publish_rate")
     action_timeout: float = 120.0
-    snapshot_dir: str = ""
-    model_dir: str = ""
-    use_sim_time: bool = False
-    viz: bool = True
+    snapshot_dir: str = settings.default("snapshot_dir")   # empty: $ROS_HOME/hrc_snapshots
+    model_dir: str = ""                                     # empty: the package's models/urdf
+    use_sim_time: bool = parameter(settings.default("use_sim_time"), "/use_sim_time")
+    viz: bool = settings.default("viz")
     tf_rate: float = 30.0
-    camera_rate: float = 0.0
+    camera_rate: float = settings.default("camera_rate")
     loop_nodes: Tuple[str, ...] = ("hrc_human", "hrc_robot")
 
     @classmethod
-    def from_params(cls, get_param: Callable[[str, Any], Any] = rospy.get_param) -> "WorldNodeConfig":
-        """Read the private parameters (and /use_sim_time) once."""
-        defaults = cls()
-        model_dir = get_param("~model_dir", "") or os.path.join(
-            rospkg.RosPack().get_path("ros_hrc"), "models", "urdf")
-        def setting(name: str) -> Any:   # launch settings: one source of defaults and checks
-            return settings.parse(name, get_param(f"~{name}", ""))
-
-        snapshot_dir = setting("snapshot_dir") or os.path.join(rospkg.get_ros_home(),
-                                                               "hrc_snapshots")
-
-        # resolve() decides an empty pause_when_idle (automatic: when real_time_factor is 0).
-        pace = settings.resolve({"real_time_factor": get_param("~real_time_factor", ""),
-                                 "pause_when_idle": get_param("~pause_when_idle", "")})
-        config = cls(
-            gui=setting("gui"), seed=setting("seed"), belt_speed=setting("belt_speed"),
-            # Not given (world.launch alone, an older launch): no time, the default task's.
-            away_time=setting("away_time") or 0.0,
-            real_time_factor=pace["real_time_factor"],
+    def from_params(cls, get_param: Optional[ParamReader] = None) -> "WorldNodeConfig":
+        """Read the parameters once (:func:`ros_hrc.nodes.common.read_config`), then decide
+        what they leave open: the automatic pause_when_idle, the default paths."""
+        given = read_config(cls, get_param)
+        # resolve() decides an automatic pause_when_idle (when real_time_factor is 0).
+        pace = settings.resolve({"real_time_factor": given.real_time_factor,
+                                 "pause_when_idle": given.pause_when_idle})
+        config = replace(
+            given, away_time=given.away_time or 0.0,
             pause_when_idle=pace["pause_when_idle"],
-            publish_rate=setting("publish_rate"),
-            action_timeout=float(get_param("~action_timeout", defaults.action_timeout)),
-            snapshot_dir=snapshot_dir, model_dir=model_dir,
-            use_sim_time=bool(get_param("/use_sim_time", defaults.use_sim_time)),
-            viz=setting("viz"), camera_rate=setting("camera_rate"),
-            tf_rate=float(get_param("~tf_rate", defaults.tf_rate)),
-            loop_nodes=_names(get_param("~loop_nodes", list(defaults.loop_nodes))))
-        if config.real_time_factor < 0 or config.publish_rate <= 0 or config.action_timeout <= 0:
-            raise ValueError("~real_time_factor must be >= 0, ~publish_rate and ~action_timeout > 0; "
-                             f"got {config}")
-        if config.tf_rate <= 0:
-            raise ValueError(f"~tf_rate must be > 0; got {config}")
+            snapshot_dir=given.snapshot_dir or os.path.join(rospkg.get_ros_home(),
+                                                            "hrc_snapshots"),
+            model_dir=given.model_dir or os.path.join(rospkg.RosPack().get_path("ros_hrc"),
+                                                      "models", "urdf"))
+        if config.action_timeout <= 0 or config.tf_rate <= 0:
+            raise ValueError(f"~action_timeout and ~tf_rate must be > 0; got {config}")
         return config
-
-
-def _names(value: Any) -> Tuple[str, ...]:
-    """Node names from a parameter: a list, or one text with names apart by spaces or commas."""
-    if isinstance(value, str):
-        value = value.replace(",", " ").split()
-    return tuple(str(name) for name in value)
 
 
 def stop_parent_launch(parent: Optional[int] = None) -> bool:

@@ -190,12 +190,10 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
         return PolicyPlanner(model, load_policy(args.policy_file, model), seed=args.seed,
                              lookahead=True)
     if args.planner == "reactive":
-        return reactive_planner(tasks.get(getattr(args, "task", tasks.DEFAULT_TASK)), model,
-                                budget=args.reactive_budget,
-                                wait=getattr(args, "reactive_wait", settings.default("reactive_wait")),
-                                seed=args.seed)
+        return reactive_planner(tasks.get(args.task), model, budget=args.reactive_budget,
+                                wait=args.reactive_wait, seed=args.seed)
     if args.planner == "none":
-        idle = tasks.get(getattr(args, "task", tasks.DEFAULT_TASK)).robot_idle_action
+        idle = tasks.get(args.task).robot_idle_action
         return NoRobotPlanner(model, NoRobotConfig(idle_action=idle), seed=args.seed)
     if args.planner == "explore":
         return ExplorePlanner(model, seed=args.seed)

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
+from .. import settings
 from .camera import CameraConfig
 from .conveyor import ConveyorConfig
 from .human import HumanConfig
@@ -23,14 +24,14 @@ def default_model_dir() -> Path:
 class WorldConfig:
     """Everything that defines a world; the defaults are the scene of docs/world.md."""
 
-    gui: bool = False
-    seed: int = 0
+    gui: bool = settings.default("gui")
+    seed: int = settings.default("seed")
     time_step: float = 1.0 / 240.0   # physics step, s
     substeps: int = 4                # physics steps per control step (motions, clock, requests)
     # The physics server holds one dynamic body (the object on the belt): 10 iterations carry
     # it exactly as 20 or PyBullet's 50 do (docs/performance.md), at half the cost of 20.
     solver_iterations: int = 10
-    belt_speed: float = 0.02  # m/s, downstream (+x)
+    belt_speed: float = settings.default("belt_speed")  # m/s, downstream (+x)
     conveyor: ConveyorConfig = field(default_factory=ConveyorConfig)
     work_object: ObjectConfig = field(default_factory=ObjectConfig)
     human: HumanConfig = field(default_factory=HumanConfig)

@@ -47,7 +47,8 @@ class ConveyorConfig:
         return self.end_x - self.start_x
 
 
-_BELT_THICKNESS = 0.04
+#: The belt's thickness, m (its top is ConveyorConfig.surface_height).
+BELT_THICKNESS = 0.04
 _BELT_COLOUR = (0.15, 0.15, 0.17, 1.0)
 _FRAME_COLOUR = (0.62, 0.64, 0.66, 1.0)
 _STOP_COLOUR = (0.95, 0.75, 0.10, 1.0)
@@ -64,9 +65,9 @@ class Conveyor:
         self.speed = speed
         c = config
         mid_x = (c.start_x + c.end_x) / 2
-        self._surface_pose = ([mid_x, c.centre_y, c.surface_height - _BELT_THICKNESS / 2],
+        self._surface_pose = ([mid_x, c.centre_y, c.surface_height - BELT_THICKNESS / 2],
                               [0.0, 0.0, 0.0, 1.0])
-        self.belt_id = self._box([c.length / 2, c.width / 2, _BELT_THICKNESS / 2],
+        self.belt_id = self._box([c.length / 2, c.width / 2, BELT_THICKNESS / 2],
                                  self._surface_pose[0], _BELT_COLOUR)
         # Friction of the surface: rubber-like, so the belt's pull wins over the object's inertia.
         client.changeDynamics(self.belt_id, -1, lateralFriction=0.9)
@@ -85,7 +86,7 @@ class Conveyor:
 
     def _build_frame(self) -> list:
         c = self.config
-        below = c.surface_height - _BELT_THICKNESS
+        below = c.surface_height - BELT_THICKNESS
         ids = []
         # Side rails a little above the surface keep the eye on the belt; they never touch a
         # centred object.
@@ -98,12 +99,12 @@ class Conveyor:
                                      collide=False))
         # Rollers at both ends (look only).
         for x in (c.start_x, c.end_x):
-            shape = self.client.createVisualShape(self.client.GEOM_CYLINDER, radius=_BELT_THICKNESS / 2 + 0.01,
+            shape = self.client.createVisualShape(self.client.GEOM_CYLINDER, radius=BELT_THICKNESS / 2 + 0.01,
                                                   length=c.width, rgbaColor=list(_FRAME_COLOUR),
                                                   specularColor=list(MATT_SPECULAR))
             ids.append(self.client.createMultiBody(
                 baseMass=0, baseVisualShapeIndex=shape,
-                basePosition=[x, c.centre_y, c.surface_height - _BELT_THICKNESS / 2],
+                basePosition=[x, c.centre_y, c.surface_height - BELT_THICKNESS / 2],
                 baseOrientation=[0.7071068, 0.0, 0.0, 0.7071068]))
         # The end stop: a bar across the belt just before its downstream end.
         ids.append(self._box([0.015, c.width / 2 + 0.02, (c.end_stop_height + 0.01) / 2],

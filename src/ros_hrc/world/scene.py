@@ -42,7 +42,7 @@ from typing import Callable, Iterator, List, Optional, Sequence, Union
 import numpy as np
 
 from ..errors import SimulationError
-from .. import streams
+from .. import settings, streams
 from .camera import Matrices, camera_matrices, rgb, take_image, window_matrices
 from .client import PhysicsClient
 from .config import WorldConfig, default_model_dir
@@ -276,7 +276,8 @@ class World:
         """True while the stepping thread runs."""
         return self._thread is not None and self._thread.is_alive()
 
-    def start(self, real_time_factor: float = 1.0, pause_when_idle: bool = False) -> None:
+    def start(self, real_time_factor: float = settings.default("real_time_factor"),
+              pause_when_idle: bool = False) -> None:
         """Step the physics in a thread of its own.
 
         ``real_time_factor``: simulated seconds per wall second (0: as fast as possible).

@@ -1,5 +1,6 @@
 """ros_hrc.settings: one default per launch argument, one line per refused value."""
 import argparse
+import importlib.util
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -9,7 +10,9 @@ from ros_hrc.errors import HrcError
 from ros_hrc import settings
 from ros_hrc.settings import SETTINGS, Setting, SettingError
 
-LAUNCH = Path(__file__).resolve().parents[3] / "launch" / "hrc.launch"
+ROOT = Path(__file__).resolve().parents[3]
+LAUNCH = ROOT / "launch" / "hrc.launch"
+MAKER = ROOT / "tools" / "make_settings_files.py"
 
 DEFAULTS = {
     "task": "seed", "human_model": "humanModel", "robot_model": "robot", "mode": "auto",
@@ -46,6 +49,42 @@ def test_every_setting_has_its_default():
 
 def test_one_time_per_step_default_for_every_entry_point():
     assert settings.default("time_per_step") == 0.1
+
+
+def make_settings_files():
+    """tools/make_settings_files.py, which writes hrc.launch's arguments and docs/settings.md
+    from the table."""
+    spec = importlib.util.spec_from_file_location("make_settings_files", MAKER)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_hrc_launch_and_the_settings_reference_are_written_from_the_table():
+    """The table is the only place a default is written: hrc.launch's <arg> lines and
+    docs/settings.md are what tools/make_settings_files.py writes from it."""
+    for path, text in make_settings_files().written_files(ROOT).items():
+        assert path.read_text(encoding="utf-8") == text, (
+            f"{path} is not what the settings table writes: python tools/make_settings_files.py")
+
+
+def test_a_default_edited_in_hrc_launch_by_hand_is_caught_and_written_back(tmp_path, capsys):
+    maker = make_settings_files()
+    for path in (LAUNCH, ROOT / "docs" / "settings.md"):
+        (tmp_path / path.parent.name).mkdir()
+        (tmp_path / path.relative_to(ROOT)).write_text(path.read_text(encoding="utf-8"))
+    copy = tmp_path / "launch" / "hrc.launch"
+    edited = copy.read_text().replace('name="belt_speed" default="0.02"',
+                                      'name="belt_speed" default="0.03"')
+    assert edited != copy.read_text()
+    copy.write_text(edited)
+    assert maker.main(["--check", "--root", str(tmp_path)]) == 1
+    assert "hrc.launch differs from the settings table" in capsys.readouterr().err
+    assert maker.main(["--root", str(tmp_path)]) == 0
+    assert copy.read_text() == LAUNCH.read_text()
+    assert maker.main(["--check", "--root", str(tmp_path)]) == 0
+    copy.write_text(edited.replace(maker.BEGIN, "<!-- gone -->"))
+    assert maker.main(["--root", str(tmp_path)]) == 2
 
 
 def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
