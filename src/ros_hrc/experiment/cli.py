@@ -50,7 +50,8 @@ from ros_hrc.experiment.episode import ALONE_POLICY, ROBOT_POLICIES, robot_polic
 from ros_hrc.experiment.grid import (DEFAULT_HUMANS, GridError, apply_task_defaults,
                                      check_held_out, expand_policies, plan_alone_cells,
                                      plan_cells, resolve_files, task_of)
-from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_success, plot_time_gain
+from ros_hrc.experiment.plots import (NothingToPlot, plot_belief, plot_outcomes, plot_success,
+                                      plot_time_gain)
 from ros_hrc.experiment.pool import run_stoppable
 from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder, open_results
 from ros_hrc.experiment.stack import MAX_EPISODES, check_launch_settings
@@ -232,10 +233,14 @@ def report(store: ResultsStore, out: Path, plots: bool) -> None:
     print(Path(md_path).read_text())
     written = [str(store.episodes_path), str(store.steps_path), str(csv_path), str(md_path)]
     if plots:
-        written.append(plot_outcomes(summary, out / "outcomes.png"))
-        written.append(plot_success(summary, out / "success.png"))
-        written.append(plot_time_gain(rows, out / "time_gain.png"))
-        written.append(plot_belief(store.steps(), out / "belief.png"))
+        for name, draw in (("outcomes.png", lambda path: plot_outcomes(summary, path)),
+                           ("success.png", lambda path: plot_success(summary, path)),
+                           ("time_gain.png", lambda path: plot_time_gain(rows, path)),
+                           ("belief.png", lambda path: plot_belief(store.steps(), path))):
+            try:
+                written.append(draw(out / name))
+            except NothingToPlot as why:
+                print(f"{NAME}: {name} left out: {str(why).split(': ', 1)[-1]}")
     print(f"{NAME}: written " + ", ".join(str(p) for p in written))
 
 

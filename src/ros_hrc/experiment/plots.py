@@ -18,6 +18,11 @@ from ros_hrc.experiment.rows import EpisodeKey, StepRow
 from ros_hrc.experiment.store import ResultsWarning, ensure_parent
 from ros_hrc.pomdp.output import write_atomically
 
+class NothingToPlot(ValueError):
+    """A plot has no data to show (e.g. a grid of the human alone has no robot to compare):
+    the report leaves it out with one line, it is no failure of the run."""
+
+
 def _new_figure(width: float, height: float):
     """A Figure outside pyplot: rendered by Agg whatever backend the process chose."""
     from matplotlib.figure import Figure
@@ -56,10 +61,18 @@ def _ordered(values: Iterable[Any]) -> List[Any]:
 
 
 def _policy_colours(policies: Sequence[str]) -> Dict[str, Any]:
+    """A colour of its own for each policy: tab10 up to ten, tab20 up to twenty (the study
+    has fourteen: ten reactive budgets, three POMDP robots and the human alone), then evenly
+    spaced along a continuous map; never one colour for two policies."""
     from matplotlib import colormaps
 
-    cmap = colormaps["tab10"]
-    return {p: cmap(i % 10) for i, p in enumerate(policies)}
+    n = len(policies)
+    if n <= 10:
+        return {p: colormaps["tab10"](i) for i, p in enumerate(policies)}
+    if n <= 20:
+        return {p: colormaps["tab20"](i) for i, p in enumerate(policies)}
+    cmap = colormaps["turbo"]
+    return {p: cmap(i / (n - 1)) for i, p in enumerate(policies)}
 
 
 #: Colours of the counterfactual outcomes: good for the human in greens, bad in reds.
@@ -76,7 +89,7 @@ def plot_outcomes(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.
     interval as a whisker and the human-alone success rate as a dashed line. Returns the
     PNG's path."""
     if not summary:
-        raise ValueError("plot_outcomes: the summary is empty, nothing to plot")
+        raise NothingToPlot("plot_outcomes: the summary is empty, nothing to plot")
     from ros_hrc.experiment.paired import OUTCOMES
 
     humans = _ordered(e["human_model"] for e in summary)
@@ -130,7 +143,7 @@ def plot_success(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.P
     policies spread a little within the row, so that many humans and policies (fabric's ten
     types, a swept baseline) fit one figure. Returns the PNG's path."""
     if not summary:
-        raise ValueError("plot_success: the summary is empty, nothing to plot")
+        raise NothingToPlot("plot_success: the summary is empty, nothing to plot")
     humans = _ordered(e["human_model"] for e in summary)
     policies = _ordered(e["robot_policy"] for e in summary)
     colours = _policy_colours(policies)
@@ -173,7 +186,7 @@ def plot_time_gain(rows: Iterable[Any], png_path: Union[str, os.PathLike]) -> st
     pairs each has. Returns the PNG's path."""
     rows = [r for r in rows if r.robot_policy != "no_robot"]
     if not rows:
-        raise ValueError("plot_time_gain: no robot episodes, nothing to plot")
+        raise NothingToPlot("plot_time_gain: no robot episodes, nothing to plot")
     humans = _ordered(r.human_model for r in rows)
     policies = _ordered(r.robot_policy for r in rows)
     colours = _policy_colours(policies)
@@ -243,7 +256,7 @@ def plot_belief(step_rows: Iterable[StepRow], png_path: Union[str, os.PathLike],
     for row in step_rows:
         groups.setdefault(row.key, []).append(row)
     if not groups:
-        raise ValueError("plot_belief: no step rows, nothing to plot")
+        raise NothingToPlot("plot_belief: no step rows, nothing to plot")
     chosen = _select_episode(groups, episode)
     human_model, _, seed, number = chosen
     same_human = [k for k in groups if (k[0], k[2], k[3]) == (human_model, seed, number)]
@@ -303,6 +316,7 @@ def plot_belief(step_rows: Iterable[StepRow], png_path: Union[str, os.PathLike],
     ax.set_ylabel("Robot's belief P(needs help)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1), borderaxespad=0)
-    ax.set_title(f"Belief that the human needs help: {human_model}, seed {seed}, "
+    # Two lines: one would run past the figure's left edge for fabric's long type names.
+    ax.set_title(f"Belief that the human needs help\n{human_model}, seed {seed}, "
                  f"episode {number}")
     return _save(fig, png_path)
