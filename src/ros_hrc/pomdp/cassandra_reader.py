@@ -67,7 +67,8 @@ from ros_hrc.pomdp.fileformat import (FULL_REWARD_STATES, MAX_DIGITS, PROBABILIT
                                       is_identity, is_number_text, model_name, name_lookup,
                                       read_file, resolve_token, shown_token, strip_bom,
                                       validated)
-from ros_hrc.pomdp.model import Model, reward_bound_problem
+from ros_hrc.pomdp.model import (Model, reward_bound_problem, rows_not_summing_to_one,
+                                 sum_problem)
 
 __all__ = ["load", "loads"]
 
@@ -335,7 +336,7 @@ class _Reader:
     # -- assembling the model ---------------------------------------------------------------
     def _check_rows(self, label: str, a: int, layers: Layers, table: sp.csr_matrix) -> None:
         sums = np.asarray(table.sum(axis=1)).ravel()
-        bad = np.flatnonzero(np.abs(sums - 1.0) > PROBABILITY_TOLERANCE)
+        bad = rows_not_summing_to_one(sums)
         if not bad.size:
             return
         r = int(bad[0])
@@ -344,8 +345,7 @@ class _Reader:
         if seq is None:
             self.fail(None, f"{label}: {action} : {state} is never given (its row sums to 0)")
         self.fail(self.seq_lines[seq],
-                  f"{label}: {action} : {state} row sums to {sums[r]:.6g}, not 1 "
-                  f"(tolerance {PROBABILITY_TOLERANCE:g}; {bad.size} such row(s))")
+                  f"{label}: {action} : {state} row {sum_problem(sums[r], bad.size)}")
 
     def _initial_belief(self) -> np.ndarray:
         S = len(self.names["states"])

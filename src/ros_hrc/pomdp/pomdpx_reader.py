@@ -50,7 +50,8 @@ from ros_hrc.pomdp.fileformat import (MAX_DIGITS, PROBABILITY_TOLERANCE, STRING_
                                       check_set_size, default_names, discount_problem,
                                       first_non_number, is_number_text, name_lookup, read_file,
                                       resolve_token, shown_token, strip_bom)
-from ros_hrc.pomdp.model import Model, reward_bound_problem
+from ros_hrc.pomdp.model import (Model, reward_bound_problem, rows_not_summing_to_one,
+                                 sum_problem)
 from ros_hrc.pomdp.pomdpx_flat import FactoredModel
 from ros_hrc.pomdp.pomdpx_tables import DenseTable, Factor, SparseTable, Variable
 from ros_hrc.pomdp.pomdpx_xml import COST_MARK, children, local_name, parse_xml
@@ -363,12 +364,11 @@ class _Reader(FactoredModel):
 
     def _check_normalised(self, elem, factor: Factor) -> None:
         sums = factor.table.last_axis_sums()
-        bad = np.flatnonzero(np.abs(sums - 1.0) > PROBABILITY_TOLERANCE)
+        bad = rows_not_summing_to_one(sums)
         if not bad.size:
             return
         config = np.unravel_index(int(bad[0]), [p.size for p in factor.parents]) \
             if factor.parents else ()
         given = ", ".join(f"{p.name}={p.values[i]}" for p, i in zip(factor.parents, config))
         what = f"P({factor.var.name} | {given})" if given else f"P({factor.var.name})"
-        self.fail(elem, f"{factor.label}: {what} sums to {sums[bad[0]]:.6g}, not 1 "
-                        f"(tolerance {PROBABILITY_TOLERANCE:g}; {bad.size} such row(s))")
+        self.fail(elem, f"{factor.label}: {what} {sum_problem(sums[bad[0]], bad.size)}")
