@@ -51,7 +51,7 @@ from typing import Iterator, List, Optional, Sequence
 
 import numpy as np
 
-from ros_hrc.pomdp import hsvi
+from ros_hrc.pomdp import offline
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.io import load_model
 from ros_hrc.pomdp.model import Model
@@ -149,7 +149,7 @@ def bench_model(path: Path, quick: bool) -> dict:
            "parse_s": round(parse_s, 4)}
     precision = 1e-2 if quick else 1e-3
     start = time.perf_counter()
-    policy = hsvi.solve(model, timeout=5.0 if quick else 30.0, precision=precision)
+    policy = offline.solve(model, timeout=5.0 if quick else 30.0, precision=precision)
     row.update({"solver": policy.stats["solver"], "solve_s": round(time.perf_counter() - start, 3),
                 "lower": round(policy.lower, 6), "upper": round(policy.upper, 6),
                 "precision": precision})
@@ -171,7 +171,7 @@ def tiger_score(runs: int) -> dict:
     observations, which dominates the plain mean over 100 runs (sd ≈ 20 per run).
     """
     model = load_model(ROOT / "test" / "fixtures" / "tiger.95.pomdp")
-    optimal = hsvi.solve(model, timeout=30.0, precision=1e-4)
+    optimal = offline.solve(model, timeout=30.0, precision=1e-4)
     config = DespotConfig(time_per_step=0.01)
     tables = DespotTables(model)
     visits: List[tuple] = []
@@ -237,7 +237,7 @@ def solver_times(runs: int) -> List[dict]:
     for _ in range(runs):
         for p in paths:
             start, start_cpu = time.perf_counter(), time.process_time()
-            policy = hsvi.solve(models[p], timeout=120.0, precision=1e-3)
+            policy = offline.solve(models[p], timeout=120.0, precision=1e-3)
             wall[p].append(time.perf_counter() - start)
             cpu[p].append(time.process_time() - start_cpu)
             bounds[p] = (policy.lower, policy.upper, policy.stats.get("backups"))
@@ -259,11 +259,11 @@ def rocksample_solve(seconds: float) -> dict:
     """RockSample_7_8 solved for ``seconds`` in a child process: its bounds and peak memory
     (the child's maximum resident set, which includes Python, numpy and the model)."""
     code = ("import json, sys, time, importlib.util\n"
-            "from ros_hrc.pomdp import hsvi\n"
+            "from ros_hrc.pomdp import offline\n"
             "from ros_hrc.pomdp.io import load_model\n"
             "m = load_model(sys.argv[1])\n"
             "start = time.perf_counter()\n"
-            "p = hsvi.solve(m, timeout=float(sys.argv[2]), precision=1e-3)\n"
+            "p = offline.solve(m, timeout=float(sys.argv[2]), precision=1e-3)\n"
             "print(json.dumps({'lower': p.lower, 'upper': p.upper, "
             "'solve_s': time.perf_counter() - start, 'stats': p.stats}))\n")
     with rocksample_7_8_file() as path:

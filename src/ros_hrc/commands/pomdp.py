@@ -314,7 +314,7 @@ def _solver_errors_exit_2(handler: Callable[[argparse.Namespace], int]):
 @_solver_errors_exit_2
 def cmd_solve(args: argparse.Namespace) -> int:
     """``hrc_pomdp solve MODEL [--timeout S] [--precision E] [-o POLICY] [--json]``."""
-    from ros_hrc.pomdp import hsvi
+    from ros_hrc.pomdp import offline
 
     began = getattr(args, "started", None)          # when run() began (None: called directly)
     if began is None:
@@ -333,8 +333,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     # The timeout counts from the start of the command: the solver gets what reading left.
     remaining = max(0.0, args.timeout - (start - began))
-    policy = hsvi.solve(model, timeout=remaining, precision=args.precision, progress=show,
-                        memory_limit=args.memory_limit)
+    policy = offline.solve(model, timeout=remaining, precision=args.precision, progress=show,
+                           memory_limit=args.memory_limit)
     seconds = time.perf_counter() - start
     lower, upper = _in_model_terms(model, policy.lower, policy.upper)
     stats = {k: v for k, v in policy.stats.items() if k not in ("seconds", "state_policy")}
@@ -454,7 +454,7 @@ def _batch_chooser(model: Model, args: argparse.Namespace, used: int):
 def _mdp_solution(model: Model, used: int, limit: Optional[int], source: str):
     """Value iteration for ``--planner mdp``: refused for a POMDP and beyond the memory limit
     (``used`` bytes taken already)."""
-    from ros_hrc.pomdp.hsvi import mdp_memory_needed
+    from ros_hrc.pomdp.offline import mdp_memory_needed
     from ros_hrc.pomdp.planner import MdpPlanner
     if not model.fully_observable:
         raise SolverError("--planner mdp is for fully observable models; use despot or "

@@ -178,8 +178,8 @@ class DespotTables:
             if default_policy is None:
                 if model.fully_observable or model.n_states > mdp.DENSE_STATE_LIMIT:
                     raise SolverError('lower="policy" needs a default policy for this model')
-                from ros_hrc.pomdp import hsvi      # only this option needs the offline solver
-                default_policy = hsvi.solve(model, timeout=policy_seconds, precision=1e-2)
+                from ros_hrc.pomdp import offline   # only this option needs the offline solver
+                default_policy = offline.solve(model, timeout=policy_seconds, precision=1e-2)
             default_policy.check(model)
             self.plans = np.vstack([self.blind, default_policy.alphas])
             self.plan_actions = np.concatenate([self.plan_actions, default_policy.actions])

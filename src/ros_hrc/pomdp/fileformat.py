@@ -1,23 +1,28 @@
 """What the two model-file formats (Cassandra ``.pomdp``, POMDPX) share: numbers, names, checks.
 
-Only the format modules (``cassandra``, ``pomdpx``, ``io``) import this; solvers never do.
+Only the format modules (the readers and writers of ``cassandra`` and ``pomdpx``, and ``io``)
+import this; solvers never do.
 """
 from __future__ import annotations
 
 import math
 import os
 import stat
-from typing import Dict, List, Optional, Sequence
+from pathlib import Path
+from typing import Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
+import scipy.sparse as sp
 
-from ros_hrc.errors import ModelFormatError
+from ros_hrc.errors import ModelError, ModelFormatError
 from ros_hrc.pomdp import memory
-from ros_hrc.pomdp.model import PROBABILITY_TOLERANCE
+from ros_hrc.pomdp.model import PROBABILITY_TOLERANCE, Model
 
-__all__ = ["PROBABILITY_TOLERANCE", "FULL_REWARD_STATES", "format_number", "name_lookup",
-           "resolve_token", "check_writable_names", "default_names", "joint_names", "is_identity",
-           "read_file", "decode_text", "strip_bom", "check_set_size"]
+__all__ = ["PROBABILITY_TOLERANCE", "FULL_REWARD_STATES", "MATRIX_LIMIT", "format_number",
+           "name_lookup", "resolve_token", "check_writable_names", "check_writable_model_names",
+           "default_names", "joint_names", "is_identity", "read_file", "decode_text", "strip_bom",
+           "check_set_size", "first_non_number", "discount_problem", "model_name",
+           "validated", "written_as_matrix", "stored_entries"]
 
 #: A byte-order mark some editors (Notepad) put at the start of UTF-8 text; it is not content.
 BOM = "\ufeff"
@@ -27,6 +32,13 @@ BOM = "\ufeff"
 #: T(s'|s,a) > 0 -- elsewhere it can never be earned -- so a reward that depends on s alone
 #: does not become a dense S x S table (RockSample_7_8: 12,800 states).
 FULL_REWARD_STATES = 2000
+
+#: What ``loads`` calls text that came from no file, in error messages.
+STRING_SOURCE = "<string>"
+
+#: Tables up to this many rows and columns are written as matrices (readable); larger ones
+#: entry by entry.
+MATRIX_LIMIT = 32
 
 
 def format_number(x: float) -> str:
@@ -40,6 +52,24 @@ def format_number(x: float) -> str:
     if x == int(x) and abs(x) < 1e15:
         return str(int(x))
     return repr(x)
+
+
+def first_non_number(words: Sequence[str]) -> Optional[int]:
+    """The index of the first word ``float`` does not read, for the message naming it once
+    numpy has refused a table of them; None when it reads them all."""
+    for i, word in enumerate(words):
+        try:
+            float(word)
+        except ValueError:
+            return i
+    return None
+
+
+def discount_problem(discount: float) -> Optional[str]:
+    """Why a file's discount is refused, or None when it is in [0, 1)."""
+    if not 0.0 <= discount < 1.0:
+        return f"discount {format_number(discount)} is outside [0, 1)"
+    return None
 
 
 def name_lookup(names: Sequence[str]) -> Dict[str, int]:
@@ -91,6 +121,15 @@ def check_writable_names(kind: str, names: Sequence[str], forbidden: str, source
         if name in seen:
             raise ModelFormatError(source, None, f"the {kind} name {name!r} appears twice")
         seen.add(name)
+
+
+def check_writable_model_names(model: Model, forbidden: str) -> None:
+    """Refuse a model whose state, action or observation names a writer cannot put in a file
+    (names holding one of ``forbidden``) and read back unchanged."""
+    source = model.source or model.name or "<model>"
+    for kind, names in (("state", model.states), ("action", model.actions),
+                        ("observation", model.observations)):
+        check_writable_names(kind, names, forbidden, source)
 
 
 def default_names(prefix: str, count: int) -> List[str]:
@@ -177,3 +216,35 @@ def check_set_size(kind: str, count: int, memory_limit: Optional[int], source: s
         raise memory.MemoryLimitError(f"{source}:{where}" if where else source,
                                       f"{count} {kind}", count * memory.BYTES_PER_NAME,
                                       memory_limit)
+
+
+def model_name(source: str) -> str:
+    """The name of a model read from ``source``: the file's stem ("model" for text)."""
+    return Path(source).stem if source != STRING_SOURCE else "model"
+
+
+def validated(model: Model, source: str) -> Model:
+    """``model`` once it passes ``Model.validate``; its complaint as a ModelFormatError naming
+    ``source`` otherwise."""
+    try:
+        model.validate()
+    except ModelError as exc:
+        raise ModelFormatError(source, None, str(exc)) from None
+    return model
+
+
+def written_as_matrix(matrix) -> bool:
+    """Whether a writer puts this table down as a matrix (at most MATRIX_LIMIT rows and
+    columns) rather than entry by entry."""
+    n, m = matrix.shape
+    return n <= MATRIX_LIMIT and m <= MATRIX_LIMIT
+
+
+def stored_entries(matrix) -> Iterator[Tuple[int, int, float]]:
+    """(row, column, value) of every entry a sparse table stores, explicit zeros included, row
+    by row and by column within a row."""
+    m = sp.csr_matrix(matrix)
+    m.sort_indices()
+    for r in range(m.shape[0]):
+        for k in range(m.indptr[r], m.indptr[r + 1]):
+            yield r, int(m.indices[k]), m.data[k]

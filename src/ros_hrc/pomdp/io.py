@@ -17,7 +17,6 @@ import scipy.sparse as sp
 from ros_hrc.errors import ModelFormatError
 from ros_hrc.pomdp import cassandra, pomdpx
 from ros_hrc.pomdp.model import Model
-from ros_hrc.pomdp.output import write_text_atomically
 
 __all__ = ["FORMATS", "format_of", "load_model", "save_model", "convert", "differences"]
 
@@ -48,9 +47,7 @@ def load_model(path, memory_limit: Optional[int] = None) -> Model:
 
 def save_model(model: Model, path) -> None:
     """Write ``model`` in the format the extension of ``path`` names, whole or not at all."""
-    module = _module(path)
-    text = module.dump(model)          # fully made before the file is touched
-    write_text_atomically(path, text)
+    _module(path).save(model, path)
 
 
 def convert(source, target, memory_limit: Optional[int] = None) -> Model:

@@ -210,6 +210,18 @@ class Model:
             raise ModelError(problem)
 
 
+def rows_not_summing_to_one(sums: np.ndarray,
+                            tolerance: float = PROBABILITY_TOLERANCE) -> np.ndarray:
+    """Indices of the rows of a probability table whose ``sums`` are not 1 within
+    ``tolerance``."""
+    return np.flatnonzero(np.abs(sums - 1.0) > tolerance)
+
+
+def sum_problem(total: float, bad_rows: int, tolerance: float = PROBABILITY_TOLERANCE) -> str:
+    """The end of a message about a row that sums to ``total``, one of ``bad_rows`` such."""
+    return f"sums to {total:.6g}, not 1 (tolerance {tolerance:g}; {bad_rows} such row(s))"
+
+
 def reward_bound_problem(largest_reward: float, discount: float) -> Optional[str]:
     """Why rewards as large as ``largest_reward`` (in magnitude) are refused at ``discount``,
     or None when |R| / (1 - discount) stays within MAX_VALUE."""
@@ -232,9 +244,8 @@ def _check_distribution(label: str, rows, tolerance: float,
     if data.size and data.min() < 0:
         raise ModelError(f"{label} has a negative probability ({data.min():g})")
     sums = np.asarray(rows.sum(axis=1)).ravel()
-    bad = np.flatnonzero(np.abs(sums - 1.0) > tolerance)
+    bad = rows_not_summing_to_one(sums, tolerance)
     if bad.size:
         i = int(bad[0])
         who = row_names[i] if row_names is not None else str(i)
-        raise ModelError(f"{label} row {who} sums to {sums[i]:.6g}, not 1 "
-                         f"(tolerance {tolerance:g}; {bad.size} such row(s))")
+        raise ModelError(f"{label} row {who} {sum_problem(sums[i], bad.size, tolerance)}")

@@ -8,11 +8,12 @@ of 256) a belief is 256 numbers instead of 12,800, an alpha vector too, and the 
 compares a belief with the points of its own block only: SARSOP's MOMDP solver works the same
 way (Ong, Png, Hsu, Lee: "POMDPs for robotic tasks with mixed observability", RSS 2009).
 
-The search is the one of :mod:`ros_hrc.pomdp.hsvi` (HSVI2 trials with the dynamic target, the
-exact stopping rule on the gap at the start, Σ_k P(k)·bound(b_k) over the roots), with the
-bounds of :class:`~ros_hrc.pomdp.hsvi._LowerBound` and :class:`~ros_hrc.pomdp.hsvi._UpperBound`
-kept per block. Products are sparse where the model is: a block's transitions are a sparse
-(block x next block) matrix, an observation's likelihood a dense column over its next block.
+The search is the one of :mod:`ros_hrc.pomdp.hsvi` (HSVI2 trials with the dynamic target of
+:mod:`ros_hrc.pomdp.search`, the exact stopping rule on the gap at the start, Σ_k P(k)·bound(b_k)
+over the roots), with the bounds of :class:`~ros_hrc.pomdp.bounds.LowerBound` and
+:class:`~ros_hrc.pomdp.bounds.UpperBound` kept per block. Products are sparse where the model
+is: a block's transitions are a sparse (block x next block) matrix, an observation's likelihood
+a dense column over its next block.
 
 The factorisation needs each observation to tell the next block: every (action, observation)
 pair has its possible next states in one block. A POMDPX model's observation carries the fully
@@ -41,9 +42,10 @@ import scipy.sparse as sp
 
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import mdp, memory
-from ros_hrc.pomdp.hsvi import TRIAL_ZETA, SolveProgress, _LowerBound, _UpperBound, _TINY
+from ros_hrc.pomdp.bounds import TINY, LowerBound, UpperBound
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.policy import Policy
+from ros_hrc.pomdp.search import SolveProgress, trial_start
 
 #: Fewest blocks for which the factorisation is worth it.
 MIN_BLOCKS = 2
@@ -183,9 +185,9 @@ class MomdpSolver:
         # so it stays a valid bound there and is never the best, not even tied, at a belief of
         # another block: a tie could hand that belief this block's action.
         self.floor = float(np.min(model.R_sa)) / (1.0 - t.gamma) - 1.0
-        self.lower = [_LowerBound(blind[:, members].copy(), np.arange(t.A))
+        self.lower = [LowerBound(blind[:, members].copy(), np.arange(t.A))
                       for members in t.states]
-        self.upper = [_UpperBound(upper[:, members].max(axis=0)) for members in t.states]
+        self.upper = [UpperBound(upper[:, members].max(axis=0)) for members in t.states]
         # The roots: the initial belief split by the observed values (one block each).
         self.roots: List[Tuple[int, np.ndarray]] = []
         weights = []
@@ -256,9 +258,7 @@ class MomdpSolver:
     # -- one trial -----------------------------------------------------------------------------
     def _trial(self, precision: float, deadline: float) -> None:
         gamma = self.t.gamma
-        lo, up = self._root_bounds()
-        r = int(np.argmax(self.root_weights * (up - lo - precision)))
-        width = max(precision, TRIAL_ZETA * float(up[r] - lo[r]))
+        r, width = trial_start(self.root_weights, *self._root_bounds(), precision)
         k, x = self.roots[r]
         path: List[Tuple[int, np.ndarray, List[_Successors]]] = []
         while True:
@@ -305,13 +305,13 @@ class MomdpSolver:
         vals = cand @ x
         a = int(np.argmax(vals))
         self.seen[k].append(x)
-        if vals[a] > float(self.lower[k].values(x[None])[0]) + _TINY:
+        if vals[a] > float(self.lower[k].values(x[None])[0]) + TINY:
             self.lower[k].add(cand[a], a)
             if self.lower[k].actions.size > 2 * self._pruned_size[k] + 16:
                 self._prune(k)
         q_up, _ = self._q_upper(k, x, succ)
         new_up = float(q_up.max())
-        if new_up < float(self.upper[k].values(x[None])[0]) - _TINY:
+        if new_up < float(self.upper[k].values(x[None])[0]) - TINY:
             self.upper[k].add(x, new_up)
         self.backups += 1
 

@@ -4,7 +4,7 @@ import pytest
 
 from solver_models import build_chain, build_tiger
 from ros_hrc.errors import SolverError
-from ros_hrc.pomdp import hsvi
+from ros_hrc.pomdp import offline
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
 
@@ -17,7 +17,7 @@ CAPPED = DespotConfig(time_per_step=30.0, max_trials=20)
 
 @pytest.fixture(scope="module")
 def tiger_policy():
-    return hsvi.solve(build_tiger(), timeout=30, precision=0.01)
+    return offline.solve(build_tiger(), timeout=30, precision=0.01)
 
 
 def test_despot_listens_at_the_uniform_belief(tiger):
@@ -140,7 +140,7 @@ def test_mdp_planner_moves_along_the_chain_and_keeps_a_point_mass():
 
 def test_mdp_planner_from_a_saved_mdp_policy():
     chain = build_chain(4)
-    planner = MdpPlanner.from_policy(chain, hsvi.solve(chain))
+    planner = MdpPlanner.from_policy(chain, offline.solve(chain))
     planner.reset()
     assert planner.act() == 1
 

@@ -145,16 +145,16 @@ def test_every_json_output_is_strict_json(capsys, argv):
 
 
 def test_a_non_finite_result_is_an_error_and_is_not_printed(capsys, monkeypatch, tmp_path):
-    from ros_hrc.pomdp import hsvi
+    from ros_hrc.pomdp import offline
 
-    real = hsvi.solve
+    real = offline.solve
 
     def broken(*args, **kwargs):
         policy = real(*args, **kwargs)
         policy.upper = float("nan")
         return policy
 
-    monkeypatch.setattr(hsvi, "solve", broken)
+    monkeypatch.setattr(offline, "solve", broken)
     written = tmp_path / "p.policy"
     for extra in (["--json"], []):
         assert run(["solve", TIGER, "--precision", "0.5", "-o", str(written)] + extra) == 1

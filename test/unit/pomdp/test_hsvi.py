@@ -4,7 +4,7 @@ import pytest
 
 from solver_models import TIGER_OPTIMUM, build_chain, build_tiger
 from ros_hrc.errors import SolverError
-from ros_hrc.pomdp import hsvi, policy as policy_mod
+from ros_hrc.pomdp import hsvi, offline, policy as policy_mod
 from ros_hrc.pomdp.policy import Policy
 
 LISTEN, OPEN_LEFT, OPEN_RIGHT = 0, 1, 2
@@ -12,7 +12,7 @@ LISTEN, OPEN_LEFT, OPEN_RIGHT = 0, 1, 2
 
 @pytest.fixture(scope="module")
 def tiger_policy():
-    return hsvi.solve(build_tiger(), timeout=30, precision=0.01)
+    return offline.solve(build_tiger(), timeout=30, precision=0.01)
 
 
 def test_tiger_bounds_bracket_the_optimum_within_a_hundredth(tiger_policy):
@@ -41,7 +41,7 @@ def test_solver_is_anytime_and_its_bounds_stay_valid(tiger):
 
 
 def test_a_tiny_timeout_still_returns_valid_bounds(tiger):
-    pol = hsvi.solve(tiger, timeout=0.0, precision=1e-6)
+    pol = offline.solve(tiger, timeout=0.0, precision=1e-6)
     assert pol.lower <= TIGER_OPTIMUM <= pol.upper
 
 
@@ -75,7 +75,7 @@ def test_a_policy_for_another_model_is_refused(tiger_policy):
 def test_an_mdp_is_solved_by_value_iteration_and_saved_as_a_policy(tmp_path):
     gamma = 0.9
     chain = build_chain(4, discount=gamma)
-    pol = hsvi.solve(chain, precision=1e-6)
+    pol = offline.solve(chain, precision=1e-6)
     assert pol.kind == "mdp"
     v0 = gamma ** 2 / (1 - gamma)
     assert pol.lower - 1e-9 <= v0 <= pol.upper + 1e-9 and pol.upper - pol.lower <= 1e-6

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ros_hrc.errors import ModelError
-from ros_hrc.pomdp import cassandra, hsvi, pomdpx
+from ros_hrc.pomdp import cassandra, hsvi, offline, pomdpx
 from ros_hrc.commands.pomdp import run
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.model import Model
@@ -160,7 +160,7 @@ def rounds() -> Model:
 
 @pytest.fixture(scope="module")
 def rounds_policy(rounds):
-    return hsvi.solve(rounds, timeout=30, precision=1e-3)
+    return offline.solve(rounds, timeout=30, precision=1e-3)
 
 
 def assert_scores_the_seen_tiger(result, runs: int) -> None:
@@ -251,14 +251,14 @@ def test_simulate_reveals_the_seen_tiger_at_the_start_like_sarsop(seen_tiger):
 
 
 def test_solve_gives_200_like_sarsop(seen_tiger):
-    policy = hsvi.solve(seen_tiger, precision=1e-3)
+    policy = offline.solve(seen_tiger, precision=1e-3)
     assert policy.kind == "mdp"
     assert policy.lower - 1e-9 <= SEEN_TIGER_VALUE <= policy.upper + 1e-9
     assert policy.upper - policy.lower <= 1e-3
 
 
 def test_a_policy_planner_scores_the_seen_tiger_like_sarsop(seen_tiger):
-    policy = hsvi.solve(seen_tiger, precision=1e-3)    # its vectors are the MDP's Q rows
+    policy = offline.solve(seen_tiger, precision=1e-3)    # its vectors are the MDP's Q rows
     for lookahead in (False, True):
         result = simulate(seen_tiger, lambda s: PolicyPlanner(seen_tiger, policy, s, lookahead),
                           sim_len=100, sim_num=200, seed=1)
@@ -319,7 +319,7 @@ def test_hsvi_bounds_are_the_weighted_sum_of_the_values_given_each_round(rounds,
     assert (rounds_policy.lower, rounds_policy.upper) == pytest.approx((lower, upper),
                                                                       abs=precision)
     # Solving each conditioned problem on its own gives the same weighted sum.
-    alone = [hsvi.solve(dataclasses.replace(rounds, initial_belief=b), precision=precision)
+    alone = [offline.solve(dataclasses.replace(rounds, initial_belief=b), precision=precision)
              for _, b in split]
     assert [p.upper - p.lower for p in alone] == [pytest.approx(0, abs=precision)] * 2
     assert alone[0].lower == pytest.approx(19.37, abs=0.01)          # calm: plain Tiger
@@ -331,7 +331,7 @@ def test_hsvi_bounds_are_the_weighted_sum_of_the_values_given_each_round(rounds,
 
 
 def test_seeing_the_round_at_the_start_is_worth_something(rounds, rounds_policy):
-    hidden_at_start = hsvi.solve(dataclasses.replace(rounds, observed_key=None), precision=1e-3)
+    hidden_at_start = offline.solve(dataclasses.replace(rounds, observed_key=None), precision=1e-3)
     assert hidden_at_start.upper + 0.3 < rounds_policy.lower       # 21.52 against 22.10
     calm, alert = (b for _, b in rounds.start_split())
     assert rounds_policy.action(calm) == LISTEN

@@ -307,9 +307,9 @@ def test_robot_model_has_the_authors_figures():
 
 def test_robot_models_optimal_value_is_the_authors():
     """HSVI from the initial belief: 6.8988, as `hrc_pomdp solve models/robot/robot.pomdp`."""
-    from ros_hrc.pomdp import hsvi
+    from ros_hrc.pomdp import offline
 
-    policy = hsvi.solve(robot(), timeout=120, precision=1e-3)
+    policy = offline.solve(robot(), timeout=120, precision=1e-3)
     assert policy.lower <= 6.8988 + 1e-3 and policy.upper >= 6.8988 - 1e-3
     assert policy.upper - policy.lower <= 1e-3
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ros_hrc.pomdp import hsvi, momdp, pomdpx
+from ros_hrc.pomdp import hsvi, momdp, offline, pomdpx
 from ros_hrc.pomdp.simulate import policy_chooser, simulate_batch
 
 from solver_models import build_tiger
@@ -44,7 +44,7 @@ def test_it_applies_where_observations_tell_the_fully_observed_values(rocksample
 @pytest.mark.parametrize("name", ["rocksample_3_2", "rounds"])
 def test_its_value_is_the_plain_solvers(name, request):
     model = request.getfixturevalue(name)
-    by_blocks = hsvi.solve(model, timeout=120.0, precision=PRECISION)
+    by_blocks = offline.solve(model, timeout=120.0, precision=PRECISION)
     assert by_blocks.stats["solver"] == "hsvi2-momdp"
     plain = hsvi.HsviSolver(model)
     plain.run(timeout=120.0, precision=PRECISION)
@@ -55,7 +55,7 @@ def test_its_value_is_the_plain_solvers(name, request):
 
 
 def test_the_policys_value_at_the_start_is_its_lower_bound(rounds):
-    policy = hsvi.solve(rounds, timeout=120.0, precision=PRECISION)
+    policy = offline.solve(rounds, timeout=120.0, precision=PRECISION)
     split = rounds.start_split()
     value = sum(w * policy.value(b) for w, b in split)
     assert value == pytest.approx(policy.lower, abs=1e-9)
@@ -80,7 +80,7 @@ def test_at_a_belief_of_one_block_the_policy_uses_that_blocks_vectors(rocksample
 
 def test_the_policy_earns_its_lower_bound_in_simulation(rocksample_3_2):
     model = rocksample_3_2
-    policy = hsvi.solve(model, timeout=120.0, precision=PRECISION)
+    policy = offline.solve(model, timeout=120.0, precision=PRECISION)
     result = simulate_batch(model, policy_chooser(model, policy), sim_len=120, sim_num=2000,
                             seed=3, estimator="expected")
     # The runs' 120 steps leave out at most 0.95^120 x 10 < 0.03 of the value.

@@ -3,7 +3,7 @@ as SARSOP reads them) and parse errors that say, in words, what is wrong and on 
 import numpy as np
 import pytest
 
-from ros_hrc.pomdp import hsvi, pomdpx
+from ros_hrc.pomdp import offline, pomdpx
 
 from test_pomdpx import error_of, read
 
@@ -56,7 +56,7 @@ def test_a_reward_on_an_observation_is_its_expectation_given_the_next_state():
 
 
 def test_the_solver_values_an_observation_conditioned_reward_as_computed_by_hand():
-    policy = hsvi.solve(read(model_text(OBSERVED_REWARD)), timeout=60.0, precision=1e-3)
+    policy = offline.solve(read(model_text(OBSERVED_REWARD)), timeout=60.0, precision=1e-3)
     assert policy.lower - 1e-9 <= 62.5 <= policy.upper + 1e-9
     assert policy.upper - policy.lower <= 1e-3
 

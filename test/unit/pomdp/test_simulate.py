@@ -6,7 +6,7 @@ import pytest
 
 from solver_models import TIGER_OPTIMUM, build_chain
 from ros_hrc.errors import SolverError
-from ros_hrc.pomdp import hsvi
+from ros_hrc.pomdp import offline
 from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
 from ros_hrc.pomdp.simulate import confidence_interval, simulate
 
@@ -39,7 +39,7 @@ def test_a_deterministic_chain_gives_its_exact_discounted_total():
 
 
 def test_simulation_is_reproducible_from_its_seed(tiger):
-    policy = hsvi.solve(tiger, timeout=30, precision=0.1)
+    policy = offline.solve(tiger, timeout=30, precision=0.1)
     def run(seed):
         return simulate(tiger, lambda s: PolicyPlanner(tiger, policy, s), 30, 20, seed).returns
     assert np.array_equal(run(4), run(4))
@@ -47,7 +47,7 @@ def test_simulation_is_reproducible_from_its_seed(tiger):
 
 
 def test_the_optimal_tiger_policy_scores_the_optimum(tiger):
-    policy = hsvi.solve(tiger, timeout=30, precision=0.01)
+    policy = offline.solve(tiger, timeout=30, precision=0.01)
     seen = []
     result = simulate(tiger, lambda s: PolicyPlanner(tiger, policy, s), sim_len=100,
                       sim_num=400, seed=0, progress=lambda n, m: seen.append(n))

@@ -7,7 +7,7 @@ import pytest
 
 from solver_models import TIGER_OPTIMUM, build_chain, build_tiger, make_model
 from ros_hrc.errors import SolverError
-from ros_hrc.pomdp import hsvi
+from ros_hrc.pomdp import offline
 from ros_hrc.commands.pomdp import run
 from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
 from ros_hrc.pomdp.simulate import (policy_chooser, q_chooser, simulate, simulate_batch)
@@ -28,7 +28,7 @@ def coin(discount: float = 0.9):
 @pytest.fixture(scope="module")
 def tiger_and_policy():
     tiger = build_tiger()
-    return tiger, hsvi.solve(tiger, timeout=60, precision=0.01)
+    return tiger, offline.solve(tiger, timeout=60, precision=0.01)
 
 
 def test_a_deterministic_chain_gives_its_exact_total_all_runs_at_once():
@@ -71,7 +71,7 @@ def test_the_batched_lookahead_chooses_as_the_planner_does(tiger_and_policy):
 def test_the_expected_reward_estimator_has_the_same_mean_and_no_noise_of_s_prime():
     model = coin()
     exact = 5.0 * sum(0.9 ** t for t in range(20))
-    policy = hsvi.solve(model, timeout=60, precision=0.01)
+    policy = offline.solve(model, timeout=60, precision=0.01)
     for sim in (lambda est: simulate(model, lambda s: PolicyPlanner(model, policy, s), 20, 200,
                                      3, estimator=est),
                 lambda est: simulate_batch(model, policy_chooser(model, policy), 20, 200, 3,

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from ros_hrc.pomdp import hsvi
+from ros_hrc.pomdp import offline
 from ros_hrc.pomdp.io import load_model
 
 from solver_models import build_chain, build_tiger
@@ -80,7 +80,7 @@ def test_the_value_at_the_start_is_the_pinned_one(path, digest, lower, upper):
     data = (ROOT / path).read_bytes()
     assert hashlib.sha256(data).hexdigest()[:12] == digest, (
         f"{path} changed since its value was pinned: recompute its row")
-    policy = hsvi.solve(load_model(ROOT / path), timeout=600.0, precision=PRECISION)
+    policy = offline.solve(load_model(ROOT / path), timeout=600.0, precision=PRECISION)
     # The exact stopping rule: the gap at the start is within the precision asked for.
     assert policy.upper - policy.lower <= PRECISION
     # Both intervals hold the optimal value, so they meet.
@@ -89,10 +89,10 @@ def test_the_value_at_the_start_is_the_pinned_one(path, digest, lower, upper):
 
 
 def test_the_code_built_test_models_keep_their_values():
-    tiger = hsvi.solve(build_tiger(), timeout=600.0, precision=PRECISION)
+    tiger = offline.solve(build_tiger(), timeout=600.0, precision=PRECISION)
     assert tiger.upper - tiger.lower <= PRECISION
     assert tiger.lower <= 19.371433798542782 + 1e-9 and tiger.upper >= 19.37133818637241 - 1e-9
     chain = build_chain(4, 0.9)
-    policy = hsvi.solve(chain, timeout=600.0, precision=PRECISION)
+    policy = offline.solve(chain, timeout=600.0, precision=PRECISION)
     exact = 0.9 ** 2 / (1 - 0.9)                # V*(s0) = γ^(n-2) / (1-γ)
     assert policy.lower - 1e-9 <= exact <= policy.upper + 1e-9
