@@ -22,7 +22,8 @@ on (a file that cannot be written, the memory limit, a result that is not a fini
 ``--json`` prints strict JSON (no NaN or Infinity). An output file (``convert``'s, ``solve -o``)
 is written whole or not at all. Progress goes to standard error, and only when it is a terminal.
 
-Adding a subcommand (``solve``, ``simulate``): write ``_register_<name>(subparsers)`` that
+Adding a subcommand (``solve``, ``simulate``): write ``_register_<name>(subparsers)`` (or, for
+a large one, a module of its own as ``simulate``'s :mod:`ros_hrc.commands.pomdp_simulate`) that
 adds the subparser and ``set_defaults(func=<handler>)``, a handler ``(args) -> int`` (the exit
 status), and append the register function to :data:`SUBCOMMANDS`. Errors of the package
 (:class:`~ros_hrc.errors.HrcError`) raised by a handler are reported by :func:`run`.
@@ -30,8 +31,6 @@ status), and append the register function to :data:`SUBCOMMANDS`. Errors of the 
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 import time
 from typing import Callable, List, Optional, Sequence, TextIO, Tuple
@@ -39,88 +38,22 @@ from typing import Callable, List, Optional, Sequence, TextIO, Tuple
 import numpy as np
 
 from ros_hrc.command_line import ranged_number
-from ros_hrc.errors import HrcError, ModelError, ModelFormatError, SolverError
+from ros_hrc.commands.pomdp_common import (MAX_SECONDS, MAX_TRIALS, PROG, add_memory_limit,
+                                           emit, load_with_progress, one_line, precision_arg,
+                                           progress, require_finite, seconds_arg, seed_arg,
+                                           solver_errors_exit_2)
+from ros_hrc.commands.pomdp_simulate import register_simulate
+from ros_hrc.errors import HrcError, ModelError, ModelFormatError
 from ros_hrc.pomdp import io, memory
 from ros_hrc.pomdp.memory import MemoryLimitError
 from ros_hrc.pomdp.model import MAX_VALUE, PROBABILITY_TOLERANCE, Model
 from ros_hrc.pomdp.output import check_writable
-
-PROG = "hrc_pomdp"
 
 #: What every model that loads has passed (the parsers and Model.validate check them).
 CHECKS = ["names known and unique", "table sizes agree", "discount in [0, 1)",
           f"no negative probability; rows of T and O sum to 1 (within {PROBABILITY_TOLERANCE:g})",
           "initial belief sums to 1",
           f"every number finite; |R| / (1 - discount) <= {MAX_VALUE:g}"]
-
-#: Upper limits of the numeric options: beyond them a run could not finish or fit in memory.
-MAX_SECONDS = 1e6                  # --timeout, --time-per-step: 11.6 days
-MAX_RUNS = 10_000_000              # --sim-len, --sim-num, and their product
-MAX_SCENARIOS = 1_000_000          # --scenarios, --particles
-MAX_DEPTH = 100_000                # --depth
-MAX_TRIALS = 10**12                # --max-trials
-MAX_SEED = 2**64 - 1
-MAX_MEMORY = 1 << 50               # --memory-limit: 1 PiB
-
-
-class ResultError(HrcError):
-    """A result to print is not a finite number (it is reported, never printed)."""
-
-
-def progress(message: str, stream: Optional[TextIO] = None) -> None:
-    """Show a progress line on a terminal only, so pipes, logs and --json output stay clean."""
-    stream = stream if stream is not None else sys.stderr
-    if stream.isatty():
-        print(f"{PROG}: {message}", file=stream, flush=True)
-
-
-def load_with_progress(path: str, memory_limit: Optional[int] = None) -> Model:
-    """Load a model file, saying so on a terminal (large models take a moment)."""
-    progress(f"reading {path} ...")
-    return io.load_model(path, memory_limit=memory_limit)
-
-
-def _non_finite(value, where: str = "") -> Optional[str]:
-    """The path (``lower``, ``stats.residual``) of the first non-finite float in ``value``."""
-    if isinstance(value, float):
-        return None if math.isfinite(value) else where
-    if isinstance(value, dict):
-        items = value.items()
-    elif isinstance(value, (list, tuple)):
-        items = enumerate(value)
-    else:
-        return None
-    for key, item in items:
-        found = _non_finite(item, f"{where}.{key}" if where else str(key))
-        if found is not None:
-            return found
-    return None
-
-
-def require_finite(facts: dict) -> None:
-    """ResultError when a number of the result is not finite (it must not be printed)."""
-    bad = _non_finite(facts)
-    if bad is not None:
-        raise ResultError(f"the result {bad} is not a finite number ({_lookup(facts, bad)}); "
-                          "nothing printed or written")
-
-
-def emit(facts: dict, as_json: bool, print_text: Callable[[dict], None]) -> int:
-    """Print the result: strict JSON (one line) or text. A number that is not finite is an
-    error (ResultError), whichever way the result would have been printed."""
-    require_finite(facts)
-    if as_json:
-        print(json.dumps(facts, allow_nan=False))
-    else:
-        print_text(facts)
-    return 0
-
-
-def _lookup(facts, path: str):
-    for key in path.split("."):
-        facts = facts[int(key)] if isinstance(facts, (list, tuple)) else facts[key]
-    return facts
-
 
 def model_kind(model: Model) -> str:
     """``MDP``, ``MOMDP`` (POMDPX with fully and partially observable variables) or ``POMDP``."""
@@ -187,7 +120,7 @@ def _register_info(subparsers) -> None:
                                           "describe it.")
     p.add_argument("model", help="a .pomdp (Cassandra) or .pomdpx (POMDPX) file")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    _add_memory_limit(p)
+    add_memory_limit(p)
     p.set_defaults(func=cmd_info)
 
 
@@ -205,7 +138,7 @@ def _register_convert(subparsers) -> None:
                                           "extension (.pomdp or .pomdpx). Tables are kept exactly.")
     p.add_argument("input", metavar="IN")
     p.add_argument("output", metavar="OUT")
-    _add_memory_limit(p)
+    add_memory_limit(p)
     p.set_defaults(func=cmd_convert)
 
 
@@ -232,36 +165,6 @@ def cmd_convert(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------------------------
 # solve and simulate (the solvers' subcommands)
 # --------------------------------------------------------------------------------------------
-_seconds = ranged_number(float, 0.0, MAX_SECONDS)
-_precision = ranged_number(float, 0.0, MAX_VALUE, low_open=True)
-_fraction = ranged_number(float, 0.0, 1.0)
-_regularization = ranged_number(float, 0.0, MAX_VALUE)
-_run_count = ranged_number(int, 1, MAX_RUNS)
-_scenario_count = ranged_number(int, 1, MAX_SCENARIOS)
-_depth = ranged_number(int, 0, MAX_DEPTH)
-_trial_count = ranged_number(int, 0, MAX_TRIALS)
-_seed = ranged_number(int, 0, MAX_SEED)
-
-
-def _memory_size(text: str) -> int:
-    """An argparse type: a memory size (``512M``, ``4G``, ``4096`` = MiB), 1 MiB to 1 PiB."""
-    try:
-        size = memory.parse_size(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    if not memory.MiB <= size <= MAX_MEMORY:
-        raise argparse.ArgumentTypeError(f"must be between 1M and 1P (1 MiB .. 1 PiB), "
-                                         f"got {text!r}")
-    return size
-
-
-def _add_memory_limit(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--memory-limit", type=_memory_size, default=memory.DEFAULT_MEMORY_LIMIT,
-                   metavar="SIZE",
-                   help="refuse a model whose reading, solving or simulation would need more "
-                        "memory than SIZE, estimated before it is allocated (a number with K, "
-                        "M, G or T; plain numbers are MiB; default "
-                        f"{memory.format_bytes(memory.DEFAULT_MEMORY_LIMIT)})")
 
 
 def _in_model_terms(model: Model, lower: float, upper: float) -> Tuple[float, float]:
@@ -285,33 +188,19 @@ def _register_solve(subparsers) -> None:
                     "is the average, over the start values of those variables, of the value "
                     "given them (an MDP: the average over start states of their values).")
     p.add_argument("model", help="a .pomdp or .pomdpx file")
-    p.add_argument("--timeout", type=_seconds, default=60.0, metavar="S",
+    p.add_argument("--timeout", type=seconds_arg, default=60.0, metavar="S",
                    help=f"stop after S seconds, 0 to {MAX_SECONDS:g} (default 60)")
-    p.add_argument("--precision", type=_precision, default=1e-3, metavar="E",
+    p.add_argument("--precision", type=precision_arg, default=1e-3, metavar="E",
                    help="stop when upper - lower <= E (default 0.001)")
     p.add_argument("-o", "--output", metavar="POLICY",
                    help="write the policy to this file (numpy .npz format, any file name)")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (lower, upper, seconds, ...)")
-    _add_memory_limit(p)
+    add_memory_limit(p)
     p.set_defaults(func=cmd_solve)
 
 
-def _solver_errors_exit_2(handler: Callable[[argparse.Namespace], int]):
-    """Report a SolverError (a bad policy file, a planner that does not fit the model) in one
-    line with exit status 2, like a bad model file: both are the user's input to fix."""
-    def wrapped(args: argparse.Namespace) -> int:
-        try:
-            return handler(args)
-        except SolverError as exc:
-            print(f"{PROG}: {_one_line(exc)}", file=sys.stderr)
-            return 2
-    wrapped.__doc__ = handler.__doc__
-    wrapped.__name__ = handler.__name__
-    return wrapped
-
-
-@_solver_errors_exit_2
+@solver_errors_exit_2
 def cmd_solve(args: argparse.Namespace) -> int:
     """``hrc_pomdp solve MODEL [--timeout S] [--precision E] [-o POLICY] [--json]``."""
     from ros_hrc.pomdp import offline
@@ -365,201 +254,6 @@ def cmd_solve(args: argparse.Namespace) -> int:
     return emit(facts, args.json, print_text)
 
 
-def _register_simulate(subparsers) -> None:
-    p = subparsers.add_parser(
-        "simulate", help="expected total discounted reward of a policy or of DESPOT",
-        description="Simulate MODEL like SARSOP's pomdpsim: SIM-NUM runs of SIM-LEN steps from "
-                    "the initial belief, true states drawn from T, observations from O, rewards "
-                    "R(s,a,s') discounted. With fully observable state variables (POMDPX "
-                    "fullyObs, mixed observability) the planner knows their values from the "
-                    "first step, as in SARSOP: it starts from the initial belief conditioned on "
-                    "the start state's fully observable values (an MDP: on the start state). "
-                    "Prints the mean total with its 95 % confidence interval "
-                    "(mean +/- 1.96 sd / sqrt(runs)), the reward estimator it used, and the "
-                    "planner's time per step. A saved policy and --planner mdp run all runs "
-                    "at once (their beliefs as one array); DESPOT runs them one by one.")
-    p.add_argument("model", help="a .pomdp or .pomdpx file")
-    how = p.add_mutually_exclusive_group(required=True)
-    how.add_argument("--policy", metavar="POLICY", help="a policy file written by 'solve -o'")
-    how.add_argument("--planner", choices=["despot", "mdp"],
-                     help="plan online: DESPOT, or value iteration for a fully observable model")
-    p.add_argument("--sim-len", type=_run_count, required=True, metavar="N",
-                   help=f"steps per run (1 to {MAX_RUNS}; N x M at most {MAX_RUNS})")
-    p.add_argument("--sim-num", type=_run_count, required=True, metavar="M",
-                   help=f"number of runs (1 to {MAX_RUNS})")
-    p.add_argument("--seed", type=_seed, default=0, metavar="K",
-                   help="random seed, 0 to 2**64-1 (default 0)")
-    p.add_argument("--lookahead", action="store_true",
-                   help="policy: choose by one-step lookahead over the policy's values")
-    p.add_argument("--estimator", choices=["realised", "expected"], default="realised",
-                   help="sum the realised rewards R(s,a,s') (default), or the expected "
-                        "rewards R(s,a) at the visited states, as SARSOP's pomdpsim does: "
-                        "the same mean, a narrower interval when rewards depend on s'")
-    d = p.add_argument_group("DESPOT (--planner despot)")
-    d.add_argument("--time-per-step", type=_seconds, default=1.0, metavar="S",
-                   help="search time per decision (default 1)")
-    d.add_argument("--scenarios", type=_scenario_count, default=500, metavar="K",
-                   help=f"1 to {MAX_SCENARIOS} (default 500)")
-    d.add_argument("--depth", type=_depth, default=90, metavar="D",
-                   help=f"0 to {MAX_DEPTH} (default 90)")
-    d.add_argument("--lambda", dest="pruning", type=_regularization, default=0.1, metavar="L",
-                   help="regularization per policy node, >= 0 (default 0.1)")
-    d.add_argument("--xi", type=_fraction, default=0.95, metavar="X",
-                   help="0 to 1 (default 0.95)")
-    d.add_argument("--max-trials", type=_trial_count, default=None, metavar="N",
-                   help="also stop each search after N trials (reproducible runs)")
-    d.add_argument("--upper", choices=["mdp", "fib", "trivial"], default="mdp",
-                   help="upper bound (default mdp)")
-    d.add_argument("--lower", choices=["blind", "policy", "rollout"], default="blind",
-                   help="default policy (default blind: the best fixed action)")
-    d.add_argument("--particles", type=_scenario_count, default=None, metavar="N",
-                   help="particle belief of N particles (default: exact belief for models "
-                        "of up to 5000 states)")
-    p.add_argument("--json", action="store_true",
-                   help="print one JSON object (mean, ci95_low, ci95_high, ms_per_step, ...)")
-    _add_memory_limit(p)
-    p.set_defaults(func=cmd_simulate, check=_check_simulate)
-
-
-def _check_simulate(args: argparse.Namespace) -> Optional[Tuple[str, str]]:
-    """What the options of ``simulate`` cannot be together: (option, message) or None."""
-    if args.sim_len * args.sim_num > MAX_RUNS:
-        return "--sim-num", (f"SIM-LEN x SIM-NUM must be at most {MAX_RUNS} steps, got "
-                             f"{args.sim_len} x {args.sim_num}")
-    return None
-
-
-def _batch_chooser(model: Model, args: argparse.Namespace, used: int):
-    """(chooser, label) for the planners that only choose from the belief (a saved policy,
-    --planner mdp), whose runs go all at once; (None, None) for DESPOT."""
-    from ros_hrc.pomdp.planner import MdpPlanner
-    from ros_hrc.pomdp.policy import load as load_policy
-    from ros_hrc.pomdp.simulate import batch_memory_needed, policy_chooser, q_chooser
-
-    source, limit = args.model, args.memory_limit
-    used += batch_memory_needed(model, args.sim_num, lookahead=bool(args.lookahead))
-    memory.require(used, limit, source, f"simulating {args.sim_num} runs at once")
-    if args.policy:
-        policy = load_policy(args.policy, model, memory_limit=limit, memory_in_use=used)
-        if policy.kind == "mdp":
-            return q_chooser(MdpPlanner.from_policy(model, policy).Q), \
-                f"policy {args.policy} (MDP)"
-        label = f"policy {args.policy}" + (" (one-step lookahead)" if args.lookahead else "")
-        return policy_chooser(model, policy, args.lookahead), label
-    if args.planner == "mdp":
-        return q_chooser(_mdp_solution(model, used, limit, source).Q), "value iteration (MDP)"
-    return None, None
-
-
-def _mdp_solution(model: Model, used: int, limit: Optional[int], source: str):
-    """Value iteration for ``--planner mdp``: refused for a POMDP and beyond the memory limit
-    (``used`` bytes taken already)."""
-    from ros_hrc.pomdp.offline import mdp_memory_needed
-    from ros_hrc.pomdp.planner import MdpPlanner
-    if not model.fully_observable:
-        raise SolverError("--planner mdp is for fully observable models; use despot or "
-                          "a policy from 'solve'")
-    memory.require(used + mdp_memory_needed(model), limit, source,
-                   "simulating with value iteration")
-    return MdpPlanner(model).solution
-
-
-#: What each reward estimator sums, as the output names it.
-_ESTIMATOR_WORDS = {"realised": "realised rewards R(s,a,s')",
-                    "expected": "expected rewards R(s,a), as pomdpsim"}
-
-
-def _planner_factory(model: Model, args: argparse.Namespace, used: int):
-    """A function run_seed -> planner, with the expensive tables built once; and its label.
-    ``used``: bytes the model and the simulation take already, out of ``--memory-limit``."""
-    from ros_hrc.pomdp import despot
-    from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
-    from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
-    from ros_hrc.pomdp.policy import load as load_policy
-
-    source, limit = args.model, args.memory_limit
-    if args.policy:
-        policy = load_policy(args.policy, model, memory_limit=limit, memory_in_use=used)
-        if policy.kind == "mdp":
-            return (lambda seed: MdpPlanner.from_policy(model, policy, seed)), \
-                f"policy {args.policy} (MDP)"
-        label = f"policy {args.policy}" + (" (one-step lookahead)" if args.lookahead else "")
-        return (lambda seed: PolicyPlanner(model, policy, seed, args.lookahead)), label
-    if args.planner == "mdp":
-        solution = _mdp_solution(model, used, limit, source)
-        return (lambda seed: MdpPlanner(model, solution, seed)), "value iteration (MDP)"
-    config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.pruning,
-                          xi=args.xi, time_per_step=args.time_per_step,
-                          max_trials=args.max_trials, upper=args.upper, lower=args.lower,
-                          particles=args.particles)
-    config.validate()
-    fixed = used + despot.memory_needed(model, config)
-    memory.require(fixed + 1000 * despot.BYTES_PER_NODE, limit, source,
-                   f"simulating with DESPOT ({config.scenarios} scenarios, depth "
-                   f"{config.depth})")
-    # What is left is the tree's: a search stops growing it there.
-    config.max_nodes = int((limit - fixed) // despot.BYTES_PER_NODE)
-    progress("precomputing DESPOT's bounds ...")
-    tables = DespotTables(model, config.upper, config.lower)
-    label = (f"DESPOT ({args.time_per_step:g} s per step, K={args.scenarios}, D={args.depth}, "
-             f"lambda={args.pruning:g}"
-             + (f", at most {args.max_trials} trials" if args.max_trials is not None else "")
-             + ")")
-    return (lambda seed: DespotPlanner(model, config, seed, tables=tables)), label
-
-
-@_solver_errors_exit_2
-def cmd_simulate(args: argparse.Namespace) -> int:
-    """``hrc_pomdp simulate MODEL (--policy P | --planner despot|mdp) --sim-len N --sim-num M``."""
-    from ros_hrc.pomdp.simulate import memory_needed, simulate, simulate_batch
-
-    model = load_with_progress(args.model, args.memory_limit)
-    used = memory.model_bytes(model) + memory_needed(model, args.sim_len, args.sim_num)
-    memory.require(used, args.memory_limit, args.model,
-                   f"simulating {args.sim_num} runs of {args.sim_len} steps")
-    chooser, label = _batch_chooser(model, args, used)
-    if chooser is None:
-        factory, label = _planner_factory(model, args, used)
-    shown = [time.perf_counter()]
-
-    def show(done: int, mean: float) -> None:
-        now = time.perf_counter()
-        if now - shown[0] >= 1.0 or done == args.sim_num:
-            shown[0] = now
-            value = -mean if model.minimise else mean
-            progress(f"run {done}/{args.sim_num}: mean {value:.6g}")
-
-    if chooser is not None:
-        result = simulate_batch(model, chooser, args.sim_len, args.sim_num, args.seed,
-                                progress=show, estimator=args.estimator)
-    else:
-        result = simulate(model, factory, args.sim_len, args.sim_num, args.seed,
-                          progress=show, estimator=args.estimator)
-    facts = result.as_dict()
-    if model.minimise:
-        facts["mean"], facts["ci95_low"], facts["ci95_high"] = (
-            -result.mean, -result.ci95_high, -result.ci95_low)
-        facts["undiscounted_mean"] = -result.undiscounted_mean
-    facts.update({"model": args.model, "planner": label, "sim_len": args.sim_len,
-                  "sim_num": args.sim_num, "seed": args.seed,
-                  "values": "cost" if model.minimise else "reward"})
-
-    def print_text(facts: dict) -> None:
-        print(f"{args.model}: {label}, {args.sim_num} runs x {args.sim_len} steps, "
-              f"seed {args.seed}")
-        print(f"  expected total discounted {facts['values']}  {facts['mean']:.6g}   95% CI "
-              f"({facts['ci95_low']:.6g}, {facts['ci95_high']:.6g})")
-        print(f"  estimator      {args.estimator}: the mean of the runs' discounted sums of "
-              f"{_ESTIMATOR_WORDS[args.estimator]}")
-        print(f"  time per step  {result.ms_per_step:.3f} ms (act p50 {result.ms_act_p50:.3f} "
-              f"ms, p99 {result.ms_act_p99:.3f} ms)")
-        if result.zero_probability_events:
-            print(f"  {result.zero_probability_events} observation(s) of probability zero: the "
-                  "belief kept its prediction")
-
-    return emit(facts, args.json, print_text)
-
-
 def _register_policy(subparsers) -> None:
     from ros_hrc.agents.policy_table import DEFAULT_TRIALS, SEQUENCES
     p = subparsers.add_parser(
@@ -575,7 +269,7 @@ def _register_policy(subparsers) -> None:
                                  "file with the task's states, actions and observations")
     p.add_argument("--trials", type=ranged_number(int, 1, MAX_TRIALS), default=DEFAULT_TRIALS,
                    metavar="N", help=f"DESPOT trials per decision (default {DEFAULT_TRIALS})")
-    p.add_argument("--seed", type=_seed, default=0, metavar="K",
+    p.add_argument("--seed", type=seed_arg, default=0, metavar="K",
                    help="the planner's seed, 0 to 2**64-1 (default 0)")
     p.add_argument("--sequence", action="append", type=_policy_sequence, metavar="NAME=OBS,...",
                    help="a sequence of your own, e.g. fails_after_warning=O7,O19,O7,O7 "
@@ -594,7 +288,7 @@ def _policy_sequence(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-@_solver_errors_exit_2
+@solver_errors_exit_2
 def cmd_policy(args: argparse.Namespace) -> int:
     """``hrc_pomdp policy MODEL``: the planner's actions after the typical sequences."""
     from ros_hrc.models import load_robot_model
@@ -621,7 +315,7 @@ def cmd_policy(args: argparse.Namespace) -> int:
 SUBCOMMANDS: List[Callable[[argparse._SubParsersAction], None]] = [_register_info,
                                                                   _register_convert,
                                                                   _register_solve,
-                                                                  _register_simulate,
+                                                                  register_simulate,
                                                                   _register_policy]
 
 
@@ -653,13 +347,13 @@ def run(argv: Optional[Sequence[str]] = None) -> int:
     try:
         return int(args.func(args))
     except (ModelFormatError, ModelError) as exc:
-        print(f"{PROG}: {_one_line(exc)}", file=sys.stderr)
+        print(f"{PROG}: {one_line(exc)}", file=sys.stderr)
         return 2
     except MemoryLimitError as exc:
-        print(f"{PROG}: {_one_line(exc)}; raise it with --memory-limit", file=sys.stderr)
+        print(f"{PROG}: {one_line(exc)}; raise it with --memory-limit", file=sys.stderr)
         return 1
     except HrcError as exc:
-        print(f"{PROG}: {_one_line(exc)}", file=sys.stderr)
+        print(f"{PROG}: {one_line(exc)}", file=sys.stderr)
         return 1
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
@@ -680,10 +374,6 @@ def _subparser(parser: argparse.ArgumentParser, command: str) -> argparse.Argume
         if isinstance(action, argparse._SubParsersAction):
             return action.choices[command]
     return parser
-
-
-def _one_line(exc: Exception) -> str:
-    return " ".join(str(exc).split())
 
 
 def main(argv: Optional[Sequence[str]] = None) -> None:
