@@ -335,7 +335,8 @@ _TABLE: Iterable[Setting] = (
     # links
     _s("host", "host", "127.0.0.1",
        "address the websocket servers bind and the clients connect to"),
-    _port("pomdp_port", 7070, "POMDP process's server, for observations from hrc_obs"),
+    _port("pomdp_port", 7070, "POMDP process's server, for the observations of hrc_human "
+          "(the coordinator)"),
     _port("robot_port", 8080, "hrc_robot's server, for actions from the POMDP process"),
     _port("human_port", 9090, "hrc_human's server, for steps from the MDP process"),
     # the human (MDP)

@@ -33,7 +33,7 @@ Afterwards: every server still accepts an authenticated hello and proves the tok
 answer (and answers a probe; the human port refuses the seat instead, which shows it is up
 too); the loop publishes at least 3 new fault-free steps on /hrc/status (it may have reset:
 fuzzed resets and observations of other epochs on the POMDP and robot ports are accepted
-requests, and the loop must recover from them); none of the launch's six processes (the four
+requests, and the loop must recover from them); none of the launch's five processes (the three
 nodes and both solver processes, found by ``__name:=`` under roslaunch) has died or been
 respawned (same PIDs before and after); and no traceback appeared in the launch's output
 while the fuzz ran.
@@ -95,7 +95,7 @@ FUZZ_DEADLINE = 240.0
 STEPS_AFTER = 3
 STEPS_WAIT = 90.0
 #: The launch's processes, by their __name.
-PROCESSES = ("hrc_world", "hrc_robot", "hrc_obs", "hrc_human", "despot_pomdp", "despot_mdp")
+PROCESSES = ("hrc_world", "hrc_robot", "hrc_human", "despot_pomdp", "despot_mdp")
 PROBE_TYPE = "fuzz_probe"
 PORT_NAMES = ("pomdp", "robot", "human")
 WHO = "fuzz_test"

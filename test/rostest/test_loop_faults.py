@@ -13,10 +13,12 @@
 * Sixteen threads calling the world's services (/human/*, /robot/*) while the loop runs: the
   loop keeps stepping, no step fails (the loop's calls go first; the others are answered
   "busy" while the loop acts).
-* kill -9 of hrc_robot, hrc_obs, despot_pomdp, despot_mdp and hrc_human: each respawns and the
-  run goes on from a reset. kill -9 of hrc_world (required): the whole launch stops, with a
-  non-zero status and one line saying so, and no process of it is left; Ctrl-C still ends a
-  launch with status 0 (world.launch with a master of its own: that master ends too).
+* kill -9 of hrc_robot, despot_pomdp, despot_mdp and hrc_human: each respawns and the run
+  goes on from a reset; a decision under way when despot_pomdp dies fails its step visibly
+  (STEP FAILED), then a run from a reset. kill -9 of hrc_world (required): the whole launch
+  stops, with a non-zero status and one line saying so, and no process of it is left; Ctrl-C
+  still ends a launch with status 0 (world.launch with a master of its own: that master ends
+  too).
 """
 import json
 import os
@@ -256,8 +258,46 @@ class TestLoopFaults(unittest.TestCase):
     def test_3_killed_hrc_robot_respawns_and_the_run_goes_on_from_a_reset(self):
         self.kill_and_expect_a_run_from_a_reset("hrc_robot")
 
-    def test_4_killed_hrc_obs_respawns_and_the_run_goes_on_from_a_reset(self):
-        self.kill_and_expect_a_run_from_a_reset("hrc_obs")
+    def test_4_a_decision_under_way_when_despot_pomdp_dies_fails_its_step_visibly(self):
+        """Was: kill -9 of hrc_obs, the relay between the coordinator and the POMDP process:
+        the call under way failed, then a run from a reset. hrc_human is the POMDP process's
+        client itself now: a decision it waits for when despot_pomdp dies fails its step at
+        once (STEP FAILED in the block, the fault on /hrc/status), and the run goes on from a
+        reset."""
+        for _attempt in range(3):
+            old = node_pids(self.proc, "despot_pomdp")
+            self.assertTrue(old, "no despot_pomdp process in the launch")
+            offset = os.path.getsize(self.launch_log)
+            self.log.clear()
+            # Stopped, the POMDP process answers nothing: the step under way waits for its
+            # decision, and says so after wait_note_every (5 s). (Stopped during a reset
+            # instead, the loop waits for the planner's reset: then once more.)
+            for pid in old:
+                os.kill(pid, signal.SIGSTOP)
+            try:
+                waits = wait_for_text(self.launch_log, offset, "waits for the robot planner", 30)
+            finally:
+                for pid in old:
+                    os.kill(pid, signal.SIGKILL)
+            if waits:
+                break
+        self.assertTrue(waits, "no step waited for the decision of a stopped despot_pomdp")
+        self.assertTrue(wait_for_pids(self.proc, "despot_pomdp", unlike=old) - old,
+                        "roslaunch did not restart despot_pomdp")
+        ok, statuses = self.log.wait_for(
+            lambda s: any(x.fault for x in s) and
+            fresh_run(s[[x.fault != "" for x in s].index(True):], 4))
+        self.assertTrue(ok, f"no failed step and then a run from a reset: "
+                            f"{[(s.epoch, s.step, s.fault[:40]) for s in statuses][:20]}")
+        failed = next(s for s in statuses if s.fault)
+        self.assertTrue(failed.fault.startswith("the robot planner failed: no decision from "
+                                                "the POMDP process"), failed.fault)
+        self.assertIn("STEP FAILED       : the robot planner failed",
+                      read_from(self.launch_log, offset))
+        for status in statuses:
+            if not status.fault:
+                check_step(self, status)
+        check_epochs(self, statuses)
 
     def test_5_killed_despot_pomdp_respawns_and_the_run_goes_on_from_a_reset(self):
         self.kill_and_expect_a_run_from_a_reset("despot_pomdp")
@@ -318,6 +358,16 @@ def read_from(path, offset=0):
     with open(path, "rb") as f:
         f.seek(offset)
         return f.read().decode("utf-8", "replace")
+
+
+def wait_for_text(path, offset, text, timeout):
+    """Whether ``text`` appears in the file at ``path`` after ``offset`` within ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if text in read_from(path, offset):
+            return True
+        time.sleep(0.2)
+    return False
 
 
 class TestWorldLaunchEnds(unittest.TestCase):

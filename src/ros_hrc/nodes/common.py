@@ -163,8 +163,9 @@ class ServiceWait:
 
     ``groups``: (what, names) pairs, e.g. ``("the world", ["/hrc/world/reset", ...])``; the
     line reads ``waiting for the world: /hrc/world/reset, ...; for the robot planner
-    (hrc_obs): /hrc/obs/decide (30 s)``. ``registered()`` gives the names registered now
-    (:func:`registered_services`; the tests give a fake). :meth:`run` does the waiting (on a
+    (despot_pomdp): ws://127.0.0.1:7070 (30 s)``. ``registered()`` gives the names up now
+    (:func:`registered_services`, and whatever else the caller counts, such as a link that is
+    connected; the tests give a fake). :meth:`run` does the waiting (on a
     thread of its own); :meth:`wait` blocks a caller until it is done, and raises
     :class:`ServiceUnavailable` if the wait was stopped (shutdown) first."""
 
