@@ -4,8 +4,8 @@
 Starts `roslaunch ros_hrc hrc.launch` (world on real_time_factor 0, no pause between steps,
 auto mode, episodes going on) with its own roscore on a free port, listens to /hrc/status and
 times the gaps between consecutive steps: one gap is a whole step — MDP decision, human
-action in the world, one world snapshot, the decision (hrc_obs and DESPOT), robot action,
-outcome snapshot, answers. Prints p50 / p99 of the step latency, steps per second, the mean
+action in the world, one world snapshot, the decision (DESPOT, over hrc_human's link to it),
+robot action, outcome snapshot, answers. Prints p50 / p99 of the step latency, steps per second, the mean
 DESPOT decision time, and where a step's time goes (each part's wall time, from
 /hrc/status); writes bench/results/loop.json.
 
@@ -46,12 +46,12 @@ def main(argv=None) -> int:
 
     port = free_port()
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
-    pomdp_port, robot_port, human_port = free_port(), free_port(), free_port()
+    pomdp_port, human_port = free_port(), free_port()
     launch = subprocess.Popen(
         ["roslaunch", "--port", str(port), "ros_hrc", "hrc.launch", "gui:=false",
          "real_time_factor:=0", "step_delay:=0", "mode:=auto", "on_episode_end:=reset",
          f"time_per_step:={args.time_per_step}", f"human_model:={args.human_model}",
-         f"pomdp_port:={pomdp_port}", f"robot_port:={robot_port}", f"human_port:={human_port}",
+         f"pomdp_port:={pomdp_port}", f"human_port:={human_port}",
          "read_stdin:=false"] + args.launch_arg,
         env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True)

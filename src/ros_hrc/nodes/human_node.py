@@ -3,8 +3,9 @@
 The coordinator (:mod:`ros_hrc.loop.coordinator`) owns the step; this node only carries out
 what it asks, through four adapters:
 
-* the **human MDP**: a websocket server (``~port``, 9090 by default, bound to ``~host``). The
-  first client is the served MDP; a second one is refused with one line and disconnected.
+* the **human MDP**: a websocket server (``~human_port``, 9090 by default, bound to
+  ``~host``). The first client is the served MDP; a second one is refused with one line and
+  disconnected.
   ``step`` messages go to the coordinator; its answers go back as ``ack`` / ``error``, and a
   ``reset`` (with the new epoch) starts each episode. A human who hears the robot (a task
   with reaction rules) answers each ``ack`` with a ``reaction`` (his state after the robot
@@ -16,7 +17,10 @@ what it asks, through four adapters:
 * the **robot planner**: this node is the websocket client of the POMDP process
   (``~pomdp_port``, 7070 by default): the robot's ``observation`` out, the ``decision`` that
   answers it in, a ``reset`` into each new epoch. No process in between.
-* the **robot executor**: a websocket client of hrc_robot (``~robot_port``, 8080).
+* the **robot executor**: the world's ``/robot/<action>`` service of the robot's action (the
+  seed's Table 3.2: ``rPoint_obj`` /robot/point_to_obj, ``rGrasp_obj`` /robot/grasp,
+  ``rStop_all`` /robot/cancel_action; ``rIdle`` moves nothing). No process in between: this
+  node drives both agents of the world.
 
 Each step prints one block in the terminal and is published on ``/hrc/status`` (also a step
 that failed: its ``fault`` says what failed, and the loop starts again from a reset).
@@ -44,14 +48,13 @@ a terminal).
 Parameters: ~task (the collaboration task, ros_hrc.tasks: seed or fabric), ~seed (the run's
 seed: the task's observation noise draws from its (seed, episode) streams), ~host,
 ~human_port (this node's server, for the MDP), ~pomdp_port (the POMDP process's server),
-~robot_port, ~mode, ~max_steps, ~on_episode_end,
+~mode, ~max_steps, ~on_episode_end,
 ~end_on_goal, ~episodes (the episode numbers to play, e.g. ``0-99`` or ``2,5-7``; ``live``: 1,
 2, 3 ...: see :mod:`ros_hrc.streams`), ~wait_for_listener (no step before someone
 subscribes to /hrc/status), ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
 ~service_timeout (s to wait for a service that went away during the run; at start-up the
 node waits however long it takes), ~wait_report_every (s between the lines saying what the
-start-up still waits for), ~action_timeout (s a robot action may take), ~decide_timeout (s to
-wait for the POMDP process's decision), ~planner_reset_timeout (s to wait for its answer to a
+start-up still waits for), ~decide_timeout (s to wait for the POMDP process's decision), ~planner_reset_timeout (s to wait for its answer to a
 reset, which takes no planning), ~reset_timeout (s /hrc/reset waits for the reset),
 ~reply_timeout (s to wait for the MDP's answer to a next state),
 ~reset_join_window, ~wait_note_every, ~world_call_timeout (see CoordinatorConfig; the values
@@ -66,15 +69,15 @@ import os
 import sys
 import threading
 from dataclasses import dataclass
-from typing import Callable, Dict, Optional, TextIO, Tuple
+from typing import Callable, Dict, Mapping, Optional, TextIO, Tuple
 
 import rospy
 from std_srvs.srv import Trigger, TriggerResponse
 
 from ros_hrc.errors import HrcError, LinkError
-from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, Action, DispatchTable,
-                                   Error, Message, MessageError, NextState, Observation,
-                                   Reaction, Reset, Step, reply_error)
+from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, DispatchTable, Error,
+                                   Message, MessageError, NextState, Observation, Reaction,
+                                   Reset, Step, reply_error)
 from ros_hrc.link.protocol import Decision as DecisionMessage
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
@@ -100,7 +103,6 @@ class HumanNodeConfig:
     host: str = "127.0.0.1"
     human_port: int = 9090
     pomdp_port: int = 7070
-    robot_port: int = 8080
     mode: str = "auto"
     max_steps: int = 0
     on_episode_end: str = "wait"
@@ -111,7 +113,6 @@ class HumanNodeConfig:
     print_steps: bool = True
     service_timeout: float = 30.0
     wait_report_every: float = 10.0
-    action_timeout: float = 120.0
     decide_timeout: float = 120.0
     planner_reset_timeout: float = 10.0
     reset_timeout: float = 120.0
@@ -124,10 +125,11 @@ class HumanNodeConfig:
 
 
 def world_services(task: tasks.Task) -> Tuple[str, ...]:
-    """The world's services the loop calls for ``task``: its reset, its snapshot and every
-    /human/* service of the task's human actions."""
+    """The world's services the loop calls for ``task``: its reset, its snapshot, every
+    /human/* service of the task's human actions and every /robot/* service of its robot's."""
     return ("/hrc/world/reset", "/hrc/world/state") + tuple(
-        f"/human/{service}" for service in task.human_world_services())
+        f"/human/{service}" for service in task.human_world_services()) + tuple(
+        f"/robot/{service}" for service in task.robot_world_services())
 
 
 def startup_services(task: tasks.Task, planner_url: str
@@ -308,25 +310,26 @@ class LinkPlanner(PlannerPort):
         return Outcome(False, f"POMDP process: answered a {reply.type}, not an ack")
 
 
-class LinkExecutor(ExecutorPort):
-    """The robot executor: hrc_robot's websocket server."""
+class RosExecutor(ExecutorPort):
+    """The robot executor: the world's /robot/* service of the task's robot action
+    (``services``: action -> service, None for an action that moves nothing). A refused
+    action (``success`` false: out of reach) is what happened; a service that errors or is
+    gone raises (a fault, which fails the step). ``ready()`` blocks until the start-up wait
+    is over."""
 
-    def __init__(self, client: MessageClient, timeout: float) -> None:
-        self.client = client
-        self.timeout = timeout
-        self._connection: Optional[int] = None   # the connection of the last action
+    def __init__(self, call: TriggerCaller, services: Mapping[str, Optional[str]],
+                 ready: Callable[[], object] = _no_wait) -> None:
+        self.call = call
+        self.services = services
+        self.ready = ready
 
     def act(self, epoch: int, step: int, action: str) -> Outcome:
-        reply = self.client.request(Action(step=step, action=action, epoch=epoch), self.timeout)
-        connection = self.client.connections
-        restarted = self._connection is not None and connection != self._connection
-        self._connection = connection
-        if restarted:
-            # hrc_robot was restarted since the last action: what it was doing was cut short.
-            raise LinkError("the robot executor (hrc_robot) restarted")
-        if isinstance(reply, Error):
-            raise LinkError(f"hrc_robot refused {action}: {reply.message}")
-        return Outcome(reply.success is not False, reply.result or "")
+        self.ready()
+        service = self.services[action]
+        if service is None:
+            return Outcome(True, "the robot stays idle and keeps observing")
+        ok, message = self.call(f"/robot/{service}")
+        return Outcome(ok, message)
 
 
 class LinkMdp(MdpPort):
@@ -445,14 +448,12 @@ class HumanNode:
             world_call_timeout=config.world_call_timeout,
             episodes=EpisodeSchedule.parse(config.episodes), task=self.task,
             seed=config.seed))
-        self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
-                                   send_timeout=config.action_timeout, token=token)
         planner = LinkPlanner(self.pomdp, config.decide_timeout, config.planner_reset_timeout,
                               self.startup.wait)
+        executor = RosExecutor(self.call, self.task.robot_action_services, self.startup.wait)
         self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait), planner,
-                                 LinkExecutor(self.robot, config.action_timeout), LinkMdp(),
-                                 Terminal(self.status_pub, config.mode, config.print_steps,
-                                          self.task))
+                                 executor, LinkMdp(), Terminal(self.status_pub, config.mode,
+                                                               config.print_steps, self.task))
         table = DispatchTable("hrc_human")
         table.on(Step, self._on_step)
         table.on(Reaction, self._on_reaction)
@@ -480,7 +481,6 @@ class HumanNode:
         threading.Thread(target=self.startup.run, name="startup-wait", daemon=True).start()
         self.runner.start()
         self.pomdp.start()
-        self.robot.start()
         self.server.start()
 
     def stop(self) -> None:
@@ -488,7 +488,6 @@ class HumanNode:
         self.server.stop()
         self.runner.stop()
         self.pomdp.close()
-        self.robot.close()
         self.call.close()
 
     # -- the MDP's messages -------------------------------------------------------------------

@@ -5,8 +5,8 @@ when their motion is over (``success``: it did what was asked; ``message``: what
 predicates answer in ``success`` and explain in ``message``. A fault of the world (it closed,
 an action did not finish in time) is a service error, never a ``false``.
 
-The loop's nodes (~loop_nodes: hrc_human and hrc_robot, who call /human/<action>,
-/robot/<action> and /hrc/world/reset) drive the agents and are served first: their action
+The loop's node (~loop_nodes: hrc_human, which calls /human/<action>, /robot/<action> and
+/hrc/world/reset) drives the agents and is served first: their action
 interrupts another caller's action of that agent under way and cancels those queued, and while
 it runs another caller's call for that agent gets ``success=false``, ``busy: the human is
 doing grasp for /hrc_human, ...`` at once (docs/world.md, "Who is served first"). The caller
@@ -74,7 +74,7 @@ Parameters (read once at start-up):
   ~tf_rate (float, 30.0)          their rate, Hz (wall clock)
   ~camera_rate (float, 0.0)       /hrc/camera/image's rate, Hz (wall clock); 0: not published
   ~model_dir (str, <package>/models/urdf)       where the URDF models are
-  ~loop_nodes (list, [hrc_human, hrc_robot])   the nodes whose calls drive the agents (names
+  ~loop_nodes (list, [hrc_human])   the nodes whose calls drive the agents (names
                                   relative to this node's namespace)
   /use_sim_time (bool, false)     publish /clock from the simulated time
 """
@@ -133,7 +133,7 @@ class WorldNodeConfig:
     viz: bool = True
     tf_rate: float = 30.0
     camera_rate: float = 0.0
-    loop_nodes: Tuple[str, ...] = ("hrc_human", "hrc_robot")
+    loop_nodes: Tuple[str, ...] = ("hrc_human",)
 
     @classmethod
     def from_params(cls, get_param: Callable[[str, Any], Any] = rospy.get_param) -> "WorldNodeConfig":

@@ -142,10 +142,10 @@ def wait_for_text(tmp_path, name, text, timeout=30.0):
 def test_a_late_world_is_waited_for_and_step_0_is_carried_out_once(ros, tmp_path, link_token):
     env, start = ros
     token, token_file = link_token
-    human_port, pomdp_port, robot_port = free_port(), free_port(), free_port()
+    human_port, pomdp_port = free_port(), free_port()
     start([sys.executable, str(ROOT / "scripts" / "hrc_human"), f"_human_port:={human_port}",
-           f"_pomdp_port:={pomdp_port}", f"_robot_port:={robot_port}", "_read_stdin:=false",
-           "_wait_report_every:=1.0", f"_token_file:={token_file}"],
+           f"_pomdp_port:={pomdp_port}", "_read_stdin:=false", "_wait_report_every:=1.0",
+           f"_token_file:={token_file}"],
           "hrc_human")
     mdp = MessageClient(link_url(human_port), "despot_mdp", connect_timeout=60.0, token=token)
     try:
@@ -194,11 +194,10 @@ def test_with_wait_for_listener_no_episode_starts_before_someone_listens(ros, tm
     ("the stack played episode 1 where episode 0 was due", about 1 cell in 130)."""
     env, start = ros
     token, token_file = link_token
-    human_port, pomdp_port, robot_port = free_port(), free_port(), free_port()
+    human_port, pomdp_port = free_port(), free_port()
     start([sys.executable, str(ROOT / "scripts" / "hrc_human"), f"_human_port:={human_port}",
-           f"_pomdp_port:={pomdp_port}", f"_robot_port:={robot_port}", "_read_stdin:=false",
-           "_wait_report_every:=1.0", "_wait_for_listener:=true", f"_token_file:={token_file}"],
-          "hrc_human")
+           f"_pomdp_port:={pomdp_port}", "_read_stdin:=false", "_wait_report_every:=1.0",
+           "_wait_for_listener:=true", f"_token_file:={token_file}"], "hrc_human")
     script = tmp_path / "fake_world.py"
     script.write_text(FAKE_WORLD)
     start([sys.executable, str(script), str(pomdp_port), str(token_file)], "world",

@@ -63,7 +63,8 @@ def run_wait(script, every=10.0, poll=1.0):
 def test_the_startup_services_are_every_call_the_loop_makes():
     assert WORLD_SERVICES == ("/hrc/world/reset", "/hrc/world/state", "/human/attempt_grasp",
                               "/human/grasp", "/human/idle", "/human/look_around",
-                              "/human/walk_away", "/human/warn_robot")
+                              "/human/walk_away", "/human/warn_robot", "/robot/cancel_action",
+                              "/robot/grasp", "/robot/point_to_obj")
     assert STARTUP_SERVICES[1] == ("the robot planner (despot_pomdp)", ("ws://127.0.0.1:7070",))
 
 
@@ -117,8 +118,8 @@ def test_a_caller_waits_without_a_timeout_and_a_stop_releases_it():
 # -- the loop behind the gate, as hrc_human wires it ----------------------------------------------
 
 class Gated:
-    """A world or planner fake whose every call first waits at the gate (hrc_human's
-    RosWorld/LinkPlanner call ServiceWait.wait first)."""
+    """A world, planner or executor fake whose every call first waits at the gate
+    (hrc_human's RosWorld, LinkPlanner and RosExecutor call ServiceWait.wait first)."""
 
     def __init__(self, inner, gate: ServiceWait) -> None:
         self.inner = inner
@@ -144,6 +145,7 @@ def gated_loop():
     loop = Loop(CoordinatorConfig(first_epoch=FIRST, max_steps=3))
     loop.runner.world = Gated(loop.world, gate)
     loop.runner.planner = Gated(loop.planner, gate)
+    loop.runner.executor = Gated(loop.executor, gate)
     threading.Thread(target=gate.run, daemon=True).start()
     yield loop, gate, up, lines
     gate.stop()
