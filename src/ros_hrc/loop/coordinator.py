@@ -61,10 +61,13 @@ world action that is *refused* (a grasp out of reach) is not a fault: it is what
 """
 from __future__ import annotations
 
+import collections.abc
 import itertools
-from dataclasses import dataclass, field
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+import typing
+from dataclasses import dataclass, field, fields, make_dataclass
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Type
 
+from ros_hrc.link import protocol
 from ros_hrc.streams import EpisodeSchedule, generator
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.seed import SEED
@@ -89,15 +92,55 @@ class Snapshot:
     left_belt: bool = False
 
 
-@dataclass(frozen=True)
-class Decision:
-    """The robot planner's answer to an observation."""
-    action: str
-    belief: Tuple[float, ...] = ()
-    belief_states: Tuple[str, ...] = ()
-    decision_ms: float = 0.0
-    surprise: bool = False
-    rule: str = ""
+def _answer_of(message: Type[protocol.Message], name: str, doc: str) -> type:
+    """The loop's form of the protocol's reply ``message``, so that what an answer carries
+    is declared once, by the protocol: a frozen dataclass named ``name`` of the message's own
+    fields but its ``step`` (the call it answers has that), in the message's order and of its
+    types, sequences as tuples. The first field, what was answered, is required; each other
+    one may be left out and is then the empty value of its type, as ``None`` (not given) is
+    in the message: no ``None`` reaches a step's report. ``of(msg)`` converts a message."""
+    hints = typing.get_type_hints(message)
+    specs: List[tuple] = []
+    for f in fields(message):
+        if f.name in ("step", "extra") or f.name in protocol.ENVELOPE_FIELDS:
+            continue
+        kind = _without_none(hints[f.name])
+        specs.append((f.name, kind) if not specs else (f.name, kind,
+                                                       field(default=_empty(kind))))
+
+    def tuples(self) -> None:
+        for f in fields(self):
+            if isinstance(getattr(self, f.name), list):
+                object.__setattr__(self, f.name, tuple(getattr(self, f.name)))
+
+    def of(cls, msg: protocol.Message) -> Any:
+        given = {f.name: getattr(msg, f.name) for f in fields(cls)}
+        return cls(**{key: value for key, value in given.items() if value is not None})
+
+    answer = make_dataclass(name, specs, frozen=True, namespace={
+        "__doc__": doc, "__post_init__": tuples, "of": classmethod(of)})
+    answer.__module__ = __name__
+    return answer
+
+
+def _without_none(kind: Any) -> Any:
+    """``Optional[X]`` as ``X``, and a sequence ``Sequence[X]`` as ``Tuple[X, ...]``."""
+    if typing.get_origin(kind) is typing.Union:
+        kind = next(arg for arg in typing.get_args(kind) if arg is not type(None))
+    if typing.get_origin(kind) is collections.abc.Sequence:
+        return Tuple[typing.get_args(kind)[0], ...]
+    return kind
+
+
+def _empty(kind: Any) -> Any:
+    """The empty value of a field's type: ``()``, ``""``, ``0.0``, ``False``."""
+    return () if typing.get_origin(kind) is tuple else kind()
+
+
+Decision = _answer_of(protocol.Decision, "Decision", """The robot planner's answer to an
+    observation (the answer to :class:`Decide`): the fields of the protocol's ``decision``
+    (:class:`ros_hrc.link.protocol.Decision`, the one declaration of a decision) but its
+    step. ``Decision.of(message)`` takes a received one.""")
 
 
 @dataclass(frozen=True)
@@ -295,6 +338,12 @@ class StepReport:
     #: Wall milliseconds of the step's parts (:data:`STEP_TIMINGS`), filled in by the runner.
     timings_ms: Dict[str, float] = field(default_factory=dict)
 
+
+#: Where a step's report keeps each field of the planner's :class:`Decision` (under its own
+#: name but the action, which is the robot's); ``/hrc/status`` carries them under the same
+#: names (test_decision_declaration.py checks msg/Status.msg against the declaration).
+DECISION_IN_REPORT: Mapping[str, str] = {
+    f.name: "robot_action" if f.name == "action" else f.name for f in fields(Decision)}
 
 #: The parts of a step whose wall time a report carries: the whole step (from the MDP's
 #: request to the report), then each call in order.
@@ -633,12 +682,8 @@ class Coordinator:
                 if result.action not in self.task.robot_action_services:
                     return self._fail_step(f"the robot planner answered an unknown action "
                                            f"{result.action!r}")
-                report.robot_action = result.action
-                report.belief = tuple(result.belief)
-                report.belief_states = tuple(result.belief_states)
-                report.decision_ms = result.decision_ms
-                report.surprise = result.surprise
-                report.rule = result.rule
+                for name, reported_as in DECISION_IN_REPORT.items():
+                    setattr(report, reported_as, getattr(result, name))
                 ctx.stage = "robot"
                 if self.task.robot_action_services[result.action] is None:
                     report.robot_result = "the robot stays idle and keeps observing"

@@ -82,11 +82,11 @@ from ros_hrc.link.protocol import Decision as DecisionMessage
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import settings, tasks
-from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
-                                      WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig,
-                                      Decision, MdpRefused, MdpReset, MdpStepDone, Outcome,
-                                      ReactionRequest, SeatRefused, Snapshot, STEP_TIMINGS,
-                                      StepReport, StepRequest)
+from ros_hrc.loop.coordinator import (DECISION_IN_REPORT, EPISODE_OVER, RESET_JOIN_WINDOW,
+                                      WAIT_NOTE_EVERY, WORLD_CALL_TIMEOUT, Coordinator,
+                                      CoordinatorConfig, Decision, MdpRefused, MdpReset,
+                                      MdpStepDone, Outcome, ReactionRequest, SeatRefused,
+                                      Snapshot, STEP_TIMINGS, StepReport, StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.streams import WORLD_EPISODE_PARAM, EpisodeSchedule
@@ -195,12 +195,13 @@ def status_message(report: StepReport, mode: str) -> Status:
     status.mode = mode
     for name in ("epoch", "episode", "step", "human_action", "human_state", "human_state_index",
                  "human_reward", "human_observation", "observation_bits", "robot_observation",
-                 "robot_state", "robot_action", "decision_ms", "sim_time", "object_holder",
-                 "object_left_belt", "episode_start_time", "human_result", "robot_result",
-                 "surprise", "episode_over", "end_reason", "fault"):
+                 "robot_state", "sim_time", "object_holder", "object_left_belt",
+                 "episode_start_time", "human_result", "robot_result", "episode_over",
+                 "end_reason", "fault"):
         setattr(status, name, getattr(report, name))
-    status.belief = list(report.belief)
-    status.belief_states = list(report.belief_states)
+    for name in DECISION_IN_REPORT.values():   # the planner's decision, as declared
+        value = getattr(report, name)
+        setattr(status, name, list(value) if isinstance(value, tuple) else value)
     for part in STEP_TIMINGS:
         setattr(status, f"{part}_ms", report.timings_ms.get(part, 0.0))
     return status
@@ -288,10 +289,7 @@ class LinkPlanner(PlannerPort):
             raise LinkError(f"the POMDP process refused: {reply.message}")
         if not isinstance(reply, DecisionMessage):
             raise LinkError(f"the POMDP process answered a {reply.type}, not a decision")
-        return Decision(action=reply.action, belief=tuple(reply.belief),
-                        belief_states=tuple(reply.belief_states or ()),
-                        decision_ms=reply.decision_ms or 0.0, surprise=bool(reply.surprise),
-                        rule=reply.rule or "")
+        return Decision.of(reply)
 
     def reset(self, epoch: int, episode: int) -> Outcome:
         self.ready()
