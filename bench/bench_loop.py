@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     os.environ["ROS_MASTER_URI"] = env["ROS_MASTER_URI"]
     import rospy  # after ROS_MASTER_URI is set
     from ros_hrc.msg import Status
-    from ros_hrc.loop.coordinator import STEP_TIMINGS as STEP_PARTS
+    from ros_hrc.loop.effects import STEP_TIMINGS as STEP_PARTS
 
     stamps, decisions, parts, sim_times = [], [], [], []
     done = threading.Event()

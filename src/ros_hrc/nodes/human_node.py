@@ -82,11 +82,11 @@ from ros_hrc.link.protocol import Decision as DecisionMessage
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import settings, tasks
-from ros_hrc.loop.coordinator import (DECISION_IN_REPORT, EPISODE_OVER, RESET_JOIN_WINDOW,
-                                      WAIT_NOTE_EVERY, WORLD_CALL_TIMEOUT, Coordinator,
-                                      CoordinatorConfig, Decision, MdpRefused, MdpReset,
-                                      MdpStepDone, Outcome, ReactionRequest, SeatRefused,
-                                      Snapshot, STEP_TIMINGS, StepReport, StepRequest)
+from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
+                                      WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig)
+from ros_hrc.loop.effects import (DECISION_IN_REPORT, Decision, MdpRefused, MdpReset, MdpStepDone,
+                                  Outcome, ReactionRequest, SeatRefused, Snapshot, STEP_TIMINGS,
+                                  StepReport, StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.streams import WORLD_EPISODE_PARAM, EpisodeSchedule

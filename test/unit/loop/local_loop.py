@@ -17,11 +17,11 @@ from typing import Any, List, Optional
 from ros_hrc import tasks
 from ros_hrc.link.protocol import Ack, Error, Observation, Reaction, Reset, Step
 from ros_hrc.link.protocol import Decision as DecisionMessage
-from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Coordinator, CoordinatorConfig,
-                                      Decide, Decision, Fault, MdpRefused, MdpReset,
-                                      MdpStepDone, ObserveWorld, Outcome, PublishStep,
-                                      ReactionRequest, ResetPlanner, ResetWorld, Snapshot,
-                                      StepReport, StepRequest)
+from ros_hrc.loop.coordinator import Coordinator, CoordinatorConfig
+from ros_hrc.loop.effects import (ActHuman, ActRobot, Decide, Decision, Fault, MdpRefused,
+                                  MdpReset, MdpStepDone, ObserveWorld, Outcome, PublishStep,
+                                  ReactionRequest, ResetPlanner, ResetWorld, Snapshot, StepReport,
+                                  StepRequest)
 from ros_hrc.models import load_human_model, load_robot_model
 from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.processes.despot_mdp import MdpProcess, _ResetRequested

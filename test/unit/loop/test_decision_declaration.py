@@ -8,7 +8,7 @@ import typing
 from pathlib import Path
 
 from ros_hrc.link import protocol
-from ros_hrc.loop.coordinator import DECISION_IN_REPORT, Decision, StepReport
+from ros_hrc.loop.effects import DECISION_IN_REPORT, Decision, StepReport
 
 STATUS_MSG = Path(__file__).resolve().parents[3] / "msg" / "Status.msg"
 #: The ROS field type that carries each type of a decision's fields.
