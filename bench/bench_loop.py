@@ -4,10 +4,11 @@
 Starts `roslaunch ros_hrc hrc.launch` (world on real_time_factor 0, no pause between steps,
 auto mode, episodes going on) with its own roscore on a free port, listens to /hrc/status and
 times the gaps between consecutive steps: one gap is a whole step — MDP decision, human
-action in the world, one world snapshot, the decision (hrc_obs and DESPOT), robot action,
-outcome snapshot, answers. Prints p50 / p99 of the step latency, steps per second, the mean
-DESPOT decision time, and where a step's time goes (each part's wall time, from
-/hrc/status); writes bench/results/loop.json.
+action in the world, one world snapshot, the decision (DESPOT, over hrc_human's link to it),
+robot action, outcome snapshot, answers. Prints p50 / p99 of the step latency, steps per
+second, the mean DESPOT decision time, where a step's time goes (each part's wall time, from
+/hrc/status), what carrying a decision costs beside DESPOT's own part and what each robot
+action takes (medians); writes bench/results/loop.json.
 
     python bench/bench_loop.py [--steps 60] [--time-per-step 0.05] [--human-model humanModel]
 """
@@ -26,6 +27,7 @@ from pathlib import Path
 from common import free_port, init_node_when_master_is_up, percentile, write_result  # bench/common.py
 
 from ros_hrc.experiment.stack import stop_launched
+from ros_hrc.loop.effects import STEP_TIMINGS as STEP_PARTS
 
 
 
@@ -46,21 +48,20 @@ def main(argv=None) -> int:
 
     port = free_port()
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}")
-    pomdp_port, robot_port, human_port = free_port(), free_port(), free_port()
+    pomdp_port, human_port = free_port(), free_port()
     launch = subprocess.Popen(
         ["roslaunch", "--port", str(port), "ros_hrc", "hrc.launch", "gui:=false",
          "real_time_factor:=0", "step_delay:=0", "mode:=auto", "on_episode_end:=reset",
          f"time_per_step:={args.time_per_step}", f"human_model:={args.human_model}",
-         f"pomdp_port:={pomdp_port}", f"robot_port:={robot_port}", f"human_port:={human_port}",
+         f"pomdp_port:={pomdp_port}", f"human_port:={human_port}",
          "read_stdin:=false"] + args.launch_arg,
         env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True)
     os.environ["ROS_MASTER_URI"] = env["ROS_MASTER_URI"]
     import rospy  # after ROS_MASTER_URI is set
     from ros_hrc.msg import Status
-    from ros_hrc.loop.coordinator import STEP_TIMINGS as STEP_PARTS
 
-    stamps, decisions, parts, sim_times = [], [], [], []
+    stamps, decisions, parts, sim_times, robot_actions = [], [], [], [], []
     done = threading.Event()
     warmup = 3
 
@@ -68,6 +69,7 @@ def main(argv=None) -> int:
         stamps.append(time.perf_counter())
         decisions.append(msg.decision_ms)
         parts.append({part: getattr(msg, f"{part}_ms") for part in STEP_PARTS})
+        robot_actions.append(msg.robot_action)
         sim_times.append((msg.epoch, msg.sim_time))
         if len(stamps) >= args.steps + warmup + 1:
             done.set()
@@ -96,6 +98,17 @@ def main(argv=None) -> int:
         "step_latency_mean_ms": statistics.fmean(gaps),
         "steps_per_s": len(gaps) / (timed[-1] - timed[0]),
         "despot_decision_mean_ms": statistics.fmean(decisions[warmup:]),
+        # What carrying a decision costs, besides the planner's own time: the decision's round
+        # trip from hrc_human less the POMDP process's own part (median over the steps: a
+        # load spike on a shared machine moves it less than the mean).
+        "decision_transport_p50_ms": percentile(
+            [p["decide"] - d for p, d in zip(parts[warmup:], decisions[warmup:])], 50),
+        # The robot's action, from hrc_human's call to its answer, per action (rIdle moves
+        # nothing and takes no call).
+        "robot_action_p50_ms": {
+            action: percentile([p["robot"] for p, a in zip(parts[warmup:], robot_actions[warmup:])
+                                if a == action], 50)
+            for action in sorted(set(robot_actions[warmup:]) - {"rIdle", ""})},
         # Where a step's wall time goes (the steps' own /hrc/status figures).
         "parts_p50_ms": {part: percentile([p[part] for p in parts[warmup:]], 50) for part in STEP_PARTS},
         "parts_mean_ms": {part: statistics.fmean(p[part] for p in parts[warmup:]) for part in STEP_PARTS},
@@ -118,6 +131,9 @@ def main(argv=None) -> int:
           f"x{result['world_pace_while_acting']:.0f} real time while the agents acted")
     print("  where a step goes (mean ms): " + ", ".join(
         f"{part} {ms:.1f}" for part, ms in result["parts_mean_ms"].items()))
+    print(f"  carrying a decision (p50, beside DESPOT's own part) "
+          f"{result['decision_transport_p50_ms']:.1f} ms; the robot's action (p50): " + ", ".join(
+              f"{a} {ms:.1f} ms" for a, ms in result["robot_action_p50_ms"].items()))
     write_result(args.out, result)
     return 0
 

@@ -11,7 +11,7 @@ whose parameter is a setting takes its default with :func:`default`.
 A refused value raises :class:`SettingError`, whose text is one line naming the argument, the
 value and what is wrong::
 
-    robot_port:=70000: must be an integer from 1 to 65535
+    pomdp_port:=70000: must be an integer from 1 to 65535
     human_port:=abc: must be an integer from 1 to 65535, got 'abc'
 
     parse(name, value)              -> the typed value ("" or None: the default)
@@ -391,9 +391,8 @@ _TABLE: Tuple[Setting, ...] = (
         "links (DESIGN §2): the websocket servers and their clients",
         _s("host", "host", "127.0.0.1",
            "address the websocket servers bind and the clients connect to"),
-        _port("pomdp_port", 7070, "POMDP process's server, for observations from hrc_obs"),
-        _port("robot_port", 8080,
-              "hrc_robot's server, for the robot actions the coordinator orders"),
+        _port("pomdp_port", 7070, "POMDP process's server, for the observations of hrc_human "
+              "(the coordinator)"),
         _port("human_port", 9090, "hrc_human's server, for the steps of the MDP process"),
     ),
     *_group(
@@ -469,8 +468,8 @@ _TABLE: Tuple[Setting, ...] = (
 #: table's order: hrc.launch's.
 SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
 
-#: The three websocket ports, which must differ.
-PORTS: Tuple[str, ...] = ("pomdp_port", "robot_port", "human_port")
+#: The websocket ports, which must differ.
+PORTS: Tuple[str, ...] = ("pomdp_port", "human_port")
 
 
 def _setting(name: str, value: Any = "") -> Setting:
@@ -525,7 +524,7 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
         port = out[name]
         if port in seen:
             raise SettingError(name, values.get(name, port),
-                               f"the same port as {seen[port]}; the three ports must differ")
+                               f"the same port as {seen[port]}; the ports must differ")
         seen[port] = name
     if out["planner"] == "policy" and not out["policy_file"]:
         raise SettingError("policy_file", values.get("policy_file", ""),

@@ -1,13 +1,14 @@
 #!/usr/bin/env python3
-"""The three link servers under a fuzzer (issue #14), on one real stack: `roslaunch ros_hrc
+"""The two link servers under a fuzzer (issue #14), on one real stack: `roslaunch ros_hrc
 hrc.launch` headless, stepping on its own (on_episode_end:=reset, step_delay 0.1), started by
 the test against this test's master, on free ports of its own.
 
 A seeded, bounded generator (fuzz_frames.py: random bytes, random text, truncated and
 corrupted JSON, every message type mutated, malformed errors, out-of-range envelopes,
 oversized messages and frames, ...) gives :data:`FRAMES_PER_PORT` frames per port, more than
-10,000 in all, sent to the POMDP process (pomdp_port), hrc_robot (robot_port) and hrc_human
-(human_port) at once, one thread per port:
+10,000 in all, sent to the POMDP process (pomdp_port) and hrc_human (human_port) at once, one
+thread per port (hrc_robot's robot_port, the third link, is gone: hrc_human calls the world's
+/robot/* services itself):
 
 * **unauthenticated** connections, interleaved with the rest: 1 to 3 fuzz frames sent before,
   or instead of, a hello that proves the link token (plus, per port, a replayed hello, a proof
@@ -19,7 +20,7 @@ oversized messages and frames, ...) gives :data:`FRAMES_PER_PORT` frames per por
 * **authenticated** connections (our hello proves the token; the server's hello must prove it
   back): fuzz frames in batches, each batch followed by a probe (``{"type":"fuzz_probe"}``,
   which every server answers with an ``unknown_type`` error) so the replies can be paired
-  with the frames without waiting for each one. On the POMDP and robot ports the replies of
+  with the frames without waiting for each one. On the POMDP port the replies of
   a batch must be exactly those the protocol says (what the frame is comes from
   ros_hrc.link.protocol's own ``decode``): one per frame, none for an ``error`` (well formed
   or not), one ``refused`` error for a second hello; a rejected frame gets an ``invalid`` or
@@ -32,8 +33,8 @@ oversized messages and frames, ...) gives :data:`FRAMES_PER_PORT` frames per por
 Afterwards: every server still accepts an authenticated hello and proves the token in its
 answer (and answers a probe; the human port refuses the seat instead, which shows it is up
 too); the loop publishes at least 3 new fault-free steps on /hrc/status (it may have reset:
-fuzzed resets and observations of other epochs on the POMDP and robot ports are accepted
-requests, and the loop must recover from them); none of the launch's six processes (the four
+fuzzed resets and observations of other epochs on the POMDP port are accepted
+requests, and the loop must recover from them); none of the launch's four processes (the two
 nodes and both solver processes, found by ``__name:=`` under roslaunch) has died or been
 respawned (same PIDs before and after); and no traceback appeared in the launch's output
 while the fuzz ran.
@@ -75,8 +76,8 @@ from ros_hrc.link.transport import free_port
 
 #: The fuzz's seed (HRC_FUZZ_SEED overrides it, to replay another run).
 SEED = int(os.environ.get("HRC_FUZZ_SEED", "14"))
-#: Fuzz frames per port (three ports: 10,200 in all).
-FRAMES_PER_PORT = 3400
+#: Fuzz frames per port (two ports: 10,200 in all).
+FRAMES_PER_PORT = 5100
 #: Bound of one port's frames together, in bytes.
 BYTES_PER_PORT = 16 * 1024 * 1024
 #: Fuzz frames per batch on an authenticated connection (then a probe).
@@ -95,9 +96,9 @@ FUZZ_DEADLINE = 240.0
 STEPS_AFTER = 3
 STEPS_WAIT = 90.0
 #: The launch's processes, by their __name.
-PROCESSES = ("hrc_world", "hrc_robot", "hrc_obs", "hrc_human", "despot_pomdp", "despot_mdp")
+PROCESSES = ("hrc_world", "hrc_human", "despot_pomdp", "despot_mdp")
 PROBE_TYPE = "fuzz_probe"
-PORT_NAMES = ("pomdp", "robot", "human")
+PORT_NAMES = ("pomdp", "human")
 WHO = "fuzz_test"
 
 
@@ -248,7 +249,7 @@ def code_name(code: Optional[int]) -> str:
 # -- what the protocol says a server answers -------------------------------------------------
 
 def expected_replies(frame: fuzz_frames.Frame) -> Optional[int]:
-    """Replies a server of the POMDP or robot port sends an authenticated client for
+    """Replies the server of the POMDP port sends an authenticated client for
     ``frame``: None when it closes the connection instead."""
     if frame.closes:
         return None
@@ -466,7 +467,7 @@ class PortFuzzer:
                 and msg.in_reply_to == PROBE_TYPE and msg.code == ERR_UNKNOWN_TYPE)
 
     def _batch(self, batch: List[fuzz_frames.Frame]) -> None:
-        """POMDP and robot ports: send a batch, then a probe; check the replies frame by frame.
+        """The POMDP port: send a batch, then a probe; check the replies frame by frame.
         A frame that closes the connection goes alone, once the rest was answered (a
         connection that fails drops what it had queued), and the close is checked."""
         closing = batch[-1] if batch and batch[-1].closes else None
@@ -738,7 +739,7 @@ def still_up(name: str, port: int, token: str) -> str:
 def counts_block(fuzzers: List[PortFuzzer], seconds: float) -> str:
     head = (f"{'port':<12} {'frames':>7} {'unauth':>7} {'replies':>8} {'errors':>7} "
             f"{'conns':>6} {'closed':>7} {'survived':>9}  codes")
-    lines = [f"==== fuzz of the three links: seed {SEED}, {seconds:.1f} s ====", head]
+    lines = [f"==== fuzz of the two links: seed {SEED}, {seconds:.1f} s ====", head]
     total = Stats("total", 0)
     for f in fuzzers:
         s = f.stats
@@ -771,11 +772,10 @@ class TestFuzz(unittest.TestCase):
     def setUpClass(cls):
         rospy.init_node("test_fuzz", anonymous=True)
         cls.log = StatusLog()
-        cls.ports = {"pomdp": free_port(), "robot": free_port(), "human": free_port()}
+        cls.ports = {"pomdp": free_port(), "human": free_port()}
         cls.proc = start_stack("mode:=auto", "viz:=false", "on_episode_end:=reset",
                                "step_delay:=0.1", "max_steps:=30",
                                f"pomdp_port:={cls.ports['pomdp']}",
-                               f"robot_port:={cls.ports['robot']}",
                                f"human_port:={cls.ports['human']}", name="fuzz")
         try:
             cls.launch_log = os.readlink(f"/proc/{cls.proc.pid}/fd/1")
@@ -814,9 +814,9 @@ class TestFuzz(unittest.TestCase):
         for k, name in enumerate(PORT_NAMES):
             frames = fuzz_frames.generate(f"{SEED}:{name}", FRAMES_PER_PORT,
                                           max_total_bytes=BYTES_PER_PORT)
-            other = ports[PORT_NAMES[(k + 1) % 3]]
+            other = ports[PORT_NAMES[(k + 1) % len(PORT_NAMES)]]
             fuzzers.append(PortFuzzer(name, ports[name], token, frames, other, SEED * 10 + k))
-        print(f"fuzz: {3 * FRAMES_PER_PORT} frames generated in "
+        print(f"fuzz: {len(PORT_NAMES) * FRAMES_PER_PORT} frames generated in "
               f"{time.monotonic() - generated:.1f} s", flush=True)
 
         log_offset = len(self.launch_output().encode("utf-8"))

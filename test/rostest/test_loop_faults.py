@@ -4,19 +4,24 @@
 * A second MDP client (the manual-mode recipe without start_mdp:=false) is refused with one
   line and exits, with the launch's token (seat taken) and without it (no token); the served
   MDP keeps stepping.
-* Frames without the launch's token, on the human and the robot port (an order to grasp),
-  are refused and closed; nothing acts.
-* A holder of the token who is not the coordinator sends orders to the robot port: refused.
+* Frames without the launch's token, on the human and the POMDP port (a reset of the
+  robot's belief), are refused and closed; nothing acts.
+* A holder of the token who is not the coordinator sends the robot orders: no link takes
+  them (hrc_human calls the world's /robot/* services itself; the POMDP port refuses them).
 * 50 concurrent /hrc/reset calls all succeed and are one reset (every answer names the same
   episode), and afterwards the steps run 0, 1, 2 ... in one new epoch, every status
   consistent.
 * Sixteen threads calling the world's services (/human/*, /robot/*) while the loop runs: the
   loop keeps stepping, no step fails (the loop's calls go first; the others are answered
   "busy" while the loop acts).
-* kill -9 of hrc_robot, hrc_obs, despot_pomdp, despot_mdp and hrc_human: each respawns and the
-  run goes on from a reset. kill -9 of hrc_world (required): the whole launch stops, with a
-  non-zero status and one line saying so, and no process of it is left; Ctrl-C still ends a
-  launch with status 0 (world.launch with a master of its own: that master ends too).
+* kill -9 of despot_pomdp, despot_mdp and hrc_human: each respawns and the run goes on from
+  a reset; /hrc/reset while despot_pomdp is down answers at once, in one line, what it could
+  not reset, and the reset is retried until it works; a decision under way when despot_pomdp
+  dies fails its step visibly (STEP FAILED), then a run from a reset. kill -9 of hrc_world
+  (required): the whole launch
+  stops, with a non-zero status and one line saying so, and no process of it is left; Ctrl-C
+  still ends a launch with status 0 (world.launch with a master of its own: that master ends
+  too).
 """
 import json
 import os
@@ -35,7 +40,7 @@ import rostest
 from std_srvs.srv import Trigger
 
 from ros_hrc.experiment.stack import pick_ports
-from ros_hrc.link.protocol import Action, Error, Reset
+from ros_hrc.link.protocol import Action, Error
 from ros_hrc.link.token import read_token
 from ros_hrc.link.transport import MessageClient, link_url
 from ros_hrc.nodes.guard import children_of
@@ -54,7 +59,6 @@ class TestLoopFaults(unittest.TestCase):
         cls.ports = pick_ports()   # the links' ports, free (rostest gives the master)
         cls.proc = start_stack("mode:=auto", "on_episode_end:=reset", "max_steps:=6",
                                f"pomdp_port:={cls.ports['pomdp']}",
-                               f"robot_port:={cls.ports['robot']}",
                                f"human_port:={cls.ports['human']}", name="faults")
         cls.launch_log = os.readlink(f"/proc/{cls.proc.pid}/fd/1")
 
@@ -117,11 +121,12 @@ class TestLoopFaults(unittest.TestCase):
     def test_1b_frames_without_the_token_are_refused_and_change_nothing(self):
         ok, statuses = self.log.wait_for(lambda s: len(s) >= 1)
         human = self.refused_without_the_token(self.ports["human"], [json.dumps({"type": "reset"})])
-        # The hostile user's order: before the token, this grasped the object.
-        robot = self.refused_without_the_token(self.ports["robot"], [
+        # The hostile user's reset of the robot's belief, said as the coordinator says it (the
+        # robot port, where an order to grasp once moved the robot, is gone).
+        pomdp = self.refused_without_the_token(self.ports["pomdp"], [
             json.dumps({"type": "hello", "who": "hrc_human", "version": 2}),
-            json.dumps({"type": "action", "step": 0, "action": "rGrasp_obj", "id": 1})])
-        for answers in (human, robot):
+            json.dumps({"type": "reset", "reason": "intruder", "epoch": 1, "id": 1})])
+        for answers in (human, pomdp):
             self.assertEqual([(a["type"], a.get("code")) for a in answers],
                              [("error", "unauthorized")], answers)
         self.log.clear()
@@ -130,20 +135,22 @@ class TestLoopFaults(unittest.TestCase):
         self.assertFalse(any(s.fault for s in statuses))
         check_epochs(self, statuses)
 
-    def test_1c_the_robot_port_takes_orders_from_the_coordinator_only(self):
+    def test_1c_no_link_takes_orders_for_the_robot(self):
         """Issue #20: any holder of the token could send an action to the robot port, with no
-        epoch, and the robot moved. Only the coordinator's connection gives orders."""
+        epoch, and the robot moved; then the robot port took orders from the coordinator's
+        connection only. Now no link takes orders for the robot: hrc_human, which hosts the
+        coordinator, calls the world's /robot/* services itself. A token holder's orders on
+        the POMDP port, the link of the robot's decisions, are refused."""
         token_file = rospy.get_param("/hrc/config/token_file")
-        client = MessageClient(link_url(self.ports["robot"]), "intruder", token=read_token(token_file),
-                               backoff=(0.05, 0.5)).connect(WAIT)
+        client = MessageClient(link_url(self.ports["pomdp"]), "intruder",
+                               token=read_token(token_file), backoff=(0.05, 0.5)).connect(WAIT)
         try:
             for order in (Action(step=0, action="rGrasp_obj", epoch=1),
-                          Action(step=0, action="rPoint_obj"),
-                          Reset(reason="intruder")):
+                          Action(step=0, action="rPoint_obj")):
                 reply = client.request(order, WAIT)
                 self.assertIsInstance(reply, Error, reply)
-                self.assertEqual(reply.code, "refused", reply)
-                self.assertIn("only from the coordinator", reply.message)
+                self.assertEqual(reply.code, "unknown_type", reply)
+                self.assertIn("does not take action messages", reply.message)
         finally:
             client.close()
         self.log.clear()
@@ -253,11 +260,89 @@ class TestLoopFaults(unittest.TestCase):
                 check_step(self, status)
         check_epochs(self, statuses)
 
-    def test_3_killed_hrc_robot_respawns_and_the_run_goes_on_from_a_reset(self):
-        self.kill_and_expect_a_run_from_a_reset("hrc_robot")
+    def test_3_a_reset_while_despot_pomdp_is_down_says_so_in_one_line_and_is_retried(self):
+        """Was: kill -9 of hrc_robot, the executor between the coordinator and the world's
+        /robot/* services (a process that no longer exists: hrc_human calls them itself).
+        What the loop promises while a process it needs is down, with hrc_human as the POMDP
+        process's client: /hrc/reset answers at once, in one line, what it could and could
+        not reset, and the reset is retried until it works; then a run from a reset."""
+        rospy.wait_for_service("/hrc/reset", WAIT)
+        reset = rospy.ServiceProxy("/hrc/reset", Trigger)
+        url = link_url(self.ports["pomdp"])
+        for _attempt in range(5):
+            old = node_pids(self.proc, "despot_pomdp")
+            self.assertTrue(old, "no despot_pomdp process in the launch")
+            self.log.clear()
+            for pid in old:
+                os.kill(pid, signal.SIGKILL)
+            time.sleep(0.3)   # for hrc_human to see its link drop (roslaunch waits 1 s)
+            asked = time.monotonic()
+            answer = reset()
+            answered_in = time.monotonic() - asked
+            if not answer.success and "is not connected" in answer.message:
+                break
+            # The respawned process was back before the reset, or the reset went out before
+            # the link was seen to drop (it failed on the broken link): once more.
+            wait_for_pids(self.proc, "despot_pomdp", unlike=old)
+            self.log.wait_for(lambda s: fresh_run(s, 1))
+        self.assertFalse(answer.success, answer.message)
+        self.assertEqual(answer.message.splitlines(), [answer.message])
+        self.assertTrue(answer.message.startswith(
+            f"reset failed: not reset: robot planner: the POMDP process is not connected "
+            f"({url}): it is down or (re)starting; reset: world; the human MDP is told when "
+            "all are; retried in "), answer.message)
+        self.assertTrue(answer.message.endswith(" until it works"), answer.message)
+        self.assertLess(answered_in, 30.0, "the reset did not answer at once")
+        self.assertTrue(wait_for_pids(self.proc, "despot_pomdp", unlike=old) - old,
+                        "roslaunch did not restart despot_pomdp")
+        ok, statuses = self.log.wait_for(lambda s: fresh_run(s, 4))
+        self.assertTrue(ok, f"after despot_pomdp restarted, no run from a reset; seen: "
+                            f"{[(s.epoch, s.step, s.fault[:40]) for s in statuses][:20]}")
+        for status in statuses:
+            if not status.fault:
+                check_step(self, status)
+        check_epochs(self, statuses)
 
-    def test_4_killed_hrc_obs_respawns_and_the_run_goes_on_from_a_reset(self):
-        self.kill_and_expect_a_run_from_a_reset("hrc_obs")
+    def test_4_a_decision_under_way_when_despot_pomdp_dies_fails_its_step_visibly(self):
+        """Was: kill -9 of hrc_obs, the relay between the coordinator and the POMDP process:
+        the call under way failed, then a run from a reset. hrc_human is the POMDP process's
+        client itself now: a decision it waits for when despot_pomdp dies fails its step at
+        once (STEP FAILED in the block, the fault on /hrc/status), and the run goes on from a
+        reset."""
+        for _attempt in range(3):
+            old = node_pids(self.proc, "despot_pomdp")
+            self.assertTrue(old, "no despot_pomdp process in the launch")
+            offset = os.path.getsize(self.launch_log)
+            self.log.clear()
+            # Stopped, the POMDP process answers nothing: the step under way waits for its
+            # decision, and says so after wait_note_every (5 s). (Stopped during a reset
+            # instead, the loop waits for the planner's reset: then once more.)
+            for pid in old:
+                os.kill(pid, signal.SIGSTOP)
+            try:
+                waits = wait_for_text(self.launch_log, offset, "waits for the robot planner", 30)
+            finally:
+                for pid in old:
+                    os.kill(pid, signal.SIGKILL)
+            if waits:
+                break
+        self.assertTrue(waits, "no step waited for the decision of a stopped despot_pomdp")
+        self.assertTrue(wait_for_pids(self.proc, "despot_pomdp", unlike=old) - old,
+                        "roslaunch did not restart despot_pomdp")
+        ok, statuses = self.log.wait_for(
+            lambda s: any(x.fault for x in s) and
+            fresh_run(s[[x.fault != "" for x in s].index(True):], 4))
+        self.assertTrue(ok, f"no failed step and then a run from a reset: "
+                            f"{[(s.epoch, s.step, s.fault[:40]) for s in statuses][:20]}")
+        failed = next(s for s in statuses if s.fault)
+        self.assertTrue(failed.fault.startswith("the robot planner failed: no decision from "
+                                                "the POMDP process"), failed.fault)
+        self.assertIn("STEP FAILED       : the robot planner failed",
+                      read_from(self.launch_log, offset))
+        for status in statuses:
+            if not status.fault:
+                check_step(self, status)
+        check_epochs(self, statuses)
 
     def test_5_killed_despot_pomdp_respawns_and_the_run_goes_on_from_a_reset(self):
         self.kill_and_expect_a_run_from_a_reset("despot_pomdp")
@@ -318,6 +403,16 @@ def read_from(path, offset=0):
     with open(path, "rb") as f:
         f.seek(offset)
         return f.read().decode("utf-8", "replace")
+
+
+def wait_for_text(path, offset, text, timeout):
+    """Whether ``text`` appears in the file at ``path`` after ``offset`` within ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if text in read_from(path, offset):
+            return True
+        time.sleep(0.2)
+    return False
 
 
 class TestWorldLaunchEnds(unittest.TestCase):

@@ -25,7 +25,7 @@ class TestViz(unittest.TestCase):
         cls.log = StatusLog()
         # Ports of its own: nothing else of the suite can hold them while it runs.
         cls.proc = start_stack("mode:=auto", "on_episode_end:=continue", "human_model:=beginner",
-                               "pomdp_port:=7371", "robot_port:=8371", "human_port:=9371",
+                               "pomdp_port:=7371", "human_port:=9371",
                                name="viz")
         cls.buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         cls.listener = tf2_ros.TransformListener(cls.buffer)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ros_hrc import tasks
-from ros_hrc.loop.coordinator import Snapshot
+from ros_hrc.loop.effects import Snapshot
 from ros_hrc.models import load_human_model, load_robot_model
 from ros_hrc.streams import generator
 from ros_hrc.agents.human import HumanAgent, HumanAgentConfig

@@ -1,7 +1,7 @@
 """hrc_check: the launch's pre-flight. Every argument, both models, the policy file and the
 ports are checked before anything starts; the resolved configuration is printed as YAML.
 
-    hrc_check human_model:=tired robot_port:=8081 ...     # the launch arguments, name:=value
+    hrc_check human_model:=tired human_port:=9091 ...     # the launch arguments, name:=value
 
 On success it prints the configuration (every setting, defaults filled in, a mapping name ->
 value) on stdout and exits 0. Every path in it (a model file, ``policy_file``,
@@ -117,9 +117,9 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
 
 
 def ports_to_bind(config: Mapping[str, object]) -> List[str]:
-    """The port settings whose servers the launch starts: robot_port (hrc_robot) and
-    human_port (hrc_human) always, pomdp_port only with start_pomdp (without it, the POMDP
-    process started by hand may already serve it)."""
+    """The port settings whose servers the launch starts: human_port (hrc_human) always,
+    pomdp_port only with start_pomdp (without it, the POMDP process started by hand may
+    already serve it)."""
     return [name for name in settings.PORTS
             if name != "pomdp_port" or config.get("start_pomdp", True)]
 

@@ -5,7 +5,7 @@ A cell is (human model, robot policy, seed). Its worker process (``python -m
 ros_hrc.nodes.experiment_cell SPEC_FILE``, see :func:`worker_command`: the spec travels in a
 JSON file, never on the command line, whose words the kernel limits to 128 KiB; rospy allows
 one node per process) starts ``hrc.launch`` headless, the world's clock as fast as the machine goes, with a
-roscore and websocket ports of its own (:func:`pick_ports`: four distinct ports, each free
+roscore and websocket ports of its own (:func:`pick_ports`: three distinct ports, each free
 when picked, so several cells run side by side), watches it (:class:`StackWatch`: a stack
 that exits or cannot bind its port fails the cell at once, with the last lines of its log),
 drives its episodes, and writes one line per episode on its standard output,
@@ -224,7 +224,7 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
         "max_trials": spec.max_trials or EXPERIMENT_TRIALS,
         "reactive_budget": spec.reactive_budget,
         "scenarios": spec.scenarios, "depth": spec.depth, "lambda": spec.lambda_,
-        "pomdp_port": ports["pomdp"], "robot_port": ports["robot"], "human_port": ports["human"],
+        "pomdp_port": ports["pomdp"], "human_port": ports["human"],
     }
     out = {name: _launch_text(value) for name, value in values.items()}
     for word in spec.extra_args:
@@ -243,13 +243,12 @@ def launch_arguments(spec: CellSpec, ports: Mapping[str, int]) -> List[str]:
 def check_launch_settings(spec: CellSpec) -> Dict[str, Any]:
     """The cell's launch arguments resolved by ros_hrc.settings (on stand-in ports);
     raises SettingError (one line) for a bad one, before any stack starts."""
-    stand_in = {"pomdp": settings.default("pomdp_port"), "robot": settings.default("robot_port"),
-                "human": settings.default("human_port")}
+    stand_in = {"pomdp": settings.default("pomdp_port"), "human": settings.default("human_port")}
     return settings.resolve(launch_settings(spec, stand_in))
 
 
-#: What a cell's stack listens on: its roscore and its three websocket links.
-PORT_NAMES = ("master", "pomdp", "robot", "human")
+#: What a cell's stack listens on: its roscore and its two websocket links.
+PORT_NAMES = ("master", "pomdp", "human")
 #: Tries per port before a cell gives up finding one.
 PORT_ATTEMPTS = 50
 
@@ -265,7 +264,7 @@ def port_is_free(port: int, host: str = DEFAULT_HOST) -> bool:
 
 
 def pick_ports() -> Dict[str, int]:
-    """Ports for a cell's master and its three websocket links: all four distinct (the
+    """Ports for a cell's master and its two websocket links: all three distinct (the
     kernel may hand the same free port out twice in a row) and each free when picked.
     Another process may still take one before the stack binds it: :class:`StackWatch` then
     fails the attempt at once, and the cell runs again on fresh ports. Raises CellFailed

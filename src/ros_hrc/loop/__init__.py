@@ -3,6 +3,8 @@ No ROS, no sockets, no PyBullet. The foundations it stands on (the task registry
 :mod:`ros_hrc.tasks`, :mod:`ros_hrc.settings`, :mod:`ros_hrc.streams`, :mod:`ros_hrc.models`)
 live on lower floors (docs/architecture.md).
 
+  ros_hrc.loop.effects      what goes in and out of it: answers, requests, calls, notices,
+                            a step's report
   ros_hrc.loop.coordinator  the Sans-I/O episode coordinator: step, epoch, order, episodes
   ros_hrc.loop.runner       runs a coordinator's effects against four interfaces, in threads
   ros_hrc.loop.display      the step's block and caption text, from a step's fields

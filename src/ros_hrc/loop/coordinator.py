@@ -5,7 +5,9 @@ nothing else does. It never calls anything: it is told what happened (an MDP con
 step was asked for, a call came back, a reset was asked for) and answers with *effects*, what
 to do next, which an adapter carries out and reports back (:mod:`ros_hrc.loop.runner` does
 this with threads; the unit tests do it by hand). Like websockets' ``Connection``: events in
-through methods, effects out through :meth:`Coordinator.effects`.
+through methods, effects out through :meth:`Coordinator.effects`. What goes in and out (the
+answers it takes, the calls and notices it emits, a step's report) is declared in
+:mod:`ros_hrc.loop.effects`; this module is the machine.
 
 The four interfaces it sees, through the calls it emits:
 
@@ -62,253 +64,20 @@ world action that is *refused* (a grasp out of reach) is not a fault: it is what
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+from dataclasses import dataclass
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
+from ros_hrc.loop.effects import (BUSY, DECISION_IN_REPORT, EPISODE_IS_OVER, FAILED, INVALID,
+                                  NOT_READY, SEAT_TAKEN, STALE, ActHuman, ActRobot, Call,
+                                  Decide, Effect, Fault, MdpRefused, MdpReset, MdpStepDone,
+                                  Note, ObserveWorld, Outcome, PublishStep, ReactionRequest,
+                                  ResetDone, ResetPlanner, ResetWorld, SeatRefused, Snapshot,
+                                  StepReport, StepRequest, Timer)
 from ros_hrc import settings
 from ros_hrc.streams import EpisodeSchedule, generator
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.seed import SEED
 
-# -- what comes back from the interfaces --------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """What an action did (the world's or the robot executor's answer)."""
-    success: bool
-    message: str = ""
-
-
-@dataclass(frozen=True)
-class Snapshot:
-    """The world at one instant, read atomically: the six predicates (by service name,
-    ``is_ov`` ...), the simulated time, who holds the object, whether it left the belt."""
-    predicates: Mapping[str, bool]
-    sim_time: float = 0.0
-    holder: str = "none"
-    left_belt: bool = False
-
-
-@dataclass(frozen=True)
-class Decision:
-    """The robot planner's answer to an observation."""
-    action: str
-    belief: Tuple[float, ...] = ()
-    belief_states: Tuple[str, ...] = ()
-    decision_ms: float = 0.0
-    surprise: bool = False
-    rule: str = ""
-
-
-@dataclass(frozen=True)
-class Fault:
-    """A call failed: the interface could not be reached or answered nonsense."""
-    message: str
-
-
-@dataclass(frozen=True)
-class ReactionRequest:
-    """The seated MDP's reaction to step ``step`` of epoch ``epoch`` (a human who hears the
-    robot): his ``state`` after the robot acted, chosen by ``rule``; the step's ``reward``;
-    ``manual``: typed. ``reply`` as for :class:`StepRequest`."""
-    epoch: Optional[int]
-    step: int
-    state: str
-    rule: str = ""
-    reward: float = 0.0
-    manual: bool = False
-    reply: Any = None
-
-
-@dataclass(frozen=True)
-class StepRequest:
-    """The seated MDP's step: in epoch ``epoch`` step ``step`` the human takes ``action`` and
-    ends in ``state``. ``reply`` is the adapter's handle to answer it (e.g. a request id)."""
-    epoch: Optional[int]
-    step: int
-    action: str
-    state: str
-    reward: float = 0.0
-    reply: Any = None
-
-
-# -- effects: calls (answered through call_done) and notices (fire and forget) --------------------
-
-
-@dataclass(frozen=True)
-class Call:
-    """An effect that the adapter carries out and answers with ``call_done(call.id, result)``."""
-    id: int
-    epoch: int
-    step: Optional[int]
-
-
-@dataclass(frozen=True)
-class ActHuman(Call):
-    """Carry out the human's action through the world's ``/human/<service>``."""
-    service: str
-
-
-@dataclass(frozen=True)
-class ObserveWorld(Call):
-    """One snapshot of the world (answer: :class:`Snapshot`). ``purpose``: ``observe`` (the
-    robot's observation), ``outcome`` (after both acted), ``episode_start``."""
-    purpose: str
-
-
-@dataclass(frozen=True)
-class Decide(Call):
-    """Ask the robot planner for a decision on this observation (answer: :class:`Decision`).
-    ``elapsed``: the world's simulated seconds since the episode's start when it was observed
-    (a robot whose rules count time reads it; None: unknown)."""
-    observation: str
-    bits: int
-    state: str
-    elapsed: Optional[float] = None
-
-
-@dataclass(frozen=True)
-class ActRobot(Call):
-    """Have the robot executor carry out ``action`` (answer: :class:`Outcome`)."""
-    action: str
-
-
-@dataclass(frozen=True)
-class ResetWorld(Call):
-    """Put human, robot and object back at their start (answer: :class:`Outcome`), for
-    episode ``episode`` (the world reseeds its stream). ``interrupt``: only to stop actions
-    still under way before the real reset."""
-    interrupt: bool = False
-    episode: int = 0
-
-
-@dataclass(frozen=True)
-class ResetPlanner(Call):
-    """Put the robot's belief back to its initial belief, in epoch ``epoch``."""
-    episode: int = 0
-
-
-@dataclass(frozen=True)
-class MdpReset:
-    """Tell the seated MDP: a new episode starts, epoch ``epoch``, from step 0."""
-    peer: Any
-    epoch: int
-    episode: int
-    reason: str
-
-
-@dataclass(frozen=True)
-class MdpStepDone:
-    """Answer the MDP's step: done, with the robot's action. ``episode_over``: the MDP stops
-    stepping until the next reset; ``end_reason``: the episode ended at this step (also with
-    ``on_episode_end`` continue, when the MDP goes on)."""
-    peer: Any
-    reply: Any
-    epoch: int
-    step: int
-    robot_action: str
-    success: bool
-    result: str
-    episode: int
-    episode_over: bool
-    end_reason: str
-
-
-@dataclass(frozen=True)
-class MdpRefused:
-    """Answer the MDP's step (or, ``in_reply_to`` "reaction", its reaction): not carried out
-    (``code`` as in the protocol's error codes)."""
-    peer: Any
-    reply: Any
-    epoch: Optional[int]
-    step: int
-    code: str
-    message: str
-    in_reply_to: str = "step"
-
-
-@dataclass(frozen=True)
-class SeatRefused:
-    """Refuse a second MDP client: one line, then close its connection."""
-    peer: Any
-    message: str
-
-
-@dataclass(frozen=True)
-class ResetDone:
-    """Answer everyone who asked for this reset (``tokens``)."""
-    tokens: Tuple[Any, ...]
-    success: bool
-    message: str
-
-
-@dataclass(frozen=True)
-class Note:
-    """A line for the terminal (``level``: info, warn, error)."""
-    level: str
-    text: str
-
-
-@dataclass(frozen=True)
-class Timer:
-    """Call ``timer_fired(id)`` after ``seconds``."""
-    id: int
-    seconds: float
-
-
-@dataclass
-class StepReport:
-    """Everything one step did: what the step block prints and ``/hrc/status`` carries."""
-    epoch: int
-    episode: int
-    step: int
-    human_action: str
-    human_state: str
-    human_state_index: int = 0
-    #: A human who hears the robot: the rule that chose ``human_state`` after the robot acted
-    #: (``human_state`` is then that state; the step's request carried the one he acted in).
-    reaction: str = ""
-    human_reward: float = 0.0
-    human_result: str = ""
-    human_acted: bool = True
-    human_observation: str = ""
-    observation_bits: int = 0
-    robot_observation: str = ""
-    #: What the task's observation noise did to the robot's observation ("" when nothing).
-    observation_noise: str = ""
-    robot_state: str = ""
-    robot_action: str = ""
-    robot_result: str = ""
-    robot_acted: bool = True
-    belief: Tuple[float, ...] = ()
-    belief_states: Tuple[str, ...] = ()
-    decision_ms: float = 0.0
-    surprise: bool = False
-    rule: str = ""
-    sim_time: float = 0.0
-    episode_start_time: float = 0.0
-    object_holder: str = "none"
-    object_left_belt: bool = False
-    episode_over: bool = False
-    end_reason: str = ""
-    fault: str = ""
-    #: Wall milliseconds of the step's parts (:data:`STEP_TIMINGS`), filled in by the runner.
-    timings_ms: Dict[str, float] = field(default_factory=dict)
-
-
-#: The parts of a step whose wall time a report carries: the whole step (from the MDP's
-#: request to the report), then each call in order.
-STEP_TIMINGS = ("step", "human", "observe", "decide", "robot", "outcome")
-
-
-@dataclass(frozen=True)
-class PublishStep:
-    """Publish and print one step's report (also a failed one: ``report.fault``)."""
-    report: StepReport
-
-
-Effect = Any
 
 #: Episode policies after an episode ends (the ``on_episode_end`` setting).
 EPISODE_END_POLICIES = settings.SETTINGS["on_episode_end"].choices
@@ -316,11 +85,6 @@ EPISODE_END_POLICIES = settings.SETTINGS["on_episode_end"].choices
 #: The phases of the loop.
 IDLE, RESETTING, READY, STEPPING, EPISODE_OVER, BROKEN = (
     "idle", "resetting", "ready", "stepping", "episode_over", "broken")
-
-#: Error codes of refused steps (the protocol's ``error.code``).
-STALE, BUSY, SEAT_TAKEN, INVALID, EPISODE_IS_OVER, FAILED, NOT_READY = (
-    "stale", "busy", "seat_taken", "invalid", "episode_over", "failed", "not_ready")
-
 
 #: Seconds before the first retry of a failed reset; each retry doubles it up to
 #: :data:`MAX_RETRY_DELAY`.
@@ -634,12 +398,8 @@ class Coordinator:
                 if result.action not in self.task.robot_action_services:
                     return self._fail_step(f"the robot planner answered an unknown action "
                                            f"{result.action!r}")
-                report.robot_action = result.action
-                report.belief = tuple(result.belief)
-                report.belief_states = tuple(result.belief_states)
-                report.decision_ms = result.decision_ms
-                report.surprise = result.surprise
-                report.rule = result.rule
+                for name, reported_as in DECISION_IN_REPORT.items():
+                    setattr(report, reported_as, getattr(result, name))
                 ctx.stage = "robot"
                 if self.task.robot_action_services[result.action] is None:
                     report.robot_result = "the robot stays idle and keeps observing"

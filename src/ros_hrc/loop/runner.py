@@ -11,7 +11,7 @@ which must not block.
 The interfaces are plain classes the adapters provide (:class:`WorldPort`,
 :class:`PlannerPort`, :class:`ExecutorPort`, :class:`MdpPort`, :class:`ReportPort`): the ROS
 nodes implement them with services and websockets, the unit tests with fakes. Any exception a
-blocking call raises becomes a :class:`~ros_hrc.loop.coordinator.Fault` with its text: this
+blocking call raises becomes a :class:`~ros_hrc.loop.effects.Fault` with its text: this
 is the dispatch point, so nothing an interface does can stop the loop.
 """
 from __future__ import annotations
@@ -24,11 +24,12 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Optional, Tuple
 
 from ros_hrc.errors import HrcError
-from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Call, Coordinator, Decide, Decision,
-                                      Fault, MdpRefused, MdpReset, MdpStepDone, Note,
-                                      ObserveWorld, Outcome, PublishStep, ReactionRequest,
-                                      ResetDone, ResetPlanner, ResetWorld, SeatRefused,
-                                      Snapshot, STEP_TIMINGS, StepReport, StepRequest, Timer)
+from ros_hrc.loop.coordinator import Coordinator
+from ros_hrc.loop.effects import (ActHuman, ActRobot, Call, Decide, Decision, Fault, MdpRefused,
+                                  MdpReset, MdpStepDone, Note, ObserveWorld, Outcome, PublishStep,
+                                  ReactionRequest, ResetDone, ResetPlanner, ResetWorld,
+                                  SeatRefused, Snapshot, STEP_TIMINGS, StepReport, StepRequest,
+                                  Timer)
 
 _log = logging.getLogger("ros_hrc.loop")
 

@@ -100,11 +100,11 @@ def guard_inbound_connections() -> None:
     Why: rospy's server accepts connections one at a time and reads each header with no time
     limit on the accepting thread, so a single client that connects and sends no header stalls
     every later connection to the node (its services, its topics) for good. It happened in a
-    test that restarts the stack on one master: a new hrc_obs's TCPROS server got the port
-    the previous hrc_obs's XML-RPC server had; a client that still held the old address sent
-    its HTTP request there, which rospy read as a header of 1.4 GB and waited for, and the
-    new hrc_human's first reset (/hrc/obs/reset_planner) hung until the test gave up. The
-    same can follow any node's respawn. Call before rospy.init_node; once per process."""
+    test that restarts the stack on one master: a new hrc_obs's TCPROS server (then the
+    planner's relay node) got the port the previous hrc_obs's XML-RPC server had; a client
+    that still held the old address sent its HTTP request there, which rospy read as a header
+    of 1.4 GB and waited for, and the new hrc_human's first reset (/hrc/obs/reset_planner)
+    hung until the test gave up. The same can follow any node's respawn. Call before rospy.init_node; once per process."""
     from rospy.impl import tcpros_base
     server = tcpros_base.TCPROSServer
     if getattr(server, "_hrc_guarded", False):
@@ -192,8 +192,9 @@ class ServiceWait:
 
     ``groups``: (what, names) pairs, e.g. ``("the world", ["/hrc/world/reset", ...])``; the
     line reads ``waiting for the world: /hrc/world/reset, ...; for the robot planner
-    (hrc_obs): /hrc/obs/decide (30 s)``. ``registered()`` gives the names registered now
-    (:func:`registered_services`; the tests give a fake). :meth:`run` does the waiting (on a
+    (despot_pomdp): ws://127.0.0.1:7070 (30 s)``. ``registered()`` gives the names up now
+    (:func:`registered_services`, and whatever else the caller counts, such as a link that is
+    connected; the tests give a fake). :meth:`run` does the waiting (on a
     thread of its own); :meth:`wait` blocks a caller until it is done, and raises
     :class:`ServiceUnavailable` if the wait was stopped (shutdown) first."""
 

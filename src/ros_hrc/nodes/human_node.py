@@ -3,8 +3,9 @@
 The coordinator (:mod:`ros_hrc.loop.coordinator`) owns the step; this node only carries out
 what it asks, through four adapters:
 
-* the **human MDP**: a websocket server (``~port``, 9090 by default, bound to ``~host``). The
-  first client is the served MDP; a second one is refused with one line and disconnected.
+* the **human MDP**: a websocket server (``~human_port``, 9090 by default, bound to
+  ``~host``). The first client is the served MDP; a second one is refused with one line and
+  disconnected.
   ``step`` messages go to the coordinator; its answers go back as ``ack`` / ``error``, and a
   ``reset`` (with the new epoch) starts each episode. A human who hears the robot (a task
   with reaction rules) answers each ``ack`` with a ``reaction`` (his state after the robot
@@ -13,19 +14,26 @@ what it asks, through four adapters:
   atomic snapshot: the six predicates and where the object is) and ``/hrc/world/reset``,
   after setting ``/hrc/world/episode`` to the episode that starts (the world reseeds its
   random stream from it).
-* the **robot planner**: ``/hrc/obs/decide`` and ``/hrc/obs/reset_planner`` of hrc_obs, which
-  speaks to the POMDP process.
-* the **robot executor**: a websocket client of hrc_robot (``~robot_port``, 8080).
+* the **robot planner**: this node is the websocket client of the POMDP process
+  (``~pomdp_port``, 7070 by default): the robot's ``observation`` out, the ``decision`` that
+  answers it in, a ``reset`` into each new epoch. No process in between.
+* the **robot executor**: the world's ``/robot/<action>`` service of the robot's action (the
+  seed's Table 3.2: ``rPoint_obj`` /robot/point_to_obj, ``rGrasp_obj`` /robot/grasp,
+  ``rStop_all`` /robot/cancel_action; ``rIdle`` moves nothing). No process in between: this
+  node drives both agents of the world.
 
 Each step prints one block in the terminal and is published on ``/hrc/status`` (also a step
 that failed: its ``fault`` says what failed, and the loop starts again from a reset).
 
-**Start-up.** The world (a GUI world under load can take a minute) and hrc_obs may come up
-after this node. No call goes to them before every service the loop uses is registered: the
-node waits for them with no timeout, naming those still awaited every ``~wait_report_every``
-seconds (``waiting for the world (hrc_world): /hrc/world/reset, ... (30 s; ...)``). Until
-then the first reset waits, so the MDP gets no ``reset`` and takes no step: step 0 is taken
-once, when the world and the planner can carry it out.
+**Start-up.** The world (a GUI world under load can take a minute) and the POMDP process may
+come up after this node. No call goes to them before every service the loop uses is
+registered and the POMDP process is connected: the node waits for them with no timeout,
+naming those still awaited every ``~wait_report_every`` seconds (``waiting for the world
+(hrc_world): /hrc/world/reset, ... (30 s; ...)``). Until then the first reset waits, so the
+MDP gets no ``reset`` and takes no step: step 0 is taken once, when the world and the
+planner can carry it out. Later, while the POMDP process is not connected (it died, or is
+restarting), a decision or a reset of the planner is answered at once that it is not: the
+step fails, and the reset says what it could not reset and is retried.
 
 **This terminal.** Enter resets everything. In manual mode a line typed here that is not
 empty is the human's next state for the MDP (a number; anything else lets the model choose),
@@ -38,16 +46,17 @@ Services offered: /hrc/reset (std_srvs/Trigger: reset everything and wait until 
 /hrc/set_human_state (ros_hrc/SetHumanState: the human's next state, for manual mode without
 a terminal).
 Parameters: ~task (the collaboration task, ros_hrc.tasks: seed or fabric), ~seed (the run's
-seed: the task's observation noise draws from its (seed, episode) streams), ~host, ~port,
-~robot_host, ~robot_port, ~mode, ~max_steps, ~on_episode_end,
+seed: the task's observation noise draws from its (seed, episode) streams), ~host,
+~human_port (this node's server, for the MDP), ~pomdp_port (the POMDP process's server),
+~mode, ~max_steps, ~on_episode_end,
 ~end_on_goal, ~episodes (the episode numbers to play, e.g. ``0-99`` or ``2,5-7``; ``live``: 1,
 2, 3 ...: see :mod:`ros_hrc.streams`), ~wait_for_listener (no step before someone
 subscribes to /hrc/status), ~read_stdin (Enter on this node's terminal resets everything), ~print_steps,
-~service_timeout (s to wait for a service that went away during the run, e.g. a respawning
-hrc_obs; at start-up the node waits however long it takes), ~wait_report_every (s between
-the lines saying what the start-up still waits for), ~action_timeout (s a world or robot
-action may take), ~decide_timeout (s to wait for a decision), ~reset_timeout (s /hrc/reset
-waits for the reset), ~reply_timeout (s to wait for the MDP's answer to a next state),
+~service_timeout (s to wait for a service that went away during the run; at start-up the
+node waits however long it takes), ~wait_report_every (s between the lines saying what the
+start-up still waits for), ~decide_timeout (s to wait for the POMDP process's decision), ~planner_reset_timeout (s to wait for its answer to a
+reset, which takes no planning), ~reset_timeout (s /hrc/reset waits for the reset),
+~reply_timeout (s to wait for the MDP's answer to a next state),
 ~reset_join_window, ~wait_note_every, ~world_call_timeout (see CoordinatorConfig; the values
 of all of them are in docs/loop.md, "Timeouts"),
 ~link_session (hrc.launch's session: the link token's file) or ~token_file (by hand).
@@ -55,35 +64,36 @@ of all of them are in docs/loop.md, "Timeouts"),
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import sys
 import threading
 from dataclasses import dataclass
-from typing import Callable, Dict, Optional, TextIO, Tuple
+from typing import Callable, Dict, Mapping, Optional, TextIO, Tuple
 
 import rospy
 from std_srvs.srv import Trigger, TriggerResponse
 
 from ros_hrc.errors import HrcError, LinkError
-from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, Action, DispatchTable,
-                                   Error, Message, MessageError, NextState, Reaction, Reset,
-                                   Step, reply_error)
+from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, DispatchTable, Error,
+                                   Message, MessageError, NextState, Observation, Reaction,
+                                   Reset, Step, reply_error)
+from ros_hrc.link.protocol import Decision as DecisionMessage
 from ros_hrc.link.token import launch_token
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
-from ros_hrc import tasks
+from ros_hrc import settings, tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
-                                      WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig,
-                                      Decision, MdpRefused, MdpReset, MdpStepDone, Outcome,
-                                      ReactionRequest, SeatRefused, Snapshot, STEP_TIMINGS,
-                                      StepReport, StepRequest)
+                                      WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig)
+from ros_hrc.loop.effects import (DECISION_IN_REPORT, Decision, MdpRefused, MdpReset, MdpStepDone,
+                                  Outcome, ReactionRequest, SeatRefused, Snapshot, STEP_TIMINGS,
+                                  StepReport, StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 from ros_hrc.streams import WORLD_EPISODE_PARAM, EpisodeSchedule
 from ros_hrc.msg import Status
-from ros_hrc.nodes.common import (ServiceUnavailable, ServiceWait, TriggerCaller, init_node,
-                                  read_config, registered_services, route_python_logging)
-from ros_hrc.srv import (Decide, GetWorldState, ResetPlanner, SetHumanState,
-                         SetHumanStateResponse)
+from ros_hrc.nodes.common import (ServiceWait, TriggerCaller, init_node, read_config,
+                                  registered_services, route_python_logging)
+from ros_hrc.srv import GetWorldState, SetHumanState, SetHumanStateResponse
 
 
 @dataclass
@@ -92,7 +102,7 @@ class HumanNodeConfig:
     seed: int = 0
     host: str = "127.0.0.1"
     human_port: int = 9090
-    robot_port: int = 8080
+    pomdp_port: int = 7070
     mode: str = "auto"
     max_steps: int = 0
     on_episode_end: str = "wait"
@@ -103,8 +113,8 @@ class HumanNodeConfig:
     print_steps: bool = True
     service_timeout: float = 30.0
     wait_report_every: float = 10.0
-    action_timeout: float = 120.0
     decide_timeout: float = 120.0
+    planner_reset_timeout: float = 10.0
     reset_timeout: float = 120.0
     reply_timeout: float = 10.0
     reset_join_window: float = RESET_JOIN_WINDOW
@@ -115,23 +125,27 @@ class HumanNodeConfig:
 
 
 def world_services(task: tasks.Task) -> Tuple[str, ...]:
-    """The world's services the loop calls for ``task``: its reset, its snapshot and every
-    /human/* service of the task's human actions."""
+    """The world's services the loop calls for ``task``: its reset, its snapshot, every
+    /human/* service of the task's human actions and every /robot/* service of its robot's."""
     return ("/hrc/world/reset", "/hrc/world/state") + tuple(
-        f"/human/{service}" for service in task.human_world_services())
+        f"/human/{service}" for service in task.human_world_services()) + tuple(
+        f"/robot/{service}" for service in task.robot_world_services())
 
 
-def startup_services(task: tasks.Task) -> Tuple[Tuple[str, Tuple[str, ...]], ...]:
+def startup_services(task: tasks.Task, planner_url: str
+                     ) -> Tuple[Tuple[str, Tuple[str, ...]], ...]:
     """What the loop calls, by who offers it: the node waits for all of them before the
-    first reset."""
+    first reset (the POMDP process is named by the URL of its link, ``planner_url``, which
+    counts as up once this node is connected to it)."""
     return (("the world (hrc_world)", world_services(task)),
-            ("the robot planner (hrc_obs)", PLANNER_SERVICES))
+            ("the robot planner (despot_pomdp)", (planner_url,)))
 
 
-PLANNER_SERVICES = ("/hrc/obs/reset_planner", "/hrc/obs/decide")
-#: The seed task's (the default's): what the node waits for before the first reset.
+#: The seed task's (the default's) on the default ports: what the node waits for before the
+#: first reset.
 WORLD_SERVICES = world_services(tasks.get(tasks.DEFAULT_TASK))
-STARTUP_SERVICES = startup_services(tasks.get(tasks.DEFAULT_TASK))
+PLANNER_LINK = link_url(settings.default("pomdp_port"))
+STARTUP_SERVICES = startup_services(tasks.get(tasks.DEFAULT_TASK), PLANNER_LINK)
 #: Stands in the start-up wait for "someone subscribes to /hrc/status" (~wait_for_listener).
 STATUS_LISTENER = "/hrc/status (subscribed)"
 
@@ -181,12 +195,13 @@ def status_message(report: StepReport, mode: str) -> Status:
     status.mode = mode
     for name in ("epoch", "episode", "step", "human_action", "human_state", "human_state_index",
                  "human_reward", "human_observation", "observation_bits", "robot_observation",
-                 "robot_state", "robot_action", "decision_ms", "sim_time", "object_holder",
-                 "object_left_belt", "episode_start_time", "human_result", "robot_result",
-                 "surprise", "episode_over", "end_reason", "fault"):
+                 "robot_state", "sim_time", "object_holder", "object_left_belt",
+                 "episode_start_time", "human_result", "robot_result", "episode_over",
+                 "end_reason", "fault"):
         setattr(status, name, getattr(report, name))
-    status.belief = list(report.belief)
-    status.belief_states = list(report.belief_states)
+    for name in DECISION_IN_REPORT.values():   # the planner's decision, as declared
+        value = getattr(report, name)
+        setattr(status, name, list(value) if isinstance(value, tuple) else value)
     for part in STEP_TIMINGS:
         setattr(status, f"{part}_ms", report.timings_ms.get(part, 0.0))
     return status
@@ -229,52 +244,90 @@ class RosWorld(WorldPort):
         return Outcome(ok, message)
 
 
-class RosPlanner(PlannerPort):
-    """The robot planner behind hrc_obs. ``ready()`` blocks until the start-up wait is over."""
+class LinkPlanner(PlannerPort):
+    """The robot planner: the POMDP process, of which this node is the websocket client.
 
-    def __init__(self, call: TriggerCaller, ready: Callable[[], object] = _no_wait) -> None:
-        self.call = call
+    A decision is one request on the link: the ``observation`` (with the epoch and a
+    correlation id) out, the ``decision`` that answers it in; a reset is a ``reset`` into the
+    new epoch. It keeps no loop state: a planner that restarted refuses an observation of an
+    epoch it was not reset into, and the coordinator then resets the loop. While the POMDP
+    process is not connected (it died, or is starting again) both answer at once that it is
+    not: a reset then says what it could not reset instead of waiting out a timeout, and is
+    retried. A decision whose frame is rejected (malformed, too large, of another epoch,
+    without ``reply_to``) fails at once with the reason
+    (:class:`~ros_hrc.link.transport.ReplyRejected`). ``ready()`` blocks until the start-up
+    wait is over."""
+
+    def __init__(self, client: MessageClient, decide_timeout: float, reset_timeout: float,
+                 ready: Callable[[], object] = _no_wait) -> None:
+        self.client = client
+        self.decide_timeout = decide_timeout
+        self.reset_timeout = reset_timeout
         self.ready = ready
+
+    def _not_connected(self) -> str:
+        """Why nothing can be asked of the POMDP process now ("" when it is connected)."""
+        if self.client.connected:
+            return ""
+        return (f"the POMDP process is not connected ({self.client.url}): it is down or "
+                "(re)starting")
 
     def decide(self, epoch: int, step: int, observation: str, bits: int, state: str,
                elapsed: Optional[float] = None) -> Decision:
         self.ready()
-        args = [epoch, step, observation, bits, state]
-        if "elapsed" in Decide._request_class.__slots__:   # a workspace built since it came
-            args.append(-1.0 if elapsed is None else elapsed)   # Decide.srv: < 0 is unknown
-        answer = self.call.call("/hrc/obs/decide", Decide, *args)
-        if not answer.success:
-            raise ServiceUnavailable(answer.message)
-        return Decision(action=answer.action, belief=tuple(answer.belief),
-                        belief_states=tuple(answer.belief_states),
-                        decision_ms=answer.decision_ms, surprise=answer.surprise,
-                        rule=answer.rule)
+        down = self._not_connected()
+        if down:
+            raise LinkError(f"no decision: {down}")
+        try:
+            reply = self.client.request(Observation(
+                step=step, observation=observation, bits=bits, state=state,
+                elapsed=elapsed if elapsed is not None and 0.0 <= elapsed < math.inf else None,
+                epoch=epoch), self.decide_timeout)
+        except LinkError as exc:
+            raise LinkError(f"no decision from the POMDP process: {exc}") from exc
+        if isinstance(reply, Error):
+            raise LinkError(f"the POMDP process refused: {reply.message}")
+        if not isinstance(reply, DecisionMessage):
+            raise LinkError(f"the POMDP process answered a {reply.type}, not a decision")
+        return Decision.of(reply)
 
     def reset(self, epoch: int, episode: int) -> Outcome:
         self.ready()
-        answer = self.call.call("/hrc/obs/reset_planner", ResetPlanner, epoch, episode)
-        return Outcome(answer.success, answer.message)
+        down = self._not_connected()
+        if down:
+            return Outcome(False, down)
+        try:
+            reply = self.client.request(Reset(reason="reset", episode=episode, epoch=epoch),
+                                        self.reset_timeout)
+        except LinkError as exc:
+            return Outcome(False, f"POMDP process not reset: {exc}")
+        if isinstance(reply, Ack):
+            return Outcome(True, reply.result or "belief reset")
+        if isinstance(reply, Error):
+            return Outcome(False, f"POMDP process: {reply.message}")
+        return Outcome(False, f"POMDP process: answered a {reply.type}, not an ack")
 
 
-class LinkExecutor(ExecutorPort):
-    """The robot executor: hrc_robot's websocket server."""
+class RosExecutor(ExecutorPort):
+    """The robot executor: the world's /robot/* service of the task's robot action
+    (``services``: action -> service, None for an action that moves nothing). A refused
+    action (``success`` false: out of reach) is what happened; a service that errors or is
+    gone raises (a fault, which fails the step). ``ready()`` blocks until the start-up wait
+    is over."""
 
-    def __init__(self, client: MessageClient, timeout: float) -> None:
-        self.client = client
-        self.timeout = timeout
-        self._connection: Optional[int] = None   # the connection of the last action
+    def __init__(self, call: TriggerCaller, services: Mapping[str, Optional[str]],
+                 ready: Callable[[], object] = _no_wait) -> None:
+        self.call = call
+        self.services = services
+        self.ready = ready
 
     def act(self, epoch: int, step: int, action: str) -> Outcome:
-        reply = self.client.request(Action(step=step, action=action, epoch=epoch), self.timeout)
-        connection = self.client.connections
-        restarted = self._connection is not None and connection != self._connection
-        self._connection = connection
-        if restarted:
-            # hrc_robot was restarted since the last action: what it was doing was cut short.
-            raise LinkError("the robot executor (hrc_robot) restarted")
-        if isinstance(reply, Error):
-            raise LinkError(f"hrc_robot refused {action}: {reply.message}")
-        return Outcome(reply.success is not False, reply.result or "")
+        self.ready()
+        service = self.services[action]
+        if service is None:
+            return Outcome(True, "the robot stays idle and keeps observing")
+        ok, message = self.call(f"/robot/{service}")
+        return Outcome(ok, message)
 
 
 class LinkMdp(MdpPort):
@@ -374,14 +427,15 @@ class HumanNode:
         # No call reaches the world or the planner before their services are up: the first
         # reset (and so the MDP's step 0) waits, however long the world takes to start.
         self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)
-        awaited, registered = startup_services(self.task), registered_services
+        token = launch_token(config)
+        self.pomdp = MessageClient(link_url(config.pomdp_port, config.host), "hrc_human",
+                                   send_timeout=config.decide_timeout, token=token)
+        awaited = startup_services(self.task, self.pomdp.url)
         if config.wait_for_listener:
             # An experiment cell records every step: none is taken before it listens.
             awaited += (("a listener (wait_for_listener)", (STATUS_LISTENER,)),)
-            registered = lambda: registered_services() | (   # noqa: E731
-                {STATUS_LISTENER} if self.status_pub.get_num_connections() else set())
         self.startup = ServiceWait(awaited, say=lambda text: rospy.loginfo(
-            "hrc_human: %s", text), every=config.wait_report_every, registered=registered)
+            "hrc_human: %s", text), every=config.wait_report_every, registered=self._up)
         # A random first epoch: a respawned node never mints an epoch its predecessor used.
         first_epoch = int.from_bytes(os.urandom(3), "big") << 4
         coordinator = Coordinator(CoordinatorConfig(
@@ -392,14 +446,12 @@ class HumanNode:
             world_call_timeout=config.world_call_timeout,
             episodes=EpisodeSchedule.parse(config.episodes), task=self.task,
             seed=config.seed))
-        token = launch_token(config)
-        self.robot = MessageClient(link_url(config.robot_port, config.host), "hrc_human",
-                                   send_timeout=config.action_timeout, token=token)
-        self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait),
-                                 RosPlanner(self.call, self.startup.wait),
-                                 LinkExecutor(self.robot, config.action_timeout), LinkMdp(),
-                                 Terminal(self.status_pub, config.mode, config.print_steps,
-                                          self.task))
+        planner = LinkPlanner(self.pomdp, config.decide_timeout, config.planner_reset_timeout,
+                              self.startup.wait)
+        executor = RosExecutor(self.call, self.task.robot_action_services, self.startup.wait)
+        self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait), planner,
+                                 executor, LinkMdp(), Terminal(self.status_pub, config.mode,
+                                                               config.print_steps, self.task))
         table = DispatchTable("hrc_human")
         table.on(Step, self._on_step)
         table.on(Reaction, self._on_reaction)
@@ -413,17 +465,27 @@ class HumanNode:
         self._answers: Dict[int, Message] = {}
         self._answered = threading.Condition()
 
+    def _up(self) -> set:
+        """What the start-up wait finds up now: the services registered, the POMDP process's
+        link once connected, and (~wait_for_listener) a listener of /hrc/status."""
+        up = registered_services()
+        if self.pomdp.connected:
+            up.add(self.pomdp.url)
+        if self.config.wait_for_listener and self.status_pub.get_num_connections():
+            up.add(STATUS_LISTENER)
+        return up
+
     def start(self) -> None:
         threading.Thread(target=self.startup.run, name="startup-wait", daemon=True).start()
         self.runner.start()
-        self.robot.start()
+        self.pomdp.start()
         self.server.start()
 
     def stop(self) -> None:
         self.startup.stop()
         self.server.stop()
         self.runner.stop()
-        self.robot.close()
+        self.pomdp.close()
         self.call.close()
 
     # -- the MDP's messages -------------------------------------------------------------------

@@ -5,8 +5,8 @@ when their motion is over (``success``: it did what was asked; ``message``: what
 predicates answer in ``success`` and explain in ``message``. A fault of the world (it closed,
 an action did not finish in time) is a service error, never a ``false``.
 
-The loop's nodes (~loop_nodes: hrc_human and hrc_robot, who call /human/<action>,
-/robot/<action> and /hrc/world/reset) drive the agents and are served first: their action
+The loop's node (~loop_nodes: hrc_human, which calls /human/<action>, /robot/<action> and
+/hrc/world/reset) drives the agents and is served first: their action
 interrupts another caller's action of that agent under way and cancels those queued, and while
 it runs another caller's call for that agent gets ``success=false``, ``busy: the human is
 doing grasp for /hrc_human, ...`` at once (docs/world.md, "Who is served first"). The caller
@@ -68,7 +68,7 @@ names carry the run's start time and a counter: never overwritten), ~viz (joint 
   ~action_timeout (float, 120.0)  wall seconds a service call waits for its action
   ~tf_rate (float, 30.0)          the rate of the joint states and /tf, Hz (wall clock)
   ~model_dir (str, <package>/models/urdf)       where the URDF models are
-  ~loop_nodes (list, [hrc_human, hrc_robot])   the nodes whose calls drive the agents (names
+  ~loop_nodes (list, [hrc_human])   the nodes whose calls drive the agents (names
                                   relative to this node's namespace)
 """
 from __future__ import annotations
@@ -129,7 +129,7 @@ class WorldNodeConfig:
     viz: bool = settings.default("viz")
     tf_rate: float = 30.0
     camera_rate: float = settings.default("camera_rate")
-    loop_nodes: Tuple[str, ...] = ("hrc_human", "hrc_robot")
+    loop_nodes: Tuple[str, ...] = ("hrc_human",)
 
     @classmethod
     def from_params(cls, get_param: Optional[ParamReader] = None) -> "WorldNodeConfig":

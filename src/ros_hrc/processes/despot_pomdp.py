@@ -2,12 +2,13 @@
 
 It loads the robot POMDP (checked against the states, actions and observations of the task,
 ``--task``: :mod:`ros_hrc.tasks`) and keeps the robot's belief. It is a websocket **server**
-on port 7070 for the observer (``hrc_obs``). For each ``observation``: update the belief with
-the robot's previous action and the observation (the task's idle action before the first
-step, ``rIdle`` for the seed: the robot starts idle), plan (DESPOT by default, a saved
-offline policy, or a baseline robot of ``ros_hrc.agents.robots``: the
-reactive robot or no robot, which keep the belief but decide without it), and answer with a
-``decision``. The coordinator has the robot carry it out (hrc_robot), not this process.
+on port 7070 for the coordinator (``hrc_human``). For each ``observation``: update the
+belief with the robot's previous action and the observation (the task's idle action before
+the first step, ``rIdle`` for the seed: the robot starts idle), plan (DESPOT by default, a
+saved offline policy, or a baseline robot of ``ros_hrc.agents.robots``: the reactive robot
+or no robot, which keep the belief but decide without it), and answer with a ``decision``.
+The coordinator has the robot carry it out (the world's /robot/* services), not this
+process.
 A ``reset`` puts the belief back to the model's initial belief (and the reactive robot's step
 count, or fabric's reactive robot's MDP state, back to the start), in the epoch the reset names, and restarts the planner's random stream as
 the one of (``--seed``, the reset's episode, "planner") (:mod:`ros_hrc.streams`): episode

@@ -293,6 +293,10 @@ class Task:
     def robot_actions(self) -> Tuple[str, ...]:
         return tuple(self.robot_action_services)
 
+    def robot_world_services(self) -> Tuple[str, ...]:
+        """Every /robot/* service the robot's actions may call, sorted."""
+        return tuple(sorted({s for s in self.robot_action_services.values() if s}))
+
     def robot_actions_calling(self, *services: str) -> FrozenSet[str]:
         """The robot's actions carried by any of these /robot/* services (e.g. ``"grasp"``:
         the seed's rGrasp_obj, fabric's grasp): how task-agnostic code names an action."""

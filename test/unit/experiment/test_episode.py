@@ -110,9 +110,9 @@ def test_a_worker_line_carries_a_whole_episode_and_other_lines_are_ignored(robot
 
 def test_each_robot_policy_starts_its_own_planner_on_its_own_ports():
     spec = CellSpec("tired", "reactive", 4, episodes=[0, 1], reactive_budget=5)
-    args = launch_arguments(spec, {"master": 1, "pomdp": 7071, "robot": 8081, "human": 9091})
+    args = launch_arguments(spec, {"master": 1, "pomdp": 7071, "human": 9091})
     assert "planner:=reactive" in args and "reactive_budget:=5" in args
-    assert {"pomdp_port:=7071", "robot_port:=8081", "human_port:=9091"} <= set(args)
+    assert {"pomdp_port:=7071", "human_port:=9091"} <= set(args)
     assert {"use_sim_time:=false", "real_time_factor:=0", "gui:=false", "seed:=4"} <= set(args)
     assert set(ROBOT_POLICIES) == {"pomdp", "pomdp_fitted", "pomdp_considerate", "reactive",
                                    "no_robot", "explore"}

@@ -1,11 +1,13 @@
 """The whole loop in one thread, without ROS or sockets (test_fabric_loop.py).
 
 The episode coordinator (Sans-I/O) is carried out against the real parts: the PyBullet world
-(``ros_hrc.world.World``, stepped on this thread), the MDP process's own step logic
+(``ros_hrc.world.World``, stepped on this thread; the human's and the robot's actions called
+as hrc_human calls /human/* and /robot/*), the MDP process's own step logic
 (``MdpProcess.one_step``: this object stands in for its link and answers each step at once)
-and the robot process's agent (``RobotAgent`` with DESPOT bounded by trials). What the ROS
-nodes do in between (services, websockets) is not here; what the loop decides is: a run
-depends on the seed alone."""
+and the POMDP process's handlers (``PomdpProcess``, its ``RobotAgent`` with DESPOT bounded by
+trials), asked as hrc_human's planner adapter asks them: an ``observation`` message in, the
+``decision`` message out, taken by ``Decision.of``. What the sockets and ROS services carry
+in between is not here; what the loop decides is: a run depends on the seed alone."""
 from __future__ import annotations
 
 import math
@@ -13,16 +15,17 @@ from types import SimpleNamespace
 from typing import Any, List, Optional
 
 from ros_hrc import tasks
-from ros_hrc.link.protocol import Ack, Error, Reaction, Reset, Step
-from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Coordinator, CoordinatorConfig,
-                                      Decide, Decision, MdpRefused, MdpReset, MdpStepDone,
-                                      ObserveWorld, Outcome, PublishStep, ReactionRequest,
-                                      ResetPlanner, ResetWorld, Snapshot, StepReport,
-                                      StepRequest)
+from ros_hrc.link.protocol import Ack, Error, Observation, Reaction, Reset, Step
+from ros_hrc.link.protocol import Decision as DecisionMessage
+from ros_hrc.loop.coordinator import Coordinator, CoordinatorConfig
+from ros_hrc.loop.effects import (ActHuman, ActRobot, Decide, Decision, Fault, MdpRefused,
+                                  MdpReset, MdpStepDone, ObserveWorld, Outcome, PublishStep,
+                                  ReactionRequest, ResetPlanner, ResetWorld, Snapshot, StepReport,
+                                  StepRequest)
 from ros_hrc.models import load_human_model, load_robot_model
 from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.processes.despot_mdp import MdpProcess, _ResetRequested
-from ros_hrc.processes.despot_pomdp import RobotAgent, build_planner
+from ros_hrc.processes.despot_pomdp import PomdpProcess, RobotAgent, build_planner
 from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
 from ros_hrc.world import World, WorldConfig
 from ros_hrc.world.human import HumanConfig
@@ -68,6 +71,7 @@ class LocalLoop:
                                task=self.task.name)
         self.robot = RobotAgent(robot, build_planner(robot, args),
                                 first_action=self.task.robot_idle_action, seed=seed)
+        self.pomdp = PomdpProcess(self.robot)
         self.reports: List[StepReport] = []
 
     def close(self) -> None:
@@ -119,12 +123,11 @@ class LocalLoop:
         elif isinstance(effect, ObserveWorld):
             c.call_done(effect.id, self._snapshot())
         elif isinstance(effect, Decide):
-            action, _ms, note = self.robot.step(effect.observation, effect.elapsed)
-            model = self.robot.model
-            c.call_done(effect.id, Decision(
-                action=model.actions[action], belief=tuple(self.robot.belief.tolist()),
-                belief_states=tuple(model.states), surprise=bool(note),
-                rule=getattr(self.robot.planner, "last_rule", "")))
+            reply = self.pomdp.on_observation(Observation(
+                step=effect.step, observation=effect.observation, bits=effect.bits,
+                state=effect.state, elapsed=effect.elapsed, epoch=effect.epoch), PEER)
+            c.call_done(effect.id, Decision.of(reply) if isinstance(reply, DecisionMessage)
+                        else Fault(f"the POMDP process refused: {reply.message}"))
         elif isinstance(effect, ActRobot):
             service = self.task.robot_action_services[effect.action]
             done = self.world.run("robot", service, driver=True)
@@ -135,8 +138,9 @@ class LocalLoop:
             done = self.world.reset()
             c.call_done(effect.id, Outcome(done.success, done.message))
         elif isinstance(effect, ResetPlanner):
-            self.robot.reset(effect.episode)
-            c.call_done(effect.id, Outcome(True, "belief reset"))
+            reply = self.pomdp.on_reset(Reset(reason="reset", episode=effect.episode,
+                                              epoch=effect.epoch), PEER)
+            c.call_done(effect.id, Outcome(True, reply.result))
         elif isinstance(effect, MdpReset):
             # As the link delivers it: after the answer to the step that ended the episode.
             self.mdp._events.put(("reset", Reset(reason=effect.reason, episode=effect.episode,

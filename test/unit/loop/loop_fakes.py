@@ -13,11 +13,10 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 import pytest
 
 from ros_hrc.errors import ModelError, SolverError
-from ros_hrc.loop.coordinator import (ActHuman, ActRobot, Call, Coordinator, CoordinatorConfig,
-                                      Decide, Decision, MdpRefused, MdpReset, MdpStepDone,
-                                      ObserveWorld, Outcome, PublishStep, ResetPlanner,
-                                      ResetWorld, SeatRefused, Snapshot, StepReport,
-                                      StepRequest)
+from ros_hrc.loop.coordinator import Coordinator, CoordinatorConfig
+from ros_hrc.loop.effects import (ActHuman, ActRobot, Call, Decide, Decision, MdpRefused, MdpReset,
+                                  MdpStepDone, ObserveWorld, Outcome, PublishStep, ResetPlanner,
+                                  ResetWorld, SeatRefused, Snapshot, StepReport, StepRequest)
 from ros_hrc.loop.runner import (ExecutorPort, LoopRunner, MdpPort, PlannerPort, ReportPort,
                                  WorldPort)
 

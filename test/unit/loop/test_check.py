@@ -25,9 +25,9 @@ def run(*words, script=False):
 
 def free_ports():
     ports = set()
-    while len(ports) < 3:
+    while len(ports) < 2:
         ports.add(free_port())
-    return dict(zip(("pomdp_port", "robot_port", "human_port"), sorted(ports)))
+    return dict(zip(("pomdp_port", "human_port"), sorted(ports)))
 
 
 def refused(*words):
@@ -63,13 +63,13 @@ def test_without_arguments_every_default(capsys):
     config = yaml.safe_load(capsys.readouterr().out)
     assert config["time_per_step"] == 0.1
     assert config["human_model"] == "humanModel" and config["robot_model"] == "robot"
-    assert (config["pomdp_port"], config["robot_port"], config["human_port"]) == (7070, 8080, 9090)
+    assert (config["pomdp_port"], config["human_port"]) == (7070, 9090)
 
 
 @pytest.mark.parametrize("word, line", [
     ("human_model:=does_not_exist", "hrc.launch: human_model:=does_not_exist: no human model "
                                     "named 'does_not_exist'"),
-    ("robot_port:=70000", "hrc.launch: robot_port:=70000: must be an integer from 1 to 65535"),
+    ("pomdp_port:=70000", "hrc.launch: pomdp_port:=70000: must be an integer from 1 to 65535"),
     ("human_port:=abc", "hrc.launch: human_port:=abc: must be an integer from 1 to 65535, "
                         "got 'abc'"),
     ("planner:=bogus", "hrc.launch: planner:=bogus: must be one of despot, policy, reactive, none, "
@@ -84,7 +84,7 @@ def test_without_arguments_every_default(capsys):
     ("bogus_argument:=1", "hrc.launch: bogus_argument:=1: no such argument; known: human_model, "),
     ("planner:=policy", "hrc.launch: policy_file:=: planner:=policy needs a policy file"),
     ("robot_model:=tired", "hrc.launch: robot_model:=tired: no robot model named 'tired'"),
-    ("human_port:=8080", "hrc.launch: human_port:=8080: the same port as robot_port"),
+    ("human_port:=7070", "hrc.launch: human_port:=7070: the same port as pomdp_port"),
     ("not-a-setting", "hrc.launch: 'not-a-setting': expected name:=value"),
 ])
 def test_a_bad_argument_is_one_line_naming_it(word, line):
@@ -121,9 +121,9 @@ def test_a_port_in_use_is_one_line_naming_it():
         busy.bind(("127.0.0.1", 0))
         busy.listen(1)
         taken = busy.getsockname()[1]
-        ports["robot_port"] = taken
+        ports["human_port"] = taken
         line = refused(*(f"{k}:={v}" for k, v in ports.items()))
-    assert line.startswith(f"hrc.launch: robot_port:={taken}: port {taken} is already in use "
+    assert line.startswith(f"hrc.launch: human_port:={taken}: port {taken} is already in use "
                            "on 127.0.0.1")
 
 

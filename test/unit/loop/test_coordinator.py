@@ -5,10 +5,10 @@ bursts, failed ones), the MDP's seat, stale steps and episode ends."""
 import pytest
 
 from ros_hrc.tasks import seed as task
-from ros_hrc.loop.coordinator import (ActRobot, CoordinatorConfig, Decision, Fault, MdpRefused,
-                                      MdpReset, MdpStepDone, Note, ObserveWorld, Outcome,
-                                      PublishStep, ResetDone, ResetPlanner, ResetWorld,
-                                      SeatRefused, Snapshot, Timer)
+from ros_hrc.loop.coordinator import CoordinatorConfig
+from ros_hrc.loop.effects import (ActRobot, Decision, Fault, MdpRefused, MdpReset, MdpStepDone,
+                                  Note, ObserveWorld, Outcome, PublishStep, ResetDone,
+                                  ResetPlanner, ResetWorld, SeatRefused, Snapshot, Timer)
 from loop_fakes import OK, Driver, calls, of, one, snap, stage_of
 
 

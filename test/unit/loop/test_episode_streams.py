@@ -13,8 +13,8 @@ from typing import List
 import pytest
 
 from ros_hrc.link.protocol import Decision, Observation, Reset
-from ros_hrc.loop.coordinator import (EPISODE_OVER, CoordinatorConfig, Fault, MdpReset,
-                                      ResetDone, ResetPlanner, ResetWorld)
+from ros_hrc.loop.coordinator import EPISODE_OVER, CoordinatorConfig
+from ros_hrc.loop.effects import Fault, MdpReset, ResetDone, ResetPlanner, ResetWorld
 from ros_hrc.models import load_human_model, load_robot_model
 from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner

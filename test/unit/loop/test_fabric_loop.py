@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from ros_hrc import tasks
-from ros_hrc.loop.coordinator import (CoordinatorConfig, Decision, MdpRefused, PublishStep,
-                                      ReactionRequest)
+from ros_hrc.loop.coordinator import CoordinatorConfig
+from ros_hrc.loop.effects import Decision, MdpRefused, PublishStep, ReactionRequest
 
 from local_loop import LocalLoop, record
 from loop_fakes import Driver, of, one, snap

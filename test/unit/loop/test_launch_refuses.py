@@ -12,7 +12,7 @@ from ros_hrc.link.transport import free_port
 
 CASES = [
     ("human_model:=does_not_exist", "hrc.launch: human_model:=does_not_exist"),
-    ("robot_port:=70000", "hrc.launch: robot_port:=70000: must be an integer from 1 to 65535"),
+    ("pomdp_port:=70000", "hrc.launch: pomdp_port:=70000: must be an integer from 1 to 65535"),
     ("human_port:=abc", "hrc.launch: human_port:=abc"),
     ("planner:=bogus", "hrc.launch: planner:=bogus"),
     ("time_per_step:=-1", "hrc.launch: time_per_step:=-1"),

@@ -89,7 +89,7 @@ def test_manual_mode_without_a_display_types_states_in_the_roslaunch_terminal(tm
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}",
                ROS_LOG_DIR=str(tmp_path / "log"), PYTHONUNBUFFERED="1")
     env.pop("DISPLAY", None)
-    ports = [f"{name}:={free_port()}" for name in ("human_port", "robot_port", "pomdp_port")]
+    ports = [f"{name}:={free_port()}" for name in ("human_port", "pomdp_port")]
     out = tmp_path / "launch.log"
     with open(out, "wb") as log:
         proc = subprocess.Popen(

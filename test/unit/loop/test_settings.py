@@ -20,7 +20,7 @@ DEFAULTS = {
     "seed": 0, "use_sim_time": False, "real_time_factor": 1.0, "pause_when_idle": None,
     "belt_speed": 0.02, "away_time": None, "viz": True, "rviz": False, "snapshot_dir": "", "camera_rate": 0.0,
     "publish_rate": 10.0,
-    "host": "127.0.0.1", "pomdp_port": 7070, "robot_port": 8080,
+    "host": "127.0.0.1", "pomdp_port": 7070,
     "human_port": 9090, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
     "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
     "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "wait_for_listener": False,
@@ -101,7 +101,7 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
 
 
 @pytest.mark.parametrize("name, value, line", [
-    ("robot_port", "70000", "robot_port:=70000: must be an integer from 1 to 65535"),
+    ("pomdp_port", "70000", "pomdp_port:=70000: must be an integer from 1 to 65535"),
     ("human_port", "abc", "human_port:=abc: must be an integer from 1 to 65535, got 'abc'"),
     ("pomdp_port", "0", "pomdp_port:=0: must be an integer from 1 to 65535"),
     ("pomdp_port", "80.5", "pomdp_port:=80.5: must be an integer from 1 to 65535, got '80.5'"),
@@ -155,10 +155,10 @@ def test_a_bad_value_is_one_line_naming_the_argument(name, value, line):
 
 def test_a_setting_error_is_an_hrc_error_with_its_parts():
     with pytest.raises(HrcError) as info:
-        settings.parse("robot_port", 70000)
+        settings.parse("pomdp_port", 70000)
     error = info.value
     assert isinstance(error, SettingError)
-    assert (error.name, error.value) == ("robot_port", 70000)
+    assert (error.name, error.value) == ("pomdp_port", 70000)
     assert error.requirement == "must be an integer from 1 to 65535"
 
 
@@ -166,7 +166,7 @@ def test_numbers_and_python_values():
     assert settings.parse("seed", "  42 ") == 42
     assert settings.parse("seed", 7) == 7
     assert settings.parse("seed", str(2**31 - 1)) == 2**31 - 1
-    assert settings.parse("robot_port", "65535") == 65535
+    assert settings.parse("pomdp_port", "65535") == 65535
     assert settings.parse("time_per_step", "60") == 60.0
     assert settings.parse("time_per_step", 1) == 1.0
     assert settings.parse("belt_speed", "0") == 0.0
@@ -262,18 +262,18 @@ def test_resolve_parses_what_is_given():
 
 
 def test_resolve_refuses_the_first_bad_value():
-    with pytest.raises(SettingError, match=r"^robot_port:=70000: must be an integer"):
-        settings.resolve({"seed": "1", "robot_port": "70000"})
+    with pytest.raises(SettingError, match=r"^pomdp_port:=70000: must be an integer"):
+        settings.resolve({"seed": "1", "pomdp_port": "70000"})
 
 
-def test_the_three_ports_must_differ():
+def test_the_ports_must_differ():
     with pytest.raises(SettingError) as info:
         settings.resolve({"human_port": "7070"})
-    assert str(info.value) == ("human_port:=7070: the same port as pomdp_port; the three ports "
+    assert str(info.value) == ("human_port:=7070: the same port as pomdp_port; the ports "
                                "must differ")
-    with pytest.raises(SettingError, match="^human_port:=8080: the same port as robot_port"):
-        settings.resolve({"robot_port": "8080", "human_port": "8080", "pomdp_port": "1"})
-    assert settings.resolve({"pomdp_port": "1", "robot_port": "2", "human_port": "3"})
+    with pytest.raises(SettingError, match="^human_port:=8080: the same port as pomdp_port"):
+        settings.resolve({"pomdp_port": "8080", "human_port": "8080"})
+    assert settings.resolve({"pomdp_port": "1", "human_port": "3"})
 
 
 def test_a_policy_file_goes_with_planner_policy_and_only_with_it(tmp_path):
@@ -335,39 +335,39 @@ class RaisingParser(argparse.ArgumentParser):
 def test_add_argument_gives_the_flag_type_default_and_help():
     parser = RaisingParser()
     settings.add_argument(parser, "time_per_step")
-    settings.add_argument(parser, "robot_port")
+    settings.add_argument(parser, "human_port")
     settings.add_argument(parser, "lambda", dest="lambda_")
     settings.add_argument(parser, "gui")
     settings.add_argument(parser, "planner", "-p")
     settings.add_argument(parser, "pause_when_idle")
     args = parser.parse_args([])
-    assert (args.time_per_step, args.robot_port, args.lambda_, args.gui, args.planner) == \
-        (0.1, 8080, 0.1, False, "despot")
+    assert (args.time_per_step, args.human_port, args.lambda_, args.gui, args.planner) == \
+        (0.1, 9090, 0.1, False, "despot")
     assert args.pause_when_idle is None
-    args = parser.parse_args(["--time-per-step", "0.5", "--robot-port", "8081", "--lambda", "1",
+    args = parser.parse_args(["--time-per-step", "0.5", "--human-port", "9091", "--lambda", "1",
                               "--gui", "yes", "-p", "reactive", "--pause-when-idle", "on"])
-    assert (args.time_per_step, args.robot_port, args.lambda_, args.gui, args.planner) == \
-        (0.5, 8081, 1.0, True, "reactive")
+    assert (args.time_per_step, args.human_port, args.lambda_, args.gui, args.planner) == \
+        (0.5, 9091, 1.0, True, "reactive")
     assert args.pause_when_idle is True
     assert parser.parse_args(["--time-per-step", ""]).time_per_step == 0.1   # empty: default
     help_text = parser.format_help()
     assert "DESPOT's time budget per decision (0: none, " in " ".join(help_text.split())
     assert "(default: 0.1 s)" in " ".join(help_text.split())
-    assert "(default: 8080)" in help_text
+    assert "(default: 9090)" in help_text
 
 
 @pytest.mark.parametrize("argv, message", [
     (["--time-per-step", "-1"], "argument --time-per-step: must be 0 or a number from 0.001 to 60 (s), "
                                 "got '-1'"),
-    (["--robot-port", "70000"], "argument --robot-port: must be an integer from 1 to 65535, "
+    (["--human-port", "70000"], "argument --human-port: must be an integer from 1 to 65535, "
                                 "got '70000'"),
-    (["--robot-port", "abc"], "argument --robot-port: must be an integer from 1 to 65535, "
+    (["--human-port", "abc"], "argument --human-port: must be an integer from 1 to 65535, "
                               "got 'abc'"),
 ])
 def test_add_argument_errors_are_argparse_errors(argv, message):
     parser = RaisingParser()
     settings.add_argument(parser, "time_per_step")
-    settings.add_argument(parser, "robot_port")
+    settings.add_argument(parser, "human_port")
     with pytest.raises(Refused) as info:
         parser.parse_args(argv)
     assert str(info.value) == message

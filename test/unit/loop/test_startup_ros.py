@@ -1,9 +1,10 @@
 """Start-up with real processes: a roscore on a private port, the real hrc_human, an MDP
-client of its port, and a stand-in for the world and hrc_obs (a small rospy node offering
-their services) that starts late, as a GUI world under load does.
+client of its port, and a stand-in for the world and the POMDP process (a small rospy node
+offering the world's services, and a websocket server on the POMDP's port) that starts late,
+as a GUI world under load does.
 
-hrc_human must say, while it waits, which services it waits for; the MDP must get no reset
-(so it takes no step) before they are up; then step 0 is carried out, once."""
+hrc_human must say, while it waits, which services and which link it waits for; the MDP must
+get no reset (so it takes no step) before they are up; then step 0 is carried out, once."""
 import os
 import subprocess
 import sys
@@ -19,14 +20,17 @@ from ros_hrc.link.transport import LinkTimeout, MessageClient, free_port, link_u
 ROOT = Path(__file__).resolve().parents[3]
 
 FAKE_WORLD = textwrap.dedent('''
-    """The world's and hrc_obs's services, answering at once; prints each call."""
+    """The world's services and the POMDP process's link (its port and the link token's file
+    are the arguments), answering at once; prints each call."""
     import sys
     import threading
     import rospy
     from std_srvs.srv import Trigger, TriggerResponse
+    from ros_hrc.link.protocol import Ack, Decision, DispatchTable, Observation, Reset
+    from ros_hrc.link.token import read_token
+    from ros_hrc.link.transport import MessageServer
     from ros_hrc.msg import WorldState
-    from ros_hrc.srv import (Decide, DecideResponse, GetWorldState, GetWorldStateResponse,
-                             ResetPlanner, ResetPlannerResponse)
+    from ros_hrc.srv import GetWorldState, GetWorldStateResponse
     from ros_hrc.nodes.human_node import WORLD_SERVICES
 
     PRINT_LOCK = threading.Lock()
@@ -48,20 +52,23 @@ FAKE_WORLD = textwrap.dedent('''
         return GetWorldStateResponse(state=WorldState(sim_time=1.0, holder="none",
                                                       object_visible=True))
 
-    def decide(req):
-        say("called /hrc/obs/decide", req.epoch, req.step)
-        return DecideResponse(success=True, action="rIdle", belief_states=["S0"], belief=[1.0])
+    def decide(msg, _peer):
+        say("observation", msg.epoch, msg.step)
+        return Decision(step=msg.step, action="rIdle", belief_states=["S0"], belief=[1.0])
 
-    def reset_planner(req):
-        say("called /hrc/obs/reset_planner", req.epoch)
-        return ResetPlannerResponse(success=True, message="belief reset")
+    def reset_planner(msg, _peer):
+        say("reset of the planner", msg.epoch)
+        return Ack(step=0, of=Reset.TYPE, result="belief reset")
 
     rospy.init_node("fake_world", disable_signals=True)
     keep = [rospy.Service(name, Trigger, trigger(name)) for name in WORLD_SERVICES
             if name != "/hrc/world/state"]
     keep.append(rospy.Service("/hrc/world/state", GetWorldState, state))
-    keep.append(rospy.Service("/hrc/obs/decide", Decide, decide))
-    keep.append(rospy.Service("/hrc/obs/reset_planner", ResetPlanner, reset_planner))
+    planner = DispatchTable("fake_pomdp")
+    planner.on(Observation, decide)
+    planner.on(Reset, reset_planner)
+    pomdp = MessageServer(int(sys.argv[1]), planner, name="fake_pomdp",
+                          token=read_token(sys.argv[2])).start()
     say("fake world up")
     sys.stdin.read()   # until the test closes our stdin
 ''')
@@ -135,41 +142,44 @@ def wait_for_text(tmp_path, name, text, timeout=30.0):
 def test_a_late_world_is_waited_for_and_step_0_is_carried_out_once(ros, tmp_path, link_token):
     env, start = ros
     token, token_file = link_token
-    human_port, robot_port = free_port(), free_port()
+    human_port, pomdp_port = free_port(), free_port()
     start([sys.executable, str(ROOT / "scripts" / "hrc_human"), f"_human_port:={human_port}",
-           f"_robot_port:={robot_port}", "_read_stdin:=false", "_wait_report_every:=1.0",
+           f"_pomdp_port:={pomdp_port}", "_read_stdin:=false", "_wait_report_every:=1.0",
            f"_token_file:={token_file}"],
           "hrc_human")
     mdp = MessageClient(link_url(human_port), "despot_mdp", connect_timeout=60.0, token=token)
     try:
         mdp.connect()
-        # No world, no hrc_obs: hrc_human says what it waits for, and starts no episode.
+        # No world, no POMDP process: hrc_human says what it waits for, and starts no
+        # episode.
         assert wait_for_text(tmp_path, "hrc_human", "waiting for the world (hrc_world): "
                              "/hrc/world/reset, /hrc/world/state, /human/attempt_grasp"), \
             read(tmp_path, "hrc_human")
-        assert wait_for_text(tmp_path, "hrc_human", "; for the robot planner (hrc_obs): "
-                             "/hrc/obs/reset_planner, /hrc/obs/decide (3 s;"), \
+        assert wait_for_text(tmp_path, "hrc_human", "; for the robot planner (despot_pomdp): "
+                             f"ws://127.0.0.1:{pomdp_port} (3 s;"), \
             read(tmp_path, "hrc_human")
         with pytest.raises(LinkTimeout):
             mdp.receive(timeout=1.0, match=lambda m: isinstance(m, Reset))
         out = read(tmp_path, "hrc_human")
         assert "reset failed" not in out and "STEP FAILED" not in out, out
 
-        # The world and hrc_obs come up: the first reset, then step 0, carried out once.
+        # The world and the POMDP process come up: the first reset, then step 0, carried
+        # out once.
         script = tmp_path / "fake_world.py"
         script.write_text(FAKE_WORLD)
-        start([sys.executable, str(script)], "world", stdin=subprocess.PIPE)
+        start([sys.executable, str(script), str(pomdp_port), str(token_file)], "world",
+              stdin=subprocess.PIPE)
         reset = mdp.receive(timeout=60.0, match=lambda m: isinstance(m, Reset))
         assert reset.episode == 1
         assert wait_for_text(tmp_path, "hrc_human", "The world (hrc_world) and the robot planner "
-                             "(hrc_obs) are up after"), read(tmp_path, "hrc_human")
+                             "(despot_pomdp) are up after"), read(tmp_path, "hrc_human")
         reply = mdp.request(Step(step=0, action="graspAttempt", state="failed_to_grasp",
                                  epoch=reset.epoch), timeout=60.0)
         assert isinstance(reply, Ack) and reply.action == "rIdle", reply
         world = read(tmp_path, "world")
         assert world.count("called /human/attempt_grasp") == 1, world
         assert world.count("called /hrc/world/reset") == 1, world
-        assert f"called /hrc/obs/decide {reset.epoch} 0" in world, world
+        assert f"observation {reset.epoch} 0" in world, world
         out = read(tmp_path, "hrc_human")
         assert "reset failed" not in out and "STEP FAILED" not in out, out
         assert "----- step 0 -----" in out, out
@@ -184,13 +194,14 @@ def test_with_wait_for_listener_no_episode_starts_before_someone_listens(ros, tm
     ("the stack played episode 1 where episode 0 was due", about 1 cell in 130)."""
     env, start = ros
     token, token_file = link_token
-    human_port, robot_port = free_port(), free_port()
+    human_port, pomdp_port = free_port(), free_port()
     start([sys.executable, str(ROOT / "scripts" / "hrc_human"), f"_human_port:={human_port}",
-           f"_robot_port:={robot_port}", "_read_stdin:=false", "_wait_report_every:=1.0",
+           f"_pomdp_port:={pomdp_port}", "_read_stdin:=false", "_wait_report_every:=1.0",
            "_wait_for_listener:=true", f"_token_file:={token_file}"], "hrc_human")
     script = tmp_path / "fake_world.py"
     script.write_text(FAKE_WORLD)
-    start([sys.executable, str(script)], "world", stdin=subprocess.PIPE)
+    start([sys.executable, str(script), str(pomdp_port), str(token_file)], "world",
+          stdin=subprocess.PIPE)
     mdp = MessageClient(link_url(human_port), "despot_mdp", connect_timeout=60.0, token=token)
     try:
         mdp.connect()
