@@ -8,8 +8,6 @@ import pytest
 from ros_hrc import settings
 from ros_hrc.nodes.common import parameter, read_config
 from ros_hrc.nodes.human_node import HumanNodeConfig
-from ros_hrc.nodes.obs_node import ObsNodeConfig
-from ros_hrc.nodes.robot_node import RobotNodeConfig
 from ros_hrc.nodes.viz_node import VizNodeConfig
 from ros_hrc.nodes.world_node import WorldNodeConfig
 from ros_hrc.settings import SettingError
@@ -25,7 +23,7 @@ def params(**given):
 @dataclass(frozen=True)
 class SomeConfig:
     seed: int = 0
-    robot_port: int = 8080
+    pomdp_port: int = 7070
     timeout: float = 30.0
     verbose: bool = False
     names: Tuple[str, ...] = ("a", "b")
@@ -37,10 +35,10 @@ class SomeConfig:
 def test_a_setting_takes_the_table_s_default_and_checks():
     config = read_config(SomeConfig, params())
     assert config == SomeConfig()
-    assert read_config(SomeConfig, params(seed="", robot_port=" 8081 ")).robot_port == 8081
+    assert read_config(SomeConfig, params(seed="", pomdp_port=" 7071 ")).pomdp_port == 7071
     with pytest.raises(SettingError) as info:
-        read_config(SomeConfig, params(robot_port=70000))
-    assert str(info.value) == "robot_port:=70000: must be an integer from 1 to 65535"
+        read_config(SomeConfig, params(pomdp_port=70000))
+    assert str(info.value) == "pomdp_port:=70000: must be an integer from 1 to 65535"
 
 
 def test_other_fields_are_coerced_to_their_default_s_type():
@@ -53,8 +51,7 @@ def test_other_fields_are_coerced_to_their_default_s_type():
     assert read_config(SomeConfig, params(names=["p"])).names == ("p",)
 
 
-@pytest.mark.parametrize("config_type", [HumanNodeConfig, ObsNodeConfig, RobotNodeConfig,
-                                         WorldNodeConfig])
+@pytest.mark.parametrize("config_type", [HumanNodeConfig, WorldNodeConfig])
 def test_a_node_s_settings_default_to_the_table(config_type):
     """What a node is given when a parameter is unset is the table's default, whatever its
     dataclass says; the dataclasses say the same."""
@@ -72,7 +69,7 @@ def test_the_world_node_decides_what_its_parameters_leave_open(monkeypatch, tmp_
         (0.0, False, 1.0)
     assert config.snapshot_dir == str(tmp_path / "hrc_snapshots")
     assert config.model_dir.endswith("models/urdf")
-    assert config.loop_nodes == ("hrc_human", "hrc_robot")
+    assert config.loop_nodes == ("hrc_human",)
     config = WorldNodeConfig.from_params(params(real_time_factor="0", away_time="0.8",
                                                 loop_nodes="a,b", tf_rate=10,
                                                 **{"/use_sim_time": True}))

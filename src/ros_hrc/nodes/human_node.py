@@ -98,17 +98,20 @@ from ros_hrc.srv import GetWorldState, SetHumanState, SetHumanStateResponse
 
 @dataclass
 class HumanNodeConfig:
-    task: str = tasks.DEFAULT_TASK
-    seed: int = 0
-    host: str = "127.0.0.1"
-    human_port: int = 9090
-    pomdp_port: int = 7070
-    mode: str = "auto"
-    max_steps: int = 0
-    on_episode_end: str = "wait"
-    episodes: str = "live"      # the episode numbers to play (EpisodeSchedule text; live: 1, 2, ...)
-    wait_for_listener: bool = False   # no step before someone subscribes to /hrc/status
-    end_on_goal: bool = True
+    """The node's parameters (read_config); a launch setting's default is the table's."""
+    task: str = settings.default("task")
+    seed: int = settings.default("seed")
+    host: str = settings.default("host")
+    human_port: int = settings.default("human_port")
+    pomdp_port: int = settings.default("pomdp_port")
+    mode: str = settings.default("mode")
+    max_steps: int = settings.default("max_steps")
+    on_episode_end: str = settings.default("on_episode_end")
+    # the episode numbers to play (EpisodeSchedule text; live: 1, 2, ...)
+    episodes: str = settings.default("episodes")
+    # no step before someone subscribes to /hrc/status
+    wait_for_listener: bool = settings.default("wait_for_listener")
+    end_on_goal: bool = settings.default("end_on_goal")
     read_stdin: bool = True
     print_steps: bool = True
     service_timeout: float = 30.0
