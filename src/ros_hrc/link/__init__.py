@@ -18,6 +18,8 @@ gathers its public names); the only modules that import a websocket library:
   server       MessageServer (a thread per connection; refusals; dispatch)
   peer         Peer: one client of a server; its sends only queue (a bounded outbox)
   client       MessageClient: reconnects by itself, request() by correlation id
+  inbox        Inbox: what a client received, and its requests in flight matched to their
+               answers (Sans-I/O)
 
 Nothing is imported here, so ``import ros_hrc.link.protocol`` stays free of websockets.
 docs/protocol.md describes the protocol.

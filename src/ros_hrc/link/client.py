@@ -6,7 +6,8 @@ later, and roslaunch respawns a process that dies, so the links reconnect by the
 (websockets' ``reconnect``). Each connection opens with the hello of a
 :class:`~ros_hrc.link.session.Session`: with a link token, a server is taken only once its own
 hello proves the token. :meth:`MessageClient.request` stamps a fresh correlation ``id`` and
-waits for the reply with that ``reply_to``.
+waits for the reply with that ``reply_to``; the :class:`~ros_hrc.link.inbox.Inbox` keeps what
+came and matches each answer to its request.
 
 Exception tree (the first two live in :mod:`ros_hrc.errors`)::
 
@@ -24,28 +25,24 @@ client's reader thread: they may ``send`` but must not ``receive`` or ``request`
 """
 from __future__ import annotations
 
-import collections
-import itertools
 import logging
 import threading
 import time
 import urllib.parse
-from dataclasses import replace
-from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple
+from typing import Any, Callable, Iterator, List, Optional, Tuple
 
 from websockets.exceptions import ConnectionClosed, InvalidStatus, WebSocketException
 from websockets.sync.client import ClientConnection, reconnect
 
 from ros_hrc.errors import LinkError
 from ros_hrc.link.codec import decode, encode
-from ros_hrc.link.messages import REPLY_TYPES, Error, Hello, Message
+from ros_hrc.link.inbox import Inbox
+from ros_hrc.link.messages import Error, Hello, Message
 from ros_hrc.link.refusals import MessageError
 from ros_hrc.link.replies import error_reply, is_reply_to
 from ros_hrc.link.session import (CLOSE_GOING_AWAY, CLOSE_REFUSED, HELLO_TIMEOUT, Session,
                                   version_mismatch, websocket_settings)
 
-# How many request ids that timed out are remembered, so their late replies are dropped.
-_ABANDONED_IDS = 1024
 # The close code websockets gives a close frame that carries none.
 _NO_STATUS = 1005
 
@@ -128,18 +125,13 @@ class MessageClient:
         self._opening: Optional[ClientConnection] = None  # saying hello, or in use
         self._ws: Optional[ClientConnection] = None       # in use: sends go out on it
         self._connections = 0
-        self._inbox: List[Message] = []
-        self._next_id = itertools.count(1)
-        self._pending: Dict[int, int] = {}  # id of a request in flight -> how many wait on it
-        self._requests: Dict[int, Message] = {}   # id of a request in flight -> the request
-        self._rejected: Dict[int, str] = {}   # id of a request in flight -> why its answer failed
-        self._abandoned: "collections.OrderedDict[int, None]" = collections.OrderedDict()
         self._closed = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self.server_hello: Optional[Hello] = None
         #: (code, reason) of the last connection the server closed (code None: no close frame).
         self.last_close: Optional[Tuple[Optional[int], str]] = None
         self._log = _log.getChild(name)
+        self._inbox = Inbox(name, self._log)
 
     # -- connection state --------------------------------------------------------------------
 
@@ -248,10 +240,7 @@ class MessageClient:
             encode(msg)  # raises MessageError, as send() would
         deadline = _deadline(self.send_timeout if timeout is None else timeout)
         with self._cond:
-            if msg.id is None:
-                msg = replace(msg, id=next(self._next_id))
-            self._pending[msg.id] = self._pending.get(msg.id, 0) + 1
-            self._requests[msg.id] = msg
+            msg = self._inbox.open_request(msg)
         answered = False
         try:
             number = self.send(msg, _remaining(deadline))
@@ -261,27 +250,17 @@ class MessageClient:
             return reply
         finally:
             with self._cond:
-                left = self._pending.pop(msg.id) - 1
-                if left:
-                    self._pending[msg.id] = left
-                else:
-                    self._requests.pop(msg.id, None)
-                    self._rejected.pop(msg.id, None)
-                if not left and not answered:
-                    self._abandoned[msg.id] = None
-                    while len(self._abandoned) > _ABANDONED_IDS:
-                        self._abandoned.popitem(last=False)
+                self._inbox.close_request(msg.id, answered)
 
     def next_id(self) -> int:
         """A fresh correlation id of this client (the counter :meth:`request` uses)."""
         with self._cond:
-            return next(self._next_id)
+            return self._inbox.next_id()
 
     def drain(self) -> List[Message]:
         """Take every message waiting in the inbox (e.g. stale ones after a reset)."""
         with self._cond:
-            taken, self._inbox = self._inbox, []
-            return taken
+            return self._inbox.drain()
 
     # -- waiting -----------------------------------------------------------------------------
 
@@ -290,14 +269,12 @@ class MessageClient:
         deadline = _deadline(timeout)
         with self._cond:
             while True:
-                if own_id is not None and own_id in self._rejected:
-                    raise ReplyRejected(f"{self.name}: {self._rejected[own_id]}")
-                for i, msg in enumerate(self._inbox):
-                    if (msg.reply_to is not None and msg.reply_to in self._pending
-                            and msg.reply_to != own_id):
-                        continue  # kept for the request that waits for it
-                    if match is None or match(msg):
-                        return self._inbox.pop(i)
+                why = self._inbox.rejection(own_id)
+                if why is not None:
+                    raise ReplyRejected(f"{self.name}: {why}")
+                msg = self._inbox.take(match, own_id)
+                if msg is not None:
+                    return msg
                 if self._closed.is_set():
                     raise LinkClosed(f"{self.name}: client closed while receiving")
                 if connection is not None and (self._ws is None or
@@ -486,8 +463,10 @@ class MessageClient:
             except MessageError as exc:
                 self._log.warning("%s: rejected a frame from %s: %s", self.name, self.url, exc)
                 if exc.reply_to is not None:
-                    self._reject_answer(exc.reply_to, f"the answer to request {exc.reply_to} "
-                                        f"was rejected: {exc.reason}")
+                    with self._cond:
+                        if self._inbox.reject(exc.reply_to, f"the answer to request "
+                                              f"{exc.reply_to} was rejected: {exc.reason}"):
+                            self._cond.notify_all()
                 if exc.msg_type == Error.TYPE:
                     continue  # an error is never answered, even a malformed one
                 try:
@@ -499,46 +478,5 @@ class MessageClient:
                 self._take_server_hello(msg)
                 continue
             with self._cond:
-                if msg.reply_to is not None and msg.reply_to in self._abandoned:
-                    del self._abandoned[msg.reply_to]
-                    self._log.debug("%s: dropped a late %s answering request %d", self.name,
-                                    msg.type, msg.reply_to)
-                    continue
-                why = self._wrong_answer(msg)
-                if why is not None:
-                    request_id, text = why
-                    self._log.warning("%s: %s", self.name, text)
-                    self._rejected[request_id] = text
+                if self._inbox.deliver(msg):
                     self._cond.notify_all()
-                    continue
-                self._inbox.append(msg)
-                self._cond.notify_all()
-
-    def _wrong_answer(self, msg: Message) -> Optional[Tuple[int, str]]:
-        """(request id, why) when ``msg`` answers a request in flight but may not be taken
-        as its answer: of another epoch than the request's, or (a reply without ``reply_to``)
-        answering it only by the version 1 rules. Called with ``_cond`` held."""
-        if not isinstance(msg, REPLY_TYPES):
-            return None
-        if msg.reply_to is not None:
-            request = self._requests.get(msg.reply_to)
-            if request is None or request.epoch is None or msg.epoch == request.epoch:
-                return None
-            return msg.reply_to, (
-                f"the {msg.type} answering {request.type} {msg.reply_to} is of epoch "
-                f"{msg.epoch}, the request of epoch {request.epoch}: a reply carries its "
-                "request's epoch, so it was dropped")
-        for request_id, request in self._requests.items():
-            if is_reply_to(msg, replace(request, id=None)):
-                return request_id, (
-                    f"a {msg.type} answered {request.type} {request_id} without reply_to "
-                    f"(version 2 replies carry their request's id): dropped"
-                    + (f" ({msg.message})" if isinstance(msg, Error) else ""))
-        return None
-
-    def _reject_answer(self, request_id: int, why: str) -> None:
-        """Fail the request in flight ``request_id`` at once with ``why``."""
-        with self._cond:
-            if request_id in self._requests:
-                self._rejected[request_id] = why
-                self._cond.notify_all()

@@ -10,6 +10,7 @@ modules move its text frames:
   ros_hrc.link.peer     Peer: one client of a server, whose sends only queue (a bounded outbox)
   ros_hrc.link.client   MessageClient: reconnects, says hello, request() by correlation id;
                         LinkTimeout, LinkClosed, LinkDropped, ReplyRejected
+  ros_hrc.link.inbox    Inbox: what a client received, its requests matched to their answers
 
 Size limits: a message larger than :data:`~ros_hrc.link.protocol.MAX_MESSAGE_BYTES` is refused
 by ``encode`` before it is sent, and answered with an ``error`` when received (the connection
