@@ -65,6 +65,7 @@ from typing import Any, List, Optional, Tuple, Union
 import rospy
 import rostest
 from websockets.exceptions import ConnectionClosed, WebSocketException
+from websockets.frames import CloseCode
 from websockets.sync.client import ClientConnection, connect
 
 import fuzz_frames  # next to this file, as hrc_stack is
@@ -99,8 +100,6 @@ STEPS_WAIT = 90.0
 #: The launch's processes, by their __name.
 PROCESSES = ("hrc_world", "hrc_robot", "hrc_obs", "hrc_human", "despot_pomdp", "despot_mdp")
 PROBE_TYPE = "fuzz_probe"
-# The close code websockets gives a close frame that carries none.
-NO_CLOSE_CODE = 1005
 PORT_NAMES = ("pomdp", "robot", "human")
 WHO = "fuzz_test"
 
@@ -171,7 +170,7 @@ def read(ws: ClientConnection, timeout: float) -> Union[str, bytes]:
         return ws.recv(timeout)
     except ConnectionClosed as closed:
         code = closed.rcvd.code if closed.rcvd is not None else None
-        raise Closed(None if code == NO_CLOSE_CODE else code) from None
+        raise Closed(None if code == CloseCode.NO_STATUS_RCVD else code) from None
 
 
 def read_message(ws: ClientConnection, timeout: float, stats: Stats,

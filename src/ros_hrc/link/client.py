@@ -27,11 +27,11 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 import urllib.parse
 from typing import Any, Callable, Iterator, List, Optional, Tuple
 
 from websockets.exceptions import ConnectionClosed, InvalidStatus, WebSocketException
+from websockets.frames import CloseCode
 from websockets.sync.client import ClientConnection, reconnect
 
 from ros_hrc.errors import LinkError
@@ -41,10 +41,8 @@ from ros_hrc.link.messages import Error, Hello, Message
 from ros_hrc.link.refusals import MessageError
 from ros_hrc.link.replies import error_reply, is_reply_to
 from ros_hrc.link.session import (CLOSE_GOING_AWAY, CLOSE_REFUSED, HELLO_TIMEOUT, Session,
-                                  version_mismatch, websocket_settings)
-
-# The close code websockets gives a close frame that carries none.
-_NO_STATUS = 1005
+                                  deadline_after, time_left, version_mismatch,
+                                  websocket_settings)
 
 _log = logging.getLogger("ros_hrc.link")
 
@@ -78,14 +76,6 @@ def connect_failure(exc: BaseException) -> str:
             f"the server refused the handshake (HTTP {status})"
     text = " ".join(str(exc).split())
     return text[:200] or type(exc).__name__
-
-
-def _deadline(timeout: Optional[float]) -> Optional[float]:
-    return None if timeout is None else time.monotonic() + max(0.0, timeout)
-
-
-def _remaining(deadline: Optional[float]) -> Optional[float]:
-    return None if deadline is None else max(0.0, deadline - time.monotonic())
 
 
 class MessageClient:
@@ -163,7 +153,7 @@ class MessageClient:
         Raises :class:`LinkTimeout` if the server did not answer in time; the client keeps
         trying in the background, so calling again waits more."""
         self.start()
-        self._wait_connected(_deadline(self.connect_timeout if timeout is None else timeout))
+        self._wait_connected(deadline_after(self.connect_timeout if timeout is None else timeout))
         return self
 
     def close(self) -> None:
@@ -197,7 +187,7 @@ class MessageClient:
         :class:`LinkTimeout`, :class:`LinkClosed`."""
         text = encode(msg)
         self.start()
-        deadline = _deadline(self.send_timeout if timeout is None else timeout)
+        deadline = deadline_after(self.send_timeout if timeout is None else timeout)
         for attempt in (1, 2):
             ws = self._wait_connected(deadline)
             with self._cond:
@@ -238,13 +228,13 @@ class MessageClient:
         dropped when it arrives."""
         if not isinstance(msg, Message):
             encode(msg)  # raises MessageError, as send() would
-        deadline = _deadline(self.send_timeout if timeout is None else timeout)
+        deadline = deadline_after(self.send_timeout if timeout is None else timeout)
         with self._cond:
             msg = self._inbox.open_request(msg)
         answered = False
         try:
-            number = self.send(msg, _remaining(deadline))
-            reply = self._receive(_remaining(deadline), lambda r: is_reply_to(r, msg), number,
+            number = self.send(msg, time_left(deadline))
+            reply = self._receive(time_left(deadline), lambda r: is_reply_to(r, msg), number,
                                   msg.id)
             answered = True
             return reply
@@ -266,7 +256,7 @@ class MessageClient:
 
     def _receive(self, timeout: Optional[float], match: Optional[Callable[[Message], bool]],
                  connection: Optional[int], own_id: Optional[int]) -> Message:
-        deadline = _deadline(timeout)
+        deadline = deadline_after(timeout)
         with self._cond:
             while True:
                 why = self._inbox.rejection(own_id)
@@ -281,7 +271,7 @@ class MessageClient:
                                                self._connections != connection):
                     raise LinkDropped(f"{self.name}: the connection to {self.url} broke "
                                       "before the reply came")
-                left = _remaining(deadline)
+                left = time_left(deadline)
                 if left == 0.0:
                     raise LinkTimeout(f"{self.name}: no message from {self.url} in {timeout} s")
                 self._cond.wait(left)
@@ -291,7 +281,7 @@ class MessageClient:
             while self._ws is None:
                 if self._closed.is_set():
                     raise LinkClosed(f"{self.name}: client is closed")
-                left = _remaining(deadline)
+                left = time_left(deadline)
                 if left == 0.0:
                     raise LinkTimeout(f"{self.name}: no connection to {self.url}")
                 self._cond.wait(left)
@@ -455,7 +445,7 @@ class MessageClient:
                 if received is None:
                     self.last_close = (None, "")
                     return None
-                code = None if received.code == _NO_STATUS else received.code
+                code = None if received.code == CloseCode.NO_STATUS_RCVD else received.code
                 self.last_close = (code, received.reason)
                 return code
             try:

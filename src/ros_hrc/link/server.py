@@ -41,8 +41,8 @@ from ros_hrc.link.refusals import (ERR_FAILED, ERR_REFUSED, ERR_UNAUTHORIZED, ER
                                    MessageError)
 from ros_hrc.link.replies import as_reply, error_reply
 from ros_hrc.link.session import (CLOSE_GOING_AWAY, CLOSE_REFUSED, CLOSE_TIMEOUT, DEFAULT_HOST,
-                                  HELLO_TIMEOUT, Session, UsedNonces, link_url,
-                                  version_mismatch, websocket_settings)
+                                  HELLO_TIMEOUT, Session, UsedNonces, deadline_after,
+                                  link_url, time_left, version_mismatch, websocket_settings)
 
 #: Pause between attempts when accepting a connection fails for want of a resource (file
 #: descriptors, memory): the connection waits in the listen queue meanwhile.
@@ -205,9 +205,9 @@ class MessageServer:
         # the connections with what is queued still unsent).
         for peer in live:
             peer.close(CLOSE_GOING_AWAY, "server stopping")
-        deadline = time.monotonic() + CLOSE_TIMEOUT
+        deadline = deadline_after(CLOSE_TIMEOUT)
         for peer in live:
-            peer._writer.join(max(0.0, deadline - time.monotonic()))
+            peer._writer.join(time_left(deadline))
         for peer in live:
             if peer._writer.is_alive():
                 peer.abort("it was still sending when the server stopped")
@@ -242,7 +242,7 @@ class MessageServer:
     def wait_for_client(self, timeout: Optional[float] = None, who: Optional[str] = None) -> bool:
         """Wait until a client is connected (one that said hello as ``who``, if given);
         ``False`` if none came within ``timeout`` seconds or the server was stopped."""
-        deadline = None if timeout is None else time.monotonic() + max(0.0, timeout)
+        deadline = deadline_after(timeout)
 
         def ready() -> bool:
             if who is None:
@@ -253,7 +253,7 @@ class MessageServer:
             while not ready():
                 if self._server is None:
                     return False
-                left = None if deadline is None else max(0.0, deadline - time.monotonic())
+                left = time_left(deadline)
                 if left == 0.0:
                     return False
                 self._peers_changed.wait(left)

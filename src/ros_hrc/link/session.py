@@ -15,6 +15,7 @@ from __future__ import annotations
 import collections
 import logging
 import socket
+import time
 from typing import Any, Dict, Optional
 
 from ros_hrc.link.codec import MAX_MESSAGE_BYTES
@@ -54,6 +55,16 @@ def free_port(host: str = DEFAULT_HOST) -> int:
 def link_url(port: int, host: str = DEFAULT_HOST) -> str:
     """The websocket URL of a server of this package."""
     return f"ws://{host}:{port}"
+
+
+def deadline_after(timeout: Optional[float]) -> Optional[float]:
+    """The monotonic time ``timeout`` seconds from now (``None``: no deadline)."""
+    return None if timeout is None else time.monotonic() + max(0.0, timeout)
+
+
+def time_left(deadline: Optional[float]) -> Optional[float]:
+    """Seconds until ``deadline``, never below 0 (``None``: no deadline, wait on)."""
+    return None if deadline is None else max(0.0, deadline - time.monotonic())
 
 
 def websocket_settings(log: logging.Logger) -> Dict[str, Any]:

@@ -6,10 +6,8 @@ import socket
 from typing import List, Optional, Tuple, Union
 
 from websockets.exceptions import ConnectionClosed
+from websockets.frames import CloseCode
 from websockets.sync.client import connect
-
-# The close code websockets gives a close frame that carries none.
-_NO_STATUS = 1005
 
 
 class RawConnection:
@@ -40,7 +38,7 @@ class RawConnection:
                 got.append(self.recv())
         except ConnectionClosed as closed:
             code = closed.rcvd.code if closed.rcvd is not None else None
-            return got, None if code == _NO_STATUS else code
+            return got, None if code == CloseCode.NO_STATUS_RCVD else code
         except TimeoutError:   # it never closed
             return got, None
         finally:
