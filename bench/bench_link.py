@@ -29,7 +29,6 @@ import time
 from pathlib import Path
 from typing import Dict
 
-import websocket
 import websockets
 
 from ros_hrc.link.protocol import Ack, Message, Step, decode, encode
@@ -159,7 +158,6 @@ def main(argv=None) -> int:
         "environment": {
             "python": platform.python_version(),
             "websockets": websockets.__version__,
-            "websocket_client": websocket.__version__,
             "cpus": os.cpu_count(),
             "machine": platform.machine(),
         },

@@ -56,15 +56,18 @@ import collections
 import json
 import os
 import random
+import socket
 import sys
 import threading
 import time
 import unittest
-from typing import Any, List, Optional, Tuple
+from typing import Any, List, Optional, Tuple, Union
 
 import rospy
 import rostest
-import websocket
+from websockets.exceptions import ConnectionClosed, WebSocketException
+from websockets.frames import CloseCode
+from websockets.sync.client import ClientConnection, connect
 
 import fuzz_frames  # next to this file, as hrc_stack is
 from hrc_stack import StatusLog, node_pids, start_stack, stop_stack
@@ -129,85 +132,65 @@ class Closed(Exception):
         self.code = code
 
 
-def open_socket(port: int) -> websocket.WebSocket:
-    return websocket.create_connection(f"ws://127.0.0.1:{port}", timeout=ANSWER_TIMEOUT)
+def open_socket(port: int) -> ClientConnection:
+    # No keepalive pings and no frame limit of ours: only what the fuzz sends goes out, and
+    # whatever a server sends is read.
+    return connect(f"ws://127.0.0.1:{port}", open_timeout=ANSWER_TIMEOUT, close_timeout=1.0,
+                   compression=None, max_size=None, ping_interval=None, proxy=None,
+                   legacy=True)
 
 
-def send_frame(ws: websocket.WebSocket, frame: fuzz_frames.Frame) -> None:
+def hang_up(ws: ClientConnection) -> None:
+    """End the connection at once, without a closing handshake."""
+    try:
+        ws.socket.shutdown(socket.SHUT_RDWR)
+    except OSError:
+        pass
+    ws.close()
+
+
+def send_frame(ws: ClientConnection, frame: fuzz_frames.Frame) -> None:
     """Send a fuzz frame as it is: text (its bytes as they are, UTF-8 or not) or binary, in
-    its fragments."""
-    opcode = websocket.ABNF.OPCODE_BINARY if frame.binary else websocket.ABNF.OPCODE_TEXT
+    its fragments (websockets ends a fragmented message with an empty final fragment)."""
     if frame.fragments <= 1:
-        ws.send(frame.payload, opcode)
+        ws.send(frame.payload, text=not frame.binary)
         return
-    sizes = fuzz_frames.fragment_sizes(frame)
-    at = 0
-    for i, size in enumerate(sizes):
-        chunk = frame.payload[at:at + size]
+    chunks, at = [], 0
+    for size in fuzz_frames.fragment_sizes(frame):
+        chunks.append(frame.payload[at:at + size])
         at += size
-        ws.send_frame(websocket.ABNF.create_frame(
-            chunk, opcode if i == 0 else websocket.ABNF.OPCODE_CONT,
-            fin=int(i == len(sizes) - 1)))
+    ws.send(chunks, text=not frame.binary)
 
 
-def read(ws: websocket.WebSocket, timeout: float) -> Tuple[int, bytes]:
-    """The next data message: (opcode, payload bytes). Raises :class:`Closed` when the server
-    closed the connection (with the close frame's code), ``WebSocketTimeoutException`` when
-    nothing came in time. Frame by frame, so that a close code is never lost to the reply
-    websocket-client would send to it."""
-    ws.settimeout(timeout)
-    opcode, parts = None, []
-    while True:
-        try:
-            frame = ws.recv_frame()
-        except websocket.WebSocketTimeoutException:
-            raise
-        except (websocket.WebSocketException, OSError):
-            raise Closed(None) from None
-        if frame.opcode == websocket.ABNF.OPCODE_CLOSE:
-            data = frame.data or b""
-            try:
-                ws.send_close()
-            except (websocket.WebSocketException, OSError):
-                pass
-            raise Closed(int.from_bytes(data[:2], "big") if len(data) >= 2 else None)
-        if frame.opcode == websocket.ABNF.OPCODE_PING:
-            try:
-                ws.pong(frame.data)
-            except (websocket.WebSocketException, OSError):
-                pass
-            continue
-        if frame.opcode == websocket.ABNF.OPCODE_PONG:
-            continue
-        if frame.opcode != websocket.ABNF.OPCODE_CONT:
-            opcode, parts = frame.opcode, []
-        parts.append(frame.data if isinstance(frame.data, bytes) else
-                     str(frame.data).encode("utf-8"))
-        if frame.fin:
-            return opcode, b"".join(parts)
+def read(ws: ClientConnection, timeout: float) -> Union[str, bytes]:
+    """The next data message: ``str`` from a text frame, ``bytes`` from a binary one. Raises
+    :class:`Closed` when the server closed the connection (with the close frame's code),
+    ``TimeoutError`` when nothing came in time. websockets answers pings and keeps the close
+    code the server sent."""
+    try:
+        return ws.recv(timeout)
+    except ConnectionClosed as closed:
+        code = closed.rcvd.code if closed.rcvd is not None else None
+        raise Closed(None if code == CloseCode.NO_STATUS_RCVD else code) from None
 
 
-def read_message(ws: websocket.WebSocket, timeout: float, stats: Stats,
+def read_message(ws: ClientConnection, timeout: float, stats: Stats,
                  where: str) -> Optional[Any]:
     """The next frame from the server, decoded; a frame that is not a valid message (which no
-    server may send) is a problem, and ``None``."""
-    opcode, data = read(ws, timeout)
-    if opcode != websocket.ABNF.OPCODE_TEXT:
-        stats.problem(f"{where}: the server sent a non-text frame ({opcode}): {data[:80]!r}")
+    server may send) is a problem, and ``None``. (A text frame that is not UTF-8 fails the
+    connection in websockets itself: it shows as a close.)"""
+    data = read(ws, timeout)
+    if isinstance(data, bytes):
+        stats.problem(f"{where}: the server sent a binary frame: {data[:80]!r}")
         return None
     try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError:
-        stats.problem(f"{where}: the server sent a text frame that is not UTF-8: {data[:80]!r}")
-        return None
-    try:
-        return decode(text)
+        return decode(data)
     except MessageError as exc:
-        stats.problem(f"{where}: the server sent an invalid message ({exc}): {text[:160]!r}")
+        stats.problem(f"{where}: the server sent an invalid message ({exc}): {data[:160]!r}")
         return None
 
 
-def wait_closed(ws: websocket.WebSocket, stats: Stats, where: str,
+def wait_closed(ws: ClientConnection, stats: Stats, where: str,
                 allow_replies: int = 0) -> Tuple[Optional[int], List[Any]]:
     """Read until the server closes; (close code, messages read meanwhile). A server that does
     not close within :data:`ANSWER_TIMEOUT` is a problem."""
@@ -223,7 +206,7 @@ def wait_closed(ws: websocket.WebSocket, stats: Stats, where: str,
             msg = read_message(ws, left, stats, where)
         except Closed as closed:
             return closed.code, messages
-        except websocket.WebSocketTimeoutException:
+        except TimeoutError:
             continue
         messages.append(msg)
 
@@ -287,7 +270,7 @@ class PortFuzzer:
         self.rng = random.Random(seed)
         self.stats = Stats(name, port)
         self.stats.bytes = sum(f.size for f in frames)
-        self.ws: Optional[websocket.WebSocket] = None
+        self.ws: Optional[ClientConnection] = None
         self.probes = 0
         self.last_hello: Optional[str] = None
         self.error: Optional[BaseException] = None
@@ -366,12 +349,12 @@ class PortFuzzer:
                         s.frames += 1
                         s.unauth += 1
                     else:
-                        ws.send(frame[0], frame[1])
-                except (websocket.WebSocketException, OSError):
+                        ws.send(frame[0], text=not frame[1])
+                except (WebSocketException, OSError):
                     break  # closed already
             code, messages = wait_closed(ws, s, where)
         finally:
-            ws.shutdown()
+            hang_up(ws)
         if code != -1:
             s.closed += 1
         s.codes[code_name(code)] += 1
@@ -402,17 +385,16 @@ class PortFuzzer:
 
     def _token_case(self, case: str) -> None:
         """A hello that proves nothing here, though made with the token."""
-        text_op = websocket.ABNF.OPCODE_TEXT
+        text, binary = False, True   # (frame, binary?)
         if case == "replay" and self.last_hello:
-            frames = [(self.last_hello, text_op)]
+            frames = [(self.last_hello, text)]
         elif case == "other_port":
             frames = [(hello_frame(self.token, self.port, proof_port=self.other_port)[0],
-                       text_op)]
+                       text)]
         elif case == "server_role":
-            frames = [(hello_frame(self.token, self.port, role="server")[0], text_op)]
+            frames = [(hello_frame(self.token, self.port, role="server")[0], text)]
         elif case == "binary_hello":
-            frames = [(hello_frame(self.token, self.port)[0].encode(),
-                       websocket.ABNF.OPCODE_BINARY)]
+            frames = [(hello_frame(self.token, self.port)[0].encode(), binary)]
         else:
             return
         self._refused(frames, f"token case {case}", expect_error=True)
@@ -433,15 +415,15 @@ class PortFuzzer:
             s.problem(f"our proving hello was answered with a close ({code_name(closed.code)})")
             s.closed += 1
             s.codes[code_name(closed.code)] += 1
-            ws.shutdown()
+            hang_up(ws)
             return False
-        except websocket.WebSocketTimeoutException:
+        except TimeoutError:
             s.problem("our proving hello was not answered")
-            ws.shutdown()
+            hang_up(ws)
             return False
         if not server_proves(msg, self.token, self.port, nonce):
             s.problem(f"the server's answer to our hello does not prove the token: {msg}")
-            ws.shutdown()
+            hang_up(ws)
             return False
         self.ws = ws
         self.last_hello = hello
@@ -450,12 +432,12 @@ class PortFuzzer:
     def _drop(self) -> None:
         if self.ws is not None:
             try:
-                self.ws.close(timeout=1)
-            except (websocket.WebSocketException, OSError):
+                self.ws.close()   # within its close_timeout
+            except (WebSocketException, OSError):
                 pass
             self.ws = None
 
-    def _probe(self, ws: websocket.WebSocket) -> Tuple[str, int]:
+    def _probe(self, ws: ClientConnection) -> Tuple[str, int]:
         self.probes += 1
         probe_id = 7_000_000_000 + self.probes
         ws.send(json.dumps({"type": PROBE_TYPE, "id": probe_id}))
@@ -490,7 +472,7 @@ class PortFuzzer:
                 send_frame(ws, frame)
                 sent.append(frame)
             probe_id = self._probe(ws)[1]
-        except (websocket.WebSocketException, OSError) as exc:
+        except (WebSocketException, OSError) as exc:
             s.problem(f"a send failed ({exc}): the server closed the connection during: "
                       + self._describe(batch[:len(sent) + 1]))
         s.frames += len(sent)
@@ -511,7 +493,7 @@ class PortFuzzer:
                 s.problem(f"the server closed the connection ({code_name(closed.code)}) after "
                           f"{len(sent)} frames; " + self._isolate(sent))
                 return
-            except websocket.WebSocketTimeoutException:
+            except TimeoutError:
                 continue
             if self._is_probe_answer(msg, probe_id):
                 break
@@ -531,7 +513,7 @@ class PortFuzzer:
         ws = self.ws
         try:
             send_frame(ws, frame)
-        except (websocket.WebSocketException, OSError):
+        except (WebSocketException, OSError):
             pass  # the server may close before it has all of it
         s.frames += 1
         code, messages = wait_closed(ws, s, f"after {frame.kind}")
@@ -550,7 +532,7 @@ class PortFuzzer:
             s.closed += 1
         s.codes[code_name(code)] += 1
         if self.ws is not None:
-            self.ws.shutdown()
+            hang_up(self.ws)
             self.ws = None
 
     def _count(self, replies: List[Any]) -> None:
@@ -603,7 +585,7 @@ class PortFuzzer:
                     if self._is_probe_answer(msg, probe_id):
                         break
                     got.append(msg)
-            except (Closed, websocket.WebSocketException, OSError) as exc:
+            except (Closed, WebSocketException, OSError) as exc:
                 found.append(f"{frame.kind} {frame.preview()}: {type(exc).__name__} {exc}")
                 self._drop()
                 continue
@@ -612,11 +594,11 @@ class PortFuzzer:
                              f"{[str(m)[:200] for m in got]}")
         return "frames answered otherwise, one by one: " + (" | ".join(found) or "none")
 
-    def _open(self, where: str = "") -> Optional[websocket.WebSocket]:
+    def _open(self, where: str = "") -> Optional[ClientConnection]:
         """A new connection to the port, counted; None (and a problem noted) if it fails."""
         try:
             ws = open_socket(self.port)
-        except (websocket.WebSocketException, OSError) as exc:
+        except (WebSocketException, OSError) as exc:
             self.stats.problem(f"{where + ': ' if where else ''}cannot connect: {exc}")
             return None
         self.stats.conns += 1
@@ -641,11 +623,11 @@ class PortFuzzer:
                 sent.append(frame)
             if not (sent and sent[-1].closes):
                 self._probe(ws)
-        except (websocket.WebSocketException, OSError):
+        except (WebSocketException, OSError):
             pass  # the refusal came first
         s.frames += len(sent)
         code, messages = wait_closed(ws, s, "the human port's refusal")
-        ws.shutdown()
+        hang_up(ws)
         if code != -1:
             s.closed += 1
         s.codes[code_name(code)] += 1
@@ -686,15 +668,15 @@ class PortFuzzer:
         for frame in frames:
             try:
                 ws = open_socket(self.port)
-            except (websocket.WebSocketException, OSError):
+            except (WebSocketException, OSError):
                 continue
             try:
                 ws.send(hello_frame(self.token, self.port)[0])
                 send_frame(ws, frame)
-            except (websocket.WebSocketException, OSError):
+            except (WebSocketException, OSError):
                 pass
             code, messages = wait_closed(ws, Stats(self.name, self.port), "isolating")
-            ws.shutdown()
+            hang_up(ws)
             if code != 1008:
                 found.append(f"{frame.kind} ({frame.note}) {frame.preview()} -> close "
                              f"{code_name(code)}")
@@ -709,7 +691,7 @@ def still_up(name: str, port: int, token: str) -> str:
     stats = Stats(name, port)
     try:
         ws = open_socket(port)
-    except (websocket.WebSocketException, OSError) as exc:
+    except (WebSocketException, OSError) as exc:
         return f"{name} port {port}: cannot connect: {exc}"
     try:
         hello, nonce = hello_frame(token, port)
@@ -730,10 +712,10 @@ def still_up(name: str, port: int, token: str) -> str:
         return "; ".join(stats.problems)
     except Closed as closed:
         return f"{name} port {port}: closed ({code_name(closed.code)})"
-    except websocket.WebSocketException as exc:
+    except (WebSocketException, TimeoutError) as exc:
         return f"{name} port {port}: {type(exc).__name__}: {exc}"
     finally:
-        ws.shutdown()
+        hang_up(ws)
 
 
 def counts_block(fuzzers: List[PortFuzzer], seconds: float) -> str:

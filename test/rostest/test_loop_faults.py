@@ -35,9 +35,10 @@ import time
 import unittest
 
 import rospy
-import websocket
 import rostest
 from std_srvs.srv import Trigger
+from websockets.exceptions import WebSocketException
+from websockets.sync.client import connect
 
 from ros_hrc.experiment.stack import pick_ports
 from ros_hrc.link.protocol import Action, Error
@@ -104,15 +105,15 @@ class TestLoopFaults(unittest.TestCase):
 
     def refused_without_the_token(self, port, frames):
         """What the server at ``port`` answers ``frames`` sent without the launch's token."""
-        ws = websocket.create_connection(f"ws://127.0.0.1:{port}", timeout=30)
+        ws = connect(f"ws://127.0.0.1:{port}", open_timeout=30, proxy=None, legacy=True)
         answers = []
         try:
             for frame in frames:
                 ws.send(frame)
             while True:
                 try:
-                    answers.append(json.loads(ws.recv()))
-                except (websocket.WebSocketException, OSError, ValueError):
+                    answers.append(json.loads(ws.recv(timeout=30)))
+                except (WebSocketException, OSError, ValueError):
                     break   # refused and disconnected
         finally:
             ws.close()

@@ -12,13 +12,14 @@ import textwrap
 import time
 
 import pytest
-import websocket
 
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_UNAUTHORIZED, MAX_UINT32, Ack, Action,
                                    DispatchTable, Error, Hello, MessageError, Reset, Step,
                                    decode, encode)
 from ros_hrc.link.token import new_nonce, proof
 from ros_hrc.link.transport import CLOSE_REFUSED, LinkTimeout, MessageClient, MessageServer
+
+from raw_client import RawConnection
 
 SAFETY = 10.0
 FAST_BACKOFF = (0.01, 0.1)
@@ -41,23 +42,12 @@ class Robot:
 
 
 def raw(server):
-    return websocket.create_connection(server.url, timeout=SAFETY)
+    return RawConnection(server.url, SAFETY)
 
 
 def frames_until_closed(ws):
-    """Every frame the server sends until it closes: [(opcode, text)], then the close code."""
-    got = []
-    try:
-        while True:
-            try:
-                opcode, data = ws.recv_data()
-            except (websocket.WebSocketException, OSError):
-                return got, None
-            if opcode == websocket.ABNF.OPCODE_CLOSE:
-                return got, int.from_bytes(data[:2], "big") if len(data) >= 2 else None
-            got.append(data.decode())
-    finally:
-        ws.shutdown()
+    """Every frame the server sends until it closes: [text], then the close code."""
+    return ws.frames_until_closed()
 
 
 def client_hello(token, port, who="hrc_human", nonce=None):
@@ -306,7 +296,7 @@ def test_the_server_serves_again_once_file_descriptors_are_back():
         proc.stdin.flush()
         assert proc.stdout.readline().strip() == "released"
         sock.close()
-        ws = websocket.create_connection(f"ws://127.0.0.1:{port}", timeout=SAFETY)
+        ws = RawConnection(f"ws://127.0.0.1:{port}", SAFETY)
         ws.send(encode(Hello(who="test")))
         assert isinstance(decode(ws.recv()), Hello)
         ws.send(encode(Reset(id=1)))

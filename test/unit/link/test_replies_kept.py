@@ -7,7 +7,9 @@ import json
 import logging
 
 import pytest
-import websocket
+from websockets.datastructures import Headers
+from websockets.exceptions import InvalidStatus
+from websockets.http11 import Response
 
 from ros_hrc.link.protocol import Ack, Decision, DispatchTable, Observation, Reset
 from ros_hrc.link.transport import (LinkTimeout, MessageClient, MessageServer, ReplyRejected,
@@ -94,10 +96,10 @@ def test_a_decision_without_reply_to_fails_its_request_at_once(ask):
 
 def test_a_refused_handshake_is_one_plain_line():
     """Issue #20: shutdown printed websocket's "Handshake status 503" with every header."""
-    exc = websocket.WebSocketBadStatusException(
-        "Handshake status %d %s -+-+- %s -+-+- %s", 503, "Service Unavailable",
-        {"date": "today", "connection": "close", "content-length": "31"},
-        b"hrc_robot is stopping\n")
+    exc = InvalidStatus(Response(
+        503, "Service Unavailable",
+        Headers({"date": "today", "connection": "close", "content-length": "31"}),
+        b"hrc_robot is stopping\n"))
     text = connect_failure(exc)
     assert text == "the server is stopping (HTTP 503)"
     assert "Handshake" not in text and "{" not in text and "\n" not in text

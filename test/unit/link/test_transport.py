@@ -1,17 +1,18 @@
 """The websocket transport on 127.0.0.1 with ephemeral ports: real websockets servers and
-websocket-client clients. Waits carry generous timeouts only as safety nets: no assertion
+clients. Waits carry generous timeouts only as safety nets: no assertion
 depends on how fast anything is."""
 import threading
 from dataclasses import replace
 
 import pytest
-import websocket
 
 from ros_hrc.errors import LinkError, ProtocolError
 from ros_hrc.link.protocol import (ERR_FAILED, MAX_MESSAGE_BYTES, Ack, Error, Hello, Message,
                                    NextState, Observation, Reset, Step, decode, encode)
 from ros_hrc.link.transport import (FRAME_LIMIT_BYTES, LinkClosed, LinkDropped, LinkTimeout,
                                     MessageClient, MessageServer, Peer, link_url)
+
+from raw_client import RawConnection
 
 SAFETY = 10.0  # seconds; only ever reached when something is broken
 FAST_BACKOFF = (0.01, 0.1)
@@ -83,8 +84,8 @@ def bare(msg):
 
 
 def raw_connection(server):
-    """A bare websocket-client connection, able to send what MessageClient never would."""
-    return websocket.create_connection(server.url, timeout=SAFETY)
+    """A bare websocket connection, able to send what MessageClient never would."""
+    return RawConnection(server.url, SAFETY)
 
 
 def test_server_binds_loopback_by_default_on_an_ephemeral_port(server):
@@ -141,10 +142,7 @@ def test_malformed_frame_gets_an_error_reply_and_the_connection_keeps_working(
         server, recorder, kind, frame, words):
     ws = raw_connection(server)
     try:
-        if kind == "binary":
-            ws.send_binary(frame)
-        else:
-            ws.send(frame)
+        ws.send(frame)   # bytes go in a binary frame
         reply = decode(ws.recv())
         assert isinstance(reply, Error) and words in reply.message
         assert recorder.seen == []  # the handler never saw it: nothing half-applied
@@ -200,11 +198,11 @@ def test_frame_over_the_frame_limit_closes_only_that_connection(server, client):
     ws = raw_connection(server)
     try:
         ws.send("x" * (FRAME_LIMIT_BYTES + 1))
-        opcode, frame = ws.recv_data_frame()
-        assert opcode == websocket.ABNF.OPCODE_CLOSE
-        assert int.from_bytes(frame.data[:2], "big") == 1009  # message too big
+        frames, code = ws.frames_until_closed()
+        assert frames == []  # the next frame is the close
+        assert code == 1009  # message too big
     finally:
-        ws.shutdown()  # close() does nothing once a close frame was answered
+        ws.vanish()
     # The server is still up for everyone else.
     assert client.request(Step(1, "idle", "tired"), timeout=SAFETY).step == 1
 
@@ -331,7 +329,7 @@ def test_a_client_that_vanishes_without_closing_does_not_disturb_the_server(serv
     ws = raw_connection(server)
     ws.send(encode(Hello(who="doomed")))
     assert server.wait_for_client(SAFETY, who="doomed")
-    ws.sock.close()  # as when its process is killed: no close frame
+    ws.vanish()  # as when its process is killed: no close frame
     recorder.wait_until(lambda: "doomed" in recorder.disconnected)
     assert client.request(Step(1, "idle", "tired"), timeout=SAFETY).step == 1
 

@@ -7,13 +7,14 @@ import threading
 import time
 
 import pytest
-import websocket
 
 from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, Ack, Decision, DispatchTable, Error, Hello,
                                    NextState, Observation, Reset, Step, decode, encode,
                                    reply_error)
 from ros_hrc.link.transport import (CLOSE_REFUSED, LinkDropped, LinkTimeout, MessageClient,
                                     MessageServer)
+
+from raw_client import RawConnection
 
 SAFETY = 10.0  # seconds; only ever reached when something is broken
 FAST_BACKOFF = (0.01, 0.1)
@@ -65,7 +66,7 @@ def eventually(predicate):
 
 
 def raw(server, who):
-    ws = websocket.create_connection(server.url, timeout=SAFETY)
+    ws = RawConnection(server.url, SAFETY)
     ws.send(encode(Hello(who=who)))
     assert server.wait_for_client(SAFETY, who=who)
     return ws
@@ -130,7 +131,7 @@ def test_a_peer_that_never_reads_is_disconnected_and_the_others_are_served(
             expected = "outbox is full" if outbox_frames == 16 else "blocked for"
             assert expected in warnings[0]
         finally:
-            slow.shutdown()
+            slow.vanish()
 
 
 def test_a_handler_sending_to_a_stuck_peer_does_not_stall_the_server():
@@ -160,7 +161,7 @@ def test_a_handler_sending_to_a_stuck_peer_does_not_stall_the_server():
             log.wait_until(lambda: "slow" in log.gone)
             assert stuck["slow"].send(Ack(0)) is False and not stuck["slow"].connected
         finally:
-            slow.shutdown()
+            slow.vanish()
 
 
 # -- correlation ids ---------------------------------------------------------------------------

@@ -1,0 +1,207 @@
+"""One client connected to a :class:`~ros_hrc.link.server.MessageServer`, as the server's
+handler sees it: :class:`Peer`, with a bounded outbox that a writer thread of its own drains, so
+that a send never blocks the server."""
+from __future__ import annotations
+
+import collections
+import itertools
+import logging
+import socket
+import threading
+import time
+from typing import Any, Callable, Deque, Optional, Tuple
+
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.server import ServerConnection
+
+from ros_hrc.link.codec import encode
+from ros_hrc.link.messages import Message
+from ros_hrc.link.session import CLOSE_REFUSED, Session
+
+#: Frames a peer's outbox holds; one more and the peer is disconnected as not reading.
+OUTBOX_FRAMES = 1024
+#: Seconds one frame may stay blocked in a peer's socket before the peer is disconnected.
+SEND_TIMEOUT = 5.0
+# A websocket close reason is at most 123 bytes of UTF-8.
+_MAX_CLOSE_REASON = 123
+
+_log = logging.getLogger("ros_hrc.link")
+
+
+def _close_reason(reason: str) -> str:
+    data = reason.encode("utf-8", "replace")[:_MAX_CLOSE_REASON]
+    return data.decode("utf-8", "ignore")
+
+
+class Peer:
+    """One client connected to a :class:`~ros_hrc.link.server.MessageServer`, as its handler
+    sees it.
+
+    ``who`` is the name the client gave in its hello (``"?"`` before that), ``address`` its
+    (host, port), ``session`` its handshake. Calling the peer, or :meth:`send`, queues a frame
+    for that client only and returns at once: a writer thread of the peer's own sends the
+    queue in order. A peer that does not read is disconnected (its outbox is full, or a send
+    stayed blocked longer than the server's ``send_timeout``).
+
+    Why an outbox of our own: a send on websockets' threaded connection blocks in the socket
+    (holding the connection's lock) for as long as the peer does not read, and the library
+    has no send timeout or write limit there. Queuing here keeps every handler and callback
+    from ever waiting on one peer."""
+
+    _ids = itertools.count(1)
+
+    def __init__(self, connection: ServerConnection, session: Session, *,
+                 server_name: str = "server", outbox_frames: int = OUTBOX_FRAMES,
+                 log: logging.Logger = _log,
+                 on_writer_exit: Optional[Callable[["Peer"], None]] = None) -> None:
+        self.id = next(Peer._ids)
+        self.session = session
+        try:
+            self.address: Tuple[Any, ...] = tuple(connection.remote_address or ())
+        except OSError:  # the socket already failed (e.g. a first frame over the limit)
+            self.address = ()
+        self._connection = connection
+        self._server_name = server_name
+        self._limit = max(1, int(outbox_frames))
+        self._log = log
+        self._on_writer_exit = on_writer_exit
+        self._cond = threading.Condition()     # guards the five below
+        self._outbox: Deque[str] = collections.deque()
+        self._open = True                      # takes new frames
+        self._close_args: Optional[Tuple[int, str]] = None  # close() was called
+        self._gone = False                     # connection lost or aborted: send nothing more
+        self._aborted = False
+        self._sending_since: Optional[float] = None  # monotonic start of the send under way
+        self._writer = threading.Thread(target=self._write_loop, daemon=True,
+                                        name=f"link-{server_name}-peer{self.id}")
+
+    @property
+    def who(self) -> str:
+        """The name the client said in its hello (``"?"`` before that)."""
+        return self.session.who
+
+    @property
+    def connected(self) -> bool:
+        """Whether frames can still be queued for this client (not closed, not gone)."""
+        with self._cond:
+            return self._open and not self._gone
+
+    @property
+    def queued(self) -> int:
+        """Frames waiting in the outbox now."""
+        with self._cond:
+            return len(self._outbox)
+
+    def send(self, msg: Message) -> bool:
+        """Queue a message for this client; ``False`` if it is gone or closing (the message is
+        then dropped). Never blocks. Raises :class:`MessageError` if ``msg`` cannot be
+        encoded."""
+        return self.send_text(encode(msg))
+
+    __call__ = send
+
+    def send_text(self, text: str) -> bool:
+        """Queue an already encoded frame; ``False`` if the client is gone or closing. A full
+        outbox disconnects the client (it does not read) and also gives ``False``."""
+        with self._cond:
+            if not self._open:
+                return False
+            if len(self._outbox) < self._limit:
+                self._outbox.append(text)
+                self._cond.notify()
+                return True
+        self.abort(f"its outbox is full ({self._limit} frames unsent): it does not read")
+        return False
+
+    def close(self, code: int = CLOSE_REFUSED, reason: str = "") -> None:
+        """Send what is queued (e.g. an ``error`` refusing this client), then close this
+        connection with ``code`` (default 1008, policy violation) and ``reason``. Returns at
+        once; later sends to this peer give ``False``. Idempotent."""
+        with self._cond:
+            if not self._open:
+                return
+            self._open = False
+            self._close_args = (int(code), _close_reason(reason))
+            self._cond.notify()
+
+    def abort(self, why: str) -> None:
+        """Disconnect this client now, dropping what is queued (its socket is shut down, so a
+        send blocked in it fails at once); logs ``why`` once, as a warning."""
+        with self._cond:
+            if self._aborted or self._gone:
+                self._open, self._gone = False, True
+                return
+            self._aborted, self._open, self._gone = True, False, True
+            dropped = len(self._outbox)
+            self._outbox.clear()
+            self._cond.notify()
+        self._log.warning("%s: disconnecting %r: %s (%d queued frames dropped)",
+                          self._server_name, self, why, dropped)
+        sock = getattr(self._connection, "socket", None)
+        if sock is not None:
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def __repr__(self) -> str:
+        return f"Peer({self.who!r} #{self.id} at {self.address})"
+
+    # -- for the server ----------------------------------------------------------------------
+
+    @property
+    def _closing(self) -> bool:
+        """Refused, closing or gone: nothing it sends acts any more."""
+        return self._close_args is not None or self._gone
+
+    def _start(self) -> None:
+        self._writer.start()
+
+    def _lost(self) -> None:
+        """The connection ended: drop what is queued and let the writer go."""
+        with self._cond:
+            self._open, self._gone = False, True
+            self._outbox.clear()
+            self._cond.notify()
+
+    def _stuck_for(self, now: float) -> float:
+        """Seconds the send under way has been blocked (0 if none)."""
+        since = self._sending_since
+        return 0.0 if since is None else now - since
+
+    def _write_loop(self) -> None:
+        try:
+            while True:
+                with self._cond:
+                    while not self._outbox and self._open and not self._gone:
+                        self._cond.wait()
+                    if self._gone:
+                        return
+                    if not self._outbox:  # closing, and everything queued went out
+                        assert self._close_args is not None
+                        code, reason = self._close_args
+                        break
+                    text = self._outbox.popleft()
+                    self._sending_since = time.monotonic()
+                try:
+                    self._connection.send(text)
+                except ConnectionClosed:
+                    return
+                except Exception as exc:  # e.g. OSError after abort(): the socket is shut
+                    if not self._aborted:
+                        self._log.warning("%s: sending to %r failed: %s", self._server_name,
+                                          self, exc)
+                    return
+                finally:
+                    self._sending_since = None
+            # The close handshake is bounded by the connection's close_timeout.
+            try:
+                self._connection.close(code, reason)
+            except Exception as exc:
+                self._log.debug("%s: closing %r: %s", self._server_name, self, exc)
+        finally:
+            with self._cond:
+                self._open, self._gone = False, True
+                self._outbox.clear()
+            if self._on_writer_exit is not None:
+                self._on_writer_exit(self)
