@@ -243,6 +243,17 @@ class TestLoopFaults(unittest.TestCase):
             if "interrupted" in status.human_result:   # what the storm did is named
                 self.assertIn("it first interrupted", status.human_result)
 
+    def expect_a_run_from_a_reset(self, when):
+        """Steps 0, 1, 2, 3 of one epoch come, each whole, the epochs in order (steps under
+        way at a fault may fail first: their status says so)."""
+        ok, statuses = self.log.wait_for(lambda s: fresh_run(s, 4))
+        self.assertTrue(ok, f"{when}, no run from a reset; seen: "
+                            f"{[(s.epoch, s.step, s.fault[:40]) for s in statuses][:20]}")
+        for status in statuses:
+            if not status.fault:
+                check_step(self, status)
+        check_epochs(self, statuses)
+
     def kill_and_expect_a_run_from_a_reset(self, name):
         old = node_pids(self.proc, name)
         self.assertTrue(old, f"no {name} process in the launch")
@@ -253,13 +264,7 @@ class TestLoopFaults(unittest.TestCase):
         self.assertTrue(new - old, f"roslaunch did not restart {name}")
         # Steps under way at the kill may fail (their status says so); then a reset, and
         # steps run 0, 1, 2, 3 again.
-        ok, statuses = self.log.wait_for(lambda s: fresh_run(s, 4))
-        self.assertTrue(ok, f"after {name} restarted, no run from a reset; seen: "
-                            f"{[(s.epoch, s.step, s.fault[:40]) for s in statuses][:20]}")
-        for status in statuses:
-            if not status.fault:
-                check_step(self, status)
-        check_epochs(self, statuses)
+        self.expect_a_run_from_a_reset(f"after {name} restarted")
 
     def test_3_a_reset_while_despot_pomdp_is_down_says_so_in_one_line_and_is_retried(self):
         """Was: kill -9 of hrc_robot, the executor between the coordinator and the world's
@@ -296,13 +301,7 @@ class TestLoopFaults(unittest.TestCase):
         self.assertLess(answered_in, 30.0, "the reset did not answer at once")
         self.assertTrue(wait_for_pids(self.proc, "despot_pomdp", unlike=old) - old,
                         "roslaunch did not restart despot_pomdp")
-        ok, statuses = self.log.wait_for(lambda s: fresh_run(s, 4))
-        self.assertTrue(ok, f"after despot_pomdp restarted, no run from a reset; seen: "
-                            f"{[(s.epoch, s.step, s.fault[:40]) for s in statuses][:20]}")
-        for status in statuses:
-            if not status.fault:
-                check_step(self, status)
-        check_epochs(self, statuses)
+        self.expect_a_run_from_a_reset("after despot_pomdp restarted")
 
     def test_4_a_decision_under_way_when_despot_pomdp_dies_fails_its_step_visibly(self):
         """Was: kill -9 of hrc_obs, the relay between the coordinator and the POMDP process:
