@@ -22,9 +22,11 @@ from pathlib import Path
 from typing import Dict, Iterable, List, Optional, Sequence
 
 REPO = Path(__file__).resolve().parents[1]
-if str(REPO / "src") not in sys.path:       # run from a checkout without an installed package
-    sys.path.insert(0, str(REPO / "src"))
+for _path in (REPO / "src", REPO / "tools"):  # a checkout without an installed package; the
+    if str(_path) not in sys.path:             # tests load this file by its path
+        sys.path.insert(0, str(_path))
 
+from generated_files import MarkersMissing, between_markers, write_or_check  # noqa: E402
 from ros_hrc import settings  # noqa: E402
 from ros_hrc.settings import Setting  # noqa: E402
 
@@ -71,29 +73,17 @@ def arg_line(setting: Setting) -> str:
 
 
 def launch_block() -> List[str]:
-    """hrc.launch's argument lines, markers included, a comment over each group."""
-    lines = [INDENT + BEGIN]
+    """hrc.launch's argument lines (between the markers), a comment over each group."""
+    lines: List[str] = []
     for heading, members in by_group(hrc_launch_settings()).items():
         lines += ["", f"{INDENT}<!-- {heading} -->"]
         lines += [arg_line(member) for member in members]
-    return lines + [INDENT + END]
-
-
-class MarkersMissing(ValueError):
-    """The launch file lacks the block's markers (or has them out of order)."""
+    return lines
 
 
 def with_launch_block(text: str) -> str:
     """``text`` (hrc.launch) with the lines between the markers written anew."""
-    lines = text.split("\n")
-    stripped = [line.strip() for line in lines]
-    try:
-        first = stripped.index(BEGIN)
-        last = stripped.index(END, first)
-    except ValueError:
-        raise MarkersMissing(f"{LAUNCH}: no lines {BEGIN!r} ... {END!r} to write "
-                             "the arguments between") from None
-    return "\n".join(lines[:first] + launch_block() + lines[last + 1:])
+    return between_markers(text, BEGIN, END, launch_block(), LAUNCH)
 
 
 def _prose(text: str) -> str:
@@ -156,18 +146,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except (OSError, MarkersMissing) as exc:
         print(f"make_settings_files: {exc}", file=sys.stderr)
         return 2
-    stale = [path for path, text in files.items()
-             if not path.exists() or path.read_text(encoding="utf-8") != text]
-    if args.check:
-        for path in stale:
-            print(f"make_settings_files: {path} differs from the settings table "
-                  f"(python {THIS} rewrites it)", file=sys.stderr)
-        return 1 if stale else 0
-    for path in stale:
-        path.write_text(files[path], encoding="utf-8")
-        print(f"make_settings_files: wrote {path}")
-    return 0
-
+    return write_or_check(files, args.check, "make_settings_files",
+                          lambda path: f"{path} differs from the settings table "
+                                       f"(python {THIS} rewrites it)")
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -16,6 +16,9 @@ from pathlib import Path
 from typing import Dict, List, Set
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+from generated_files import MarkersMissing, between_markers, write_or_check  # noqa: E402
+
 DOC = ROOT / "docs" / "architecture.md"
 BEGIN = "<!-- room imports: begin (tools/room_imports.py writes this table) -->"
 END = "<!-- room imports: end -->"
@@ -66,23 +69,14 @@ def main(argv=None) -> int:
     parser.add_argument("--check", action="store_true",
                         help="exit 1 when docs/architecture.md's table is not today's")
     args = parser.parse_args(argv)
-    text = DOC.read_text()
     try:
-        head, rest = text.split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
-    except ValueError:
-        print(f"{DOC}: the markers {BEGIN!r} and {END!r} are missing", file=sys.stderr)
+        text = between_markers(DOC.read_text(), BEGIN, END, table().split("\n"), DOC)
+    except MarkersMissing as exc:
+        print(f"room_imports: {exc}", file=sys.stderr)
         return 2
-    new = f"{head}{BEGIN}\n{table()}\n{END}{tail}"
-    if args.check:
-        if new != text:
-            print(f"{DOC}: the room imports table is not today's: run "
-                  "python tools/room_imports.py", file=sys.stderr)
-            return 1
-        return 0
-    DOC.write_text(new)
-    return 0
-
+    return write_or_check({DOC: text}, args.check, "room_imports",
+                          lambda path: f"{path}: the room imports table is not today's: run "
+                                       "python tools/room_imports.py")
 
 if __name__ == "__main__":
     raise SystemExit(main())

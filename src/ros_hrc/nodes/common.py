@@ -104,7 +104,8 @@ def guard_inbound_connections() -> None:
     planner's relay node) got the port the previous hrc_obs's XML-RPC server had; a client
     that still held the old address sent its HTTP request there, which rospy read as a header
     of 1.4 GB and waited for, and the new hrc_human's first reset (/hrc/obs/reset_planner)
-    hung until the test gave up. The same can follow any node's respawn. Call before rospy.init_node; once per process."""
+    hung until the test gave up. The same can follow any node's respawn. Call before
+    rospy.init_node; once per process."""
     from rospy.impl import tcpros_base
     server = tcpros_base.TCPROSServer
     if getattr(server, "_hrc_guarded", False):
