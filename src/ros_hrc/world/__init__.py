@@ -5,7 +5,7 @@ Entry point: :class:`~ros_hrc.world.scene.World` (its stepping loop and API), co
 ``human``, ``robot``; ``body`` holds what articulated bodies share, ``stage`` builds them all
 in the world's two PyBullet servers, ``client`` binds every PyBullet call to one server.
 ``tickets``: the actions asked of the world, queued per agent; ``window``: PyBullet's window
-(``x11`` names it); ``camera``: snapshots.
+(``x11`` names it; ``wrap`` wraps its caption, and RViz's); ``camera``: snapshots.
 """
 from .config import WorldConfig
 from .outcome import Outcome, Reading

@@ -345,14 +345,17 @@ class World:
         self._window.add_closed_listener(listener)
 
     def show_overlay(self, lines: Sequence[str]) -> None:
-        """Show ``lines`` at the window's top-left corner, replacing what was shown (no-op
+        """Show ``lines`` at the window's top-left corner, wrapped to the window's width, in
+        place of what was shown: all at once, never a mix of the old lines and the new (no-op
         without ``gui``).
 
-        Each line is one debug text of PyBullet's, replaced in place (``replaceItemUniqueId``),
-        and only if it changed: each change waits for one frame of the window (tens of ms with
-        software rendering), holding the world's lock. The lines are placed for the view as it
-        is; when the user moves the view and lets it rest, the stepping loop puts them back in
-        the corner. Thread-safe; raises :class:`~.window.WindowClosed` once the window is gone.
+        Each line is one debug text of PyBullet's, replaced in place (``replaceItemUniqueId``)
+        and only if it changed, with the window's rendering held meanwhile
+        (:meth:`.Window.show_overlay`): a frame or two of the window (tens of ms with software
+        rendering), holding the world's lock. The lines are placed for the view as it is; when
+        the user moves the view or resizes the window and lets it rest, the stepping loop puts
+        them back in the corner. Thread-safe; raises :class:`~.window.WindowClosed` once the
+        window is gone.
         """
         if not self.config.gui:
             return
@@ -360,7 +363,7 @@ class World:
             self._window.show_overlay([str(line) for line in lines])
 
     def overlay(self) -> List[str]:
-        """The lines the overlay shows now (empty without ``gui``)."""
+        """The lines the overlay shows now, as wrapped (empty without ``gui``)."""
         with self._locked():
             return self._window.lines()
 

@@ -12,9 +12,19 @@ What PyBullet 3.2.x offers and what it does not:
   frame drawn. So :class:`Window` turns the panels off and sets the camera at once (an empty
   scene draws in no time); draws the floor and a "loading" line; turns rendering off while the
   rest loads (ten times faster: no frame per shape, no body appearing one by one); turns it on.
-* **Overlay.** PyBullet draws debug text at a 3-D point, at a fixed size in pixels.
-  :func:`screen_points` gives the points in front of the camera that land at given pixels,
-  so lines can be pinned to a corner of the window as it is framed.
+* **Overlay.** PyBullet draws debug text at a 3-D point, at a fixed size in pixels, one line
+  per item (a newline in the text goes off somewhere in 3-D). :func:`screen_points` gives the
+  points in front of the camera that land at given pixels, so lines can be pinned to a corner
+  of the window as it is framed. Each added, replaced or removed item waits for a frame of
+  the window (50 to 250 ms each with software rendering, measured under Xvfb), and the window
+  draws between them: replaced line by line, a caption showed the next step's first line
+  over the last step's report for a second. With rendering off the window shows its last
+  frame and these calls take no frame, so :meth:`Window.show_overlay` changes every line
+  with rendering off: the window goes from one whole caption to the next.
+* **Width.** The font is proportional: caption text (letters, digits, spaces, punctuation)
+  measured 6.3 to 6.7 px per character per unit of ``textSize`` under Xvfb;
+  :func:`overlay_columns` counts 7 to leave room, and the overlay wraps its lines to that many
+  characters (:func:`~.wrap.wrap_lines`) for the window's width as it is now.
 * **Closing.** Esc ends the window's threads and disconnects the scene server, but not the
   process: :class:`WindowClosed` is what the world raises then. (The window manager's close
   button cuts the window's X connection instead, and Xlib ends the process, status 1: the
@@ -25,13 +35,15 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from typing import Callable, List, Sequence, Set, Tuple
+from contextlib import contextmanager
+from typing import Callable, Iterator, List, Sequence, Set, Tuple
 
 import numpy as np
 
 from ..errors import SimulationError
 from .client import PhysicsClient
 from .visuals import MATT_SPECULAR
+from .wrap import wrap_lines
 from .x11 import name_window
 
 LOG = logging.getLogger(__name__)
@@ -44,12 +56,22 @@ _PACKAGE = "ros_hrc"
 _OVERLAY_MARGIN = (14.0, 26.0)
 _OVERLAY_LINE_PX = 22.0
 _OVERLAY_TEXT_SIZE = 1.3
+#: The width of one character of the overlay's text per unit of text size, px: measured
+#: 6.3 to 6.7 on caption lines (module docstring), with room to spare.
+_OVERLAY_CHAR_PX = 7.0
+#: The fewest characters a line is wrapped to, however narrow the window.
+_OVERLAY_MIN_COLUMNS = 20
 _OVERLAY_COLOUR = (0.05, 0.06, 0.12)
 #: How often the stepping loop looks whether the user moved the window's view, s.
 _LOOK_PERIOD = 0.3
 
 #: PyBullet's camera view: distance, yaw and pitch (degrees), target.
 View = Tuple[float, float, float, Tuple[float, float, float]]
+
+
+def _size_and_view(camera: Sequence) -> Tuple[float, ...]:
+    """The window's width and height and its view matrix, from ``getDebugVisualizerCamera``."""
+    return (float(camera[0]), float(camera[1])) + tuple(camera[2])
 
 
 class WindowClosed(SimulationError):
@@ -111,6 +133,14 @@ def screen_points(camera: Sequence, pixels: Sequence[Sequence[float]], depth: fl
     return out
 
 
+def overlay_columns(window_width: float, text_size: float = _OVERLAY_TEXT_SIZE) -> int:
+    """How many characters of the overlay's text fit on one line of a window ``window_width``
+    px wide, between the overlay's margins (at least 20: in a narrower window a line runs
+    off the edge rather than into a column of single words)."""
+    usable = float(window_width) - 2.0 * _OVERLAY_MARGIN[0]
+    return max(int(usable // (_OVERLAY_CHAR_PX * text_size)), _OVERLAY_MIN_COLUMNS)
+
+
 class Window:
     """PyBullet's window on the world's scene server ``client``: set up as it opens (see the
     module docstring), the overlay's lines kept in its top-left corner, and whether it is gone.
@@ -123,7 +153,9 @@ class Window:
         self.client = client
         self.config = config
         self._overlay: List[Tuple[int, str, Tuple[float, ...]]] = []   # (item id, text, where)
-        self._overlay_view: Tuple[float, ...] = ()   # the window's view the overlay was placed for
+        self._caption: List[str] = []                # the lines asked for, before wrapping
+        self._rendering = True                       # the window draws (off while loading)
+        self._overlay_view: Tuple[float, ...] = ()   # the window's size and view the overlay was placed for
         self._view_seen: Tuple[float, ...] = ()      # the view at the last look
         self._next_look = 0.0                        # when to look at the view again (monotonic s)
         self.closed = False                          # found gone (see check)
@@ -152,6 +184,7 @@ class Window:
         c.changeVisualShape(floor_id, -1, specularColor=[0.0, 0.0, 0.0])   # no glare on it
         self.show_overlay([f"{_PACKAGE}: loading the scene ..."])
         c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 0)
+        self._rendering = False
 
     def show(self, floor_id: int) -> None:
         """The scene is complete: matt bodies, the first overlay, rendering on."""
@@ -162,46 +195,73 @@ class Window:
                     c.changeVisualShape(body, link, specularColor=list(MATT_SPECULAR))
         self.show_overlay([f"{_PACKAGE}: the scene is ready; waiting for the first step"])
         c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 1)
+        self._rendering = True
 
     # --- the overlay -------------------------------------------------------------------------------
     def lines(self) -> List[str]:
-        """The lines the overlay shows now."""
+        """The lines the overlay shows now, as wrapped to the window's width."""
         return [text for _, text, _ in self._overlay]
 
-    def show_overlay(self, lines: List[str]) -> None:
-        """Show ``lines`` at the top-left corner of the view as it is, each line replaced in
-        place and only if it changed (each change costs a frame of the window)."""
+    def show_overlay(self, lines: Sequence[str]) -> None:
+        """Show ``lines`` at the top-left corner of the view as it is, wrapped to the window's
+        width (:func:`overlay_columns`), in place of what was shown: all lines at once, never
+        a mix of the old and the new (module docstring). Items that did not change are kept.
+        """
         c = self.client
         camera = c.getDebugVisualizerCamera()
-        self._overlay_view = self._view_seen = tuple(camera[2])
+        self._caption = [str(line) for line in lines]
+        self._overlay_view = self._view_seen = _size_and_view(camera)
+        wrapped = wrap_lines(self._caption, overlay_columns(camera[0]))
         x, y = _OVERLAY_MARGIN
-        places = screen_points(camera, [(x, y + i * _OVERLAY_LINE_PX) for i in range(len(lines))])
+        places = screen_points(camera, [(x, y + i * _OVERLAY_LINE_PX) for i in range(len(wrapped))])
         shown: List[Tuple[int, str, Tuple[float, ...]]] = []
-        for i, (text, place) in enumerate(zip(lines, places)):
+        changes: List[Tuple[int, str, Tuple[float, ...], int]] = []   # (line, text, where, old item)
+        for i, (text, place) in enumerate(zip(wrapped, places)):
             where = tuple(round(v, 4) for v in place)
             old = self._overlay[i] if i < len(self._overlay) else None
             if old is not None and old[1] == text and old[2] == where:
                 shown.append(old)
-                continue
-            replace_id = old[0] if old is not None else -1
-            item = c.addUserDebugText(text, list(where), list(_OVERLAY_COLOUR), textSize=_OVERLAY_TEXT_SIZE,
-                                      replaceItemUniqueId=replace_id)
-            shown.append((item, text, where))
-        for item, _, _ in self._overlay[len(lines):]:
-            c.removeUserDebugItem(item)
+            else:
+                shown.append(old)   # its place, filled below
+                changes.append((i, text, where, old[0] if old is not None else -1))
+        gone = [item for item, _, _ in self._overlay[len(wrapped):]]
+        if not changes and not gone:
+            return
+        with self._frames_held():
+            for i, text, where, replace_id in changes:
+                item = c.addUserDebugText(text, list(where), list(_OVERLAY_COLOUR),
+                                          textSize=_OVERLAY_TEXT_SIZE, replaceItemUniqueId=replace_id)
+                shown[i] = (item, text, where)
+            for item in gone:
+                c.removeUserDebugItem(item)
         self._overlay = shown
 
+    @contextmanager
+    def _frames_held(self) -> Iterator[None]:
+        """The window shows its last frame while the overlay's items change, then draws them
+        all in its next frame (with rendering on; while loading, it is off already)."""
+        c = self.client
+        if not self._rendering:
+            yield
+            return
+        c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 0)
+        try:
+            yield
+        finally:
+            if c.connected:   # a window closed meanwhile is the caller's news, not this one's
+                c.configureDebugVisualizer(c.COV_ENABLE_RENDERING, 1)
+
     def follow_view(self) -> None:
-        """A few times a second: once the user has moved the window's view and let it rest,
-        the overlay goes back to the window's corner (not while the view moves: each line
-        placed costs a frame)."""
+        """A few times a second: once the user has moved the window's view or resized it and
+        let it rest, the overlay goes back to the window's corner, wrapped to its width (not
+        while the view moves: placing the lines costs frames)."""
         now = time.monotonic()
         if now < self._next_look:
             return
         self._next_look = now + _LOOK_PERIOD
-        view = tuple(self.client.getDebugVisualizerCamera()[2])
+        view = _size_and_view(self.client.getDebugVisualizerCamera())
         if self._overlay and view != self._overlay_view and view == self._view_seen:
-            self.show_overlay(self.lines())
+            self.show_overlay(self._caption)
         self._view_seen = view
 
     # --- closing -------------------------------------------------------------------------------------
