@@ -106,7 +106,10 @@ class StepCaption:
 
     and, once the step is reported, :func:`status_lines` with ``: done`` on the first line and
     what became of the robot's action under the robot's line (``  -> cannot grasp: ...``). A
-    reset clears it (``episode 3: the world was reset; waiting for step 0``). Not thread-safe:
+    reset clears it (``episode 3: the world was reset; waiting for step 0``). A report that
+    comes after the next step began (its human action started) does not take the caption back:
+    it stays on the step being played, the report its "before this step" line. Each call
+    answers a whole caption, the lines of one step, to be shown all at once. Not thread-safe:
     one caller at a time.
     """
 
@@ -127,6 +130,10 @@ class StepCaption:
         """The loop reported a step (anything with ``ros_hrc/Status``'s fields): its outcome."""
         self._last = status
         self._episode = int(getattr(status, "episode", 0))
+        if self._step > int(status.step) and (self._human is not None or self._robot is not None):
+            # A late report: the next step's agents have acted already (a second human action
+            # began it). The caption stays on it, never back on the step this report closes.
+            return self._playing()
         self._step = int(status.step) + 1
         self._human = self._robot = None
         if self._under_way:

@@ -224,7 +224,10 @@ class CaptionBoard:
     """The caption of the step being played (:class:`ros_hrc.loop.display.StepCaption`), fed
     by the world's actions and /hrc/status, shown over PyBullet's window (``show``) and
     published on ``/hrc/caption`` for RViz's text (``publish``; latched). Thread-safe: service
-    handlers and the status subscriber call it at once; one change is shown at a time, in order."""
+    handlers and the status subscriber call it at once; one change is shown at a time, in order.
+    Each change is one step's whole caption, handed to both as the same lines: the window
+    swaps all of them at once and wraps them to its width (:meth:`ros_hrc.world.World.show_overlay`);
+    the topic carries them unwrapped, one per line, and hrc_viz wraps them for RViz."""
 
     def __init__(self, show: Optional[Callable[[List[str]], None]],
                  publish: Optional[Callable[[str], None]]) -> None:
