@@ -53,10 +53,14 @@ class TestViz(unittest.TestCase):
                 transform = self.buffer.lookup_transform("world", link, rospy.Time(0),
                                                          rospy.Duration(WAIT))
                 self.assertEqual(transform.header.frame_id, "world")
-        for frame in ("object", "belt"):
+        for frame in ("object", "object_floor", "belt"):
             self.buffer.lookup_transform("world", frame, rospy.Time(0), rospy.Duration(WAIT))
 
         markers = rospy.wait_for_message("/hrc/markers", MarkerArray, timeout=WAIT).markers
+        # RViz shows a marker only in a frame /tf knows (the holder's: the floor under the object).
+        for marker in markers:
+            self.buffer.lookup_transform("world", marker.header.frame_id, rospy.Time(0),
+                                         rospy.Duration(WAIT))
         spaces = {m.ns for m in markers}
         self.assertTrue({"belief", "belief_labels", "step", "holder", "scenery"} <= spaces, spaces)
         bars = [m for m in markers if m.ns == "belief"]

@@ -85,7 +85,8 @@ def test_the_world_node_decides_what_its_parameters_leave_open(monkeypatch, tmp_
 
 def test_the_viz_node_s_scenery_is_the_world_s():
     assert read_config(VizNodeConfig, params()) == VizNodeConfig(
-        frame="world", bars_origin=(-1.3, -1.55, 1.15), bar_spacing=0.13, bar_height=0.5,
-        text_position=(-1.1, -0.5, 2.15), belt_size=(2.0, 0.4, 0.04), object_size=0.06)
+        frame="world", bars_origin=(-1.3, -1.35, 1.75), bar_spacing=0.13, bar_height=0.3,
+        text_position=(-0.55, 0.1, 2.48), caption_columns=100, holder_height=2.15,
+        belt_size=(2.0, 0.4, 0.04), object_size=0.06)
     config = read_config(VizNodeConfig, params(frame="map", bars_origin=[0, 1, 2]))
     assert (config.frame, config.bars_origin) == ("map", (0.0, 1.0, 2.0))

@@ -9,17 +9,32 @@ every change of the caption:
 * ``step``: the step being played above the scene: ``/hrc/caption`` from hrc_world (the
   action under way, then its outcome, then the step's report; cleared on reset:
   :class:`ros_hrc.loop.display.StepCaption`), or without it the last step's lines
-  (:func:`ros_hrc.loop.display.status_lines`); a reset's caption clears the bars and the
-  holder too;
-* ``holder``: who holds the object, floating over it (frame ``object``);
+  (:func:`ros_hrc.loop.display.status_lines`), wrapped to ``~caption_columns`` characters
+  (:func:`ros_hrc.world.wrap.wrap_lines`); a reset's caption clears the bars and the holder
+  too;
+* ``holder``: who holds the object, floating straight over it at a fixed height above the
+  tallest body, so that no body hides it from RViz's default view (frame ``object_floor``,
+  which hrc_world's /tf puts on the floor under the object, turned as the world: the label
+  stays over the object at its height whoever carries the object where), with a thin line
+  down to the belt's height;
 * ``scenery``: the belt (frame ``belt``) and the object (frame ``object``) as boxes, which no
   URDF describes (published once, latched, and with every step).
 
 Parameters (:class:`VizNodeConfig`, read once: :func:`ros_hrc.nodes.common.read_config`):
 ``~frame`` (``world``), ``~bars_origin`` ([x, y, z] of the first bar's foot, m; the bars run
 along +y), ``~bar_spacing`` (m), ``~bar_height`` (m: a belief of 1), ``~text_position``
-([x, y, z]), ``~belt_size`` ([length, width, thickness], m; default the world's belt) and
-``~object_size`` (edge, m; default the world's object).
+([x, y, z]: the caption's centre; RViz centres a text on its position), ``~caption_columns``
+(characters a caption line is wrapped to), ``~holder_height`` (m: the holder's label above the
+floor, under the object), ``~belt_size`` ([length, width, thickness], m; default the world's belt)
+and ``~object_size`` (edge, m; default the world's object).
+
+Where the texts and bars go: from RViz's default view (``launch/hrc.rviz``: from in front of
+the belt, above it, the human on the left and the robot on the right) they sit in the sky
+above the bodies, where no body hides them whatever the agents do (a human who walks away
+comes towards that view, on its left; the human's raised arm reaches 2.13 m):
+the caption at the top, the belief's bars under it on the left (high enough for a human who
+walked away), the holder's label under it over the object. ``test/unit/test_viz_layout.py`` checks every text's line of sight
+against the world's bodies through every action of both agents.
 """
 from __future__ import annotations
 
@@ -37,6 +52,7 @@ from ros_hrc.msg import Status
 from ros_hrc.nodes.common import init_node, read_config
 from ros_hrc.world.conveyor import BELT_THICKNESS, ConveyorConfig
 from ros_hrc.world.object import ObjectConfig
+from ros_hrc.world.wrap import wrap_lines
 
 #: The object's colour in the world (PyBullet's window and snapshots).
 OBJECT_COLOUR = ObjectConfig().colour
@@ -45,6 +61,22 @@ _TRUE = ColorRGBA(0.95, 0.55, 0.10, 1.0)
 _HELP = ColorRGBA(0.20, 0.45, 0.85, 0.9)
 _OTHER = ColorRGBA(0.60, 0.60, 0.62, 0.9)
 _TEXT = ColorRGBA(0.05, 0.05, 0.05, 1.0)
+_POINTER = ColorRGBA(0.35, 0.35, 0.38, 0.8)
+
+#: hrc_world's /tf frame on the floor under the object, turned as the world (not as the object).
+OBJECT_FLOOR_FRAME = "object_floor"
+#: A caption line in RViz is wrapped to this many characters: at the caption's place and
+#: RViz's default view, 100 characters take about 700 of the 900 px the view has beside the
+#: Displays panel.
+CAPTION_COLUMNS = 100
+#: The holder's label this high over the floor, m: above the tallest body (the human's
+#: raised arm, 2.13 m), below the caption.
+HOLDER_LABEL_HEIGHT = 2.15
+#: The holder's line runs down to the belt's surface.
+_BELT_SURFACE = ConveyorConfig().surface_height
+#: The sizes of the texts (a line's height, m).
+CAPTION_HEIGHT = 0.075
+HOLDER_HEIGHT = 0.05
 
 
 def _pose(x: float, y: float, z: float) -> Pose:
@@ -84,17 +116,34 @@ def scenery_markers(belt_size: Sequence[float], object_size: float, stamp=None) 
     return [belt, thing]
 
 
-def caption_marker(text: str, frame: str, text_at: Sequence[float], stamp=None) -> Marker:
-    """The step's text (``step``) above the scene."""
+def caption_marker(text: str, frame: str, text_at: Sequence[float], stamp=None,
+                   columns: int = CAPTION_COLUMNS) -> Marker:
+    """The step's text (``step``) above the scene, its lines wrapped to ``columns``."""
     stamp = stamp if stamp is not None else rospy.Time(0)
-    return _text(frame, "step", 0, stamp, text, text_at, 0.075)
+    wrapped = "\n".join(wrap_lines(text.split("\n"), columns))
+    return _text(frame, "step", 0, stamp, wrapped, text_at, CAPTION_HEIGHT)
+
+
+def holder_markers(text: str, height: float, stamp=None) -> List[Marker]:
+    """Who holds the object (``holder``): the label ``height`` m over the floor, straight over
+    the object, and a thin line from just under it down to the belt's surface."""
+    stamp = stamp if stamp is not None else rospy.Time(0)
+    label = _text(OBJECT_FLOOR_FRAME, "holder", 0, stamp, text, (0, 0, height), HOLDER_HEIGHT)
+    line = _marker(OBJECT_FLOOR_FRAME, "holder", 1, Marker.LINE_LIST, stamp)
+    line.pose = _pose(0, 0, 0)
+    line.scale = Vector3(0.006, 0, 0)
+    line.color = _POINTER
+    line.points = [Point(0, 0, _BELT_SURFACE), Point(0, 0, height - HOLDER_HEIGHT)]
+    return [label, line]
 
 
 def status_markers(status, frame: str, origin: Sequence[float], spacing: float,
                    height: float, text_at: Sequence[float], stamp=None,
-                   caption: Optional[str] = None) -> MarkerArray:
+                   caption: Optional[str] = None, columns: int = CAPTION_COLUMNS,
+                   holder_height: float = HOLDER_LABEL_HEIGHT) -> MarkerArray:
     """The markers of one step (module docstring); ``caption``: the step's text (default: the
-    step's report, :func:`status_lines`)."""
+    step's report, :func:`status_lines`), wrapped to ``columns``; the holder's label
+    ``holder_height`` m over the floor."""
     stamp = stamp if stamp is not None else rospy.Time(0)
     markers: List[Marker] = []
     x0, y0, z0 = origin
@@ -110,12 +159,11 @@ def status_markers(status, frame: str, origin: Sequence[float], spacing: float,
         markers.append(_text(frame, "belief_labels", i, stamp, label, (x0, y, z0 - 0.09), 0.05))
     markers.append(_text(frame, "belief_title", 0, stamp,
                          "robot's belief (* true state, orange)",
-                         (x0, y0 + spacing * 3, z0 + height + 0.12), 0.06))
+                         (x0, y0 + spacing * 3, z0 + height + 0.09), 0.06))
     text = caption if caption is not None else "\n".join(status_lines(status))
-    markers.append(caption_marker(text, frame, text_at, stamp))
-    markers.append(_text("object", "holder", 0, stamp,
-                         holder_text(getattr(status, "object_holder", "none")), (0, 0, 0.18),
-                         0.045))
+    markers.append(caption_marker(text, frame, text_at, stamp, columns))
+    markers.extend(holder_markers(holder_text(getattr(status, "object_holder", "none")),
+                                  holder_height, stamp))
     return MarkerArray(markers=markers)
 
 
@@ -127,10 +175,12 @@ class VizNodeConfig:
     """The node's parameters (module docstring); the scenery's sizes are the world's."""
 
     frame: str = "world"
-    bars_origin: Tuple[float, ...] = (-1.3, -1.55, 1.15)
+    bars_origin: Tuple[float, ...] = (-1.3, -1.35, 1.75)
     bar_spacing: float = 0.13
-    bar_height: float = 0.5
-    text_position: Tuple[float, ...] = (-1.1, -0.5, 2.15)
+    bar_height: float = 0.3
+    text_position: Tuple[float, ...] = (-0.55, 0.1, 2.48)
+    caption_columns: int = CAPTION_COLUMNS
+    holder_height: float = HOLDER_LABEL_HEIGHT
     belt_size: Tuple[float, ...] = (_BELT.length, _BELT.width, BELT_THICKNESS)
     object_size: float = ObjectConfig().size
 
@@ -142,6 +192,8 @@ class VizNode:
         self.spacing = config.bar_spacing
         self.height = config.bar_height
         self.text_at = config.text_position
+        self.columns = config.caption_columns
+        self.holder_height = config.holder_height
         self.scenery = scenery_markers(config.belt_size, config.object_size)
         self.caption: Optional[str] = None   # hrc_world's caption of the step being played
         self.step: List[Marker] = []          # the last step's bars and labels
@@ -156,14 +208,16 @@ class VizNode:
             return   # a failed step carries no decision to show; the caption says it failed
         with self.lock:
             markers = status_markers(status, self.frame, self.origin, self.spacing, self.height,
-                                     self.text_at, rospy.Time.now(), self.caption)
+                                     self.text_at, rospy.Time.now(), self.caption, self.columns,
+                                     self.holder_height)
             self.step = [m for m in markers.markers if m.ns != "step"]
             self._publish(markers.markers)
 
     def _on_caption(self, caption: String) -> None:
         with self.lock:
             self.caption = caption.data
-            text = caption_marker(caption.data, self.frame, self.text_at, rospy.Time.now())
+            text = caption_marker(caption.data, self.frame, self.text_at, rospy.Time.now(),
+                                  self.columns)
             if is_reset_caption(caption.data):
                 # Nothing of the last episode stays: its bars, its holder, its text.
                 self.step = []

@@ -37,6 +37,8 @@ Topics published:
   /human/joint_states, /robot/joint_states (sensor_msgs/JointState)  each agent's movable
                                          joints, and /tf: world -> each agent's root link
                                          (``human/...``, ``robot/...``), world -> object,
+                                         world -> object_floor (the floor under the object,
+                                         turned as the world: hrc_viz's label over it),
                                          world -> belt; at ~tf_rate Hz (wall clock) when
                                          ~viz. robot_state_publisher (one per agent, in
                                          its namespace) turns the joint states into the links'
@@ -97,6 +99,7 @@ from ros_hrc.streams import WORLD_EPISODE_PARAM
 from ros_hrc.msg import Status, WorldState
 from ros_hrc.nodes.common import ParamReader, init_node, parameter, read_config
 from ros_hrc.nodes.guard import is_guard
+from ros_hrc.nodes.viz_node import OBJECT_FLOOR_FRAME
 from ros_hrc.process_tree import is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
 from ros_hrc.world.human import HumanConfig
@@ -425,6 +428,11 @@ class WorldNode:
                 self._joint_pubs[agent].publish(joints)
                 transforms.append(self._transform(stamp, f"{agent}/{body['root']}", body["base"]))
             transforms.append(self._transform(stamp, "object", frames["object"]))
+            # The floor under the object, not turning with it: a label at a fixed height
+            # straight over it, whoever carries it where.
+            (x, y, _), _ = frames["object"]
+            transforms.append(self._transform(stamp, OBJECT_FLOOR_FRAME,
+                                              ((x, y, 0.0), (0.0, 0.0, 0.0, 1.0))))
             transforms.append(self._transform(stamp, "belt", frames["belt"]))
             self._tf.sendTransform(transforms)
 
