@@ -170,7 +170,7 @@ def test_the_window_shows_whole_captions_wrapped_to_its_width(tmp_path):
         references = []
         for _ in range(2):
             _wait_for(world, "shown")
-            time.sleep(1.0)   # a few frames: the caption is drawn
+            time.sleep(1.5)   # a few frames, however slow: the caption is drawn
             references.append(_ink_per_line(screen.dark(1024, 140)))
             world.stdin.write("\n")
             world.stdin.flush()
