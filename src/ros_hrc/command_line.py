@@ -1,5 +1,6 @@
-"""What the package's ROS-free commands share about their command line: dropping roslaunch's
-own arguments, ranged numbers, and a solver's options from its launch session."""
+"""What the package's programs share about their command line and terminal: dropping
+roslaunch's own arguments, ranged numbers, a solver's options from its launch session, and
+printing whole lines into a terminal that several processes share."""
 from __future__ import annotations
 
 import argparse
@@ -58,3 +59,15 @@ def parse_launch_options(parser: argparse.ArgumentParser,
         except TokenError as exc:
             parser.error(str(exc))
     return parser.parse_args(words)
+
+
+def print_whole_lines() -> None:
+    """Make each ``print(..., flush=True)`` of this process one write to stdout and stderr,
+    so that processes printing into one terminal (roslaunch's) never glue their lines
+    mid-line. On a terminal Python flushes at each newline *inside* a text, and unbuffered
+    (``python -u``) at each part of a print: a print of several lines then left its last line
+    and its newline in two writes, and another process's line came between."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)   # a replaced stream may lack it
+        if reconfigure is not None:
+            reconfigure(line_buffering=False, write_through=False)
