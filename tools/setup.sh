@@ -14,7 +14,8 @@ cd "$repo"
 stamps=.ws/stamps
 mkdir -p "$stamps"
 
-# ROS from Debian; python3-venv for the environment; xterm for the MDP's own terminal window;
+# ROS from Debian; python3-venv for the environment; xterm for the MDP's own terminal window
+# (and the scalable font it draws with, hrc.launch);
 # RViz and what it shows (descriptions, joint states, /tf, markers, images); Xvfb, xdotool and
 # ImageMagick for the GUI's tests and screenshots under a virtual display.
 APT_PACKAGES=(
@@ -25,7 +26,7 @@ APT_PACKAGES=(
   python3-rospy python3-rostest python3-roslaunch python3-rosservice python3-rostopic
   python3-rosnode python3-rosmsg python3-rosbag python3-std-msgs python3-std-srvs python3-rosgraph-msgs
   python3-catkin-pkg python3-venv python3-dev python3-nose
-  cmake g++ make xterm
+  cmake g++ make xterm fonts-dejavu-core
 )
 
 say() { printf '[setup] %s\n' "$*"; }
@@ -75,9 +76,36 @@ done
 for entry in *; do
   [[ -e $pkg/$entry ]] || ln -s "../../../$entry" "$pkg/$entry"
 done
+# media_export: RViz asks rospack for the plugins that export media to it, by this package's
+# name (Debian's rviz lists it as a dependency but Debian ships no package of that name), and
+# without it rospack printed "[rospack] Error: no such package media_export" at every RViz
+# start. Upstream it is a package with nothing in it but its manifest; so is this one.
+media=.ws/src/media_export
+mkdir -p "$media"
+cat > "$media/package.xml.new" <<'XML'
+<?xml version="1.0"?>
+<package format="2">
+  <name>media_export</name>
+  <version>0.3.0</version>
+  <description>Where RViz finds the media (Ogre paths) other packages export: a package with
+    nothing in it, made by ros_hrc's tools/setup.sh because Debian ships none.</description>
+  <maintainer email="ros_hrc@example.org">ros_hrc</maintainer>
+  <license>BSD</license>
+  <buildtool_depend>catkin</buildtool_depend>
+</package>
+XML
+cat > "$media/CMakeLists.txt.new" <<'CMAKE'
+cmake_minimum_required(VERSION 3.0.2)
+project(media_export)
+find_package(catkin REQUIRED)
+catkin_package()
+CMAKE
+for f in package.xml CMakeLists.txt; do   # rewritten only when changed: the build key reads them
+  if cmp -s "$media/$f.new" "$media/$f"; then rm "$media/$f.new"; else mv "$media/$f.new" "$media/$f"; fi
+done
 # The build depends on the package's interface files, not on Python sources (those are
 # used in place from src/ by the devel space).
-build_key=$( (echo layout-2; cat package.xml CMakeLists.txt setup.py msg/*.msg srv/*.srv; ls scripts test/rostest) | sha256sum | cut -d' ' -f1)
+build_key=$( (echo layout-2; cat "$media/package.xml"; cat package.xml CMakeLists.txt setup.py msg/*.msg srv/*.srv; ls scripts test/rostest) | sha256sum | cut -d' ' -f1)
 if ! stamp_ok build "$build_key" || [[ ! -f .ws/devel/setup.bash ]]; then
   say "building the workspace with catkin_make"
   (cd .ws && catkin_make -DPYTHON_EXECUTABLE="$repo/.venv/bin/python" -DCATKIN_ENABLE_TESTING=ON \

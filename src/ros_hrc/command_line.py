@@ -1,11 +1,12 @@
-"""What the package's ROS-free commands share about their command line: dropping roslaunch's
-own arguments, ranged numbers, and a solver's options from its launch session."""
+"""What the package's programs share about their command line and terminal: dropping
+roslaunch's own arguments, ranged numbers, a solver's options from its launch session, and
+printing whole lines into a terminal that several processes share."""
 from __future__ import annotations
 
 import argparse
 import math
 import sys
-from typing import Callable, List, Optional, Sequence
+from typing import Callable, List, Optional, Sequence, TextIO
 
 
 def own_arguments(argv: Optional[Sequence[str]] = None) -> List[str]:
@@ -58,3 +59,42 @@ def parse_launch_options(parser: argparse.ArgumentParser,
         except TokenError as exc:
             parser.error(str(exc))
     return parser.parse_args(words)
+
+
+class WholeLines:
+    """A text stream that passes text on to ``stream`` a whole line at a time, each in one
+    write, flushed: ``print(text)`` (the text, then its newline) becomes one write, however
+    many lines ``text`` has; a write that does not end a line waits for the rest (or
+    :meth:`flush`). Everything else is ``stream``'s."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self._stream = stream
+        self._pending = ""
+
+    def write(self, text: str) -> int:
+        self._pending += text
+        if self._pending.endswith("\n"):
+            self.flush()
+        return len(text)
+
+    def flush(self) -> None:
+        if self._pending:
+            text, self._pending = self._pending, ""
+            self._stream.write(text)
+        self._stream.flush()
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+def print_whole_lines() -> None:
+    """Make this process print whole lines, each in one write, on stdout and stderr, so that
+    processes printing into one terminal (roslaunch's) never glue their lines mid-line. On a
+    terminal Python flushes at each newline *inside* a text, and unbuffered (``python -u``,
+    PYTHONUNBUFFERED) at each part of a print: a print of several lines then left its last
+    line and its newline in two writes, and another process's line came between. Text still
+    comes out at each line's end, as line buffering would."""
+    if not isinstance(sys.stdout, WholeLines):
+        sys.stdout = WholeLines(sys.stdout)   # type: ignore[assignment]
+    if not isinstance(sys.stderr, WholeLines):
+        sys.stderr = WholeLines(sys.stderr)   # type: ignore[assignment]

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 #: models/ of the package (the source tree; the devel space uses it in place).
 MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
@@ -44,6 +44,13 @@ def resolve_model(name_or_path: str, kind: str, folder: Optional[Path] = None) -
         path = folder / f"{name_or_path}{suffix}"
         if path.is_file():
             return path
-    known = sorted({p.stem for p in folder.glob("*.pomdp*")})
+    known = model_names(folder)
     raise FileNotFoundError(f"no {kind} model named {name_or_path!r} in {folder}; "
                             f"known: {', '.join(known) or 'none'}")
+
+
+def model_names(folder: Path) -> List[str]:
+    """The scenario names a model folder holds: the stems of its .pomdp and .pomdpx files,
+    sorted (a name with both files is listed once)."""
+    return sorted({path.stem for path in Path(folder).glob("*.pomdp*")
+                   if path.suffix in (".pomdp", ".pomdpx")})

@@ -42,7 +42,7 @@ from ros_hrc import tasks
 from ros_hrc.tasks import fabric_reactive
 from ros_hrc.errors import HrcError
 from ros_hrc.streams import LIVE, EpisodeSchedule
-from ros_hrc.model_files import names_a_file, user_path
+from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
            "add_argument", "use_as_defaults", "TRUE_WORDS", "FALSE_WORDS", "AUTO_WORD",
@@ -335,18 +335,30 @@ def _group(heading: str, *members: Setting) -> Tuple[Setting, ...]:
     return tuple(replace(member, group=heading) for member in members)
 
 
+def _model_doc(kind: str, noun: str, suffixes: str) -> str:
+    """The doc of a model setting: the names each task's model folder ships (read from the
+    folders, so ``--ros-args`` and docs/settings.md list what is there) and its default."""
+    shipped = []
+    for name in tasks.TASK_NAMES:
+        folder = tasks.get(name).model_dirs[kind]
+        shown = folder.relative_to(MODELS_DIR.parent).as_posix()
+        shipped.append(f"{name}, in {shown}/: {', '.join(model_names(folder))}")
+    defaults = ", ".join(f"{name}: {tasks.get(name).default_model(kind)}"
+                         for name in tasks.TASK_NAMES)
+    return (f"{noun} by name, one of the task's ({'; '.join(shipped)}), or a {suffixes} "
+            f"path; auto (or empty): the task's default ({defaults})")
+
+
 #: The only place a default is written: hrc.launch's ``<arg>`` lines and docs/settings.md are
 #: made from it (tools/make_settings_files.py; a unit test fails when they differ), and the
 #: programs, nodes and modules that need a default ask :func:`default`.
 _TABLE: Tuple[Setting, ...] = (
     *_group(
         "what runs",
-        _s("human_model", "model", "humanModel",
-           "human scenario (humanModel, expert, beginner, tired, distracted) or a .pomdpx path; "
-           "auto (or empty): the task's default (seed: humanModel)"),
-        _s("robot_model", "model", "robot",
-           "robot POMDP name in models/robot/ or a .pomdp/.pomdpx path; auto (or empty): the "
-           "task's default (seed: robot)"),
+        _s("human_model", "model", "humanModel", _model_doc("human", "human scenario",
+                                                             ".pomdpx")),
+        _s("robot_model", "model", "robot", _model_doc("robot", "robot POMDP",
+                                                       ".pomdp/.pomdpx")),
         _s("task", "choice", tasks.DEFAULT_TASK, "the collaboration task (docs/tasks.md): seed "
            "(the manual's) or fabric (the seed authors' successor: a human who reacts to the "
            "robot)", choices=tasks.TASK_NAMES),
@@ -461,6 +473,11 @@ _TABLE: Tuple[Setting, ...] = (
     *_group(
         "the terminal",
         _s("read_stdin", "bool", True, "Enter on the roslaunch terminal resets everything"),
+        _s("verbose", "bool", False, "also print the solver processes' own lines (despot_pomdp's "
+           "belief and decision, despot_mdp's == RESULTS ==) in the roslaunch terminal; by "
+           "default they go to their log files ($ROS_HOME/log/latest/despot_*-stdout.log) and "
+           "the terminal shows hrc_human's step block alone, but for the MDP in manual mode "
+           "without an xterm of its own (its prompt is answered there)"),
     ),
 )
 

@@ -9,7 +9,7 @@ value) on stdout and exits 0. Every path in it (a model file, ``policy_file``,
 because the processes of the launch run in ``$ROS_HOME``. On the first problem it prints one line on stderr,
 ``hrc.launch: <what is wrong>`` naming the argument or the file, and exits 2; never a traceback.
 ``hrc.launch`` runs it as a ``<param command=...>`` so that roslaunch refuses to start anything
-when it fails::
+when it fails (through ``--status-pipe``, below)::
 
     <param name="/hrc/config" type="yaml"
            command="$(find ros_hrc)/scripts/hrc_check human_model:=$(arg human_model) ..."/>
@@ -29,7 +29,23 @@ POMDP's port is only checked with ``start_pomdp:=true``: started by hand, the PO
 may already serve it.
 
 ``--world`` checks only the settings given (world.launch's pre-flight: no models, no ports),
-prints those, and starts its error lines with ``world.launch``.
+prints those, and starts its error lines with ``world.launch``. ``--arguments-only`` checks no
+setting and prints ``{}`` (experiment.launch's pre-flight: only the check below).
+
+Run by roslaunch (its parent), it first compares the ``name:=value`` words the user gave
+roslaunch with the arguments the launch file declares
+(:mod:`ros_hrc.commands.launch_arguments`): roslaunch ignores an undeclared one in silence, so
+a typo is refused here, naming the nearest declared argument::
+
+    hrc.launch: human_modle:=tired: no such argument (did you mean human_model?)
+
+``--status-pipe=PATH`` (each launch file gives one, named after its session): the refusal is
+only the line. The program then always exits 0 and prints a mapping (``{}`` on a refusal), and
+hands its exit status to the launch through the FIFO ``PATH``, which the launch file reads
+right after this ``<param>`` and exits with (``$(eval ... exit(status))``). Without it, a
+failing ``<param command>`` made roslaunch follow the line with ~2 KB of red ``RLException``
+dumping the whole tag. The FIFO is removed as soon as roslaunch opened it: a refused launch
+leaves no file behind.
 
 ``--link-session=NAME`` (hrc.launch gives ``$(anon hrc_link)``): once every check passed, make
 the launch's link token (:mod:`ros_hrc.link.token`), remove the tokens of launches that ended,
@@ -44,11 +60,14 @@ configuration as ``token_file``. When a solver is left to be run by hand (``star
 from __future__ import annotations
 
 import errno
+import io
 import os
 import shlex
+import signal
 import socket
 import sys
-from typing import Dict, List, Mapping, Optional, Sequence
+from pathlib import Path
+from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 from ros_hrc.errors import HrcError
 from ros_hrc import settings
@@ -57,9 +76,11 @@ NAME = "hrc_check"
 #: What each error line starts with: the user ran the launch file, not this program.
 PREFIX = "hrc.launch"
 
-USAGE = (f"usage: {NAME} [--no-port-check] [--world] [--link-session=NAME] name:=value ...  "
+USAGE = (f"usage: {NAME} [--no-port-check] [--world | --arguments-only] [--link-session=NAME] "
+         "[--status-pipe=PATH] name:=value ...  "
          f"(the arguments of hrc.launch: {', '.join(settings.SETTINGS)})")
 _SESSION_OPTION = "--link-session="
+_STATUS_PIPE_OPTION = "--status-pipe="
 
 
 class CheckError(HrcError):
@@ -248,13 +269,66 @@ def one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
-    from ros_hrc.command_line import own_arguments
+def unknown_launch_arguments(launcher: int) -> Optional[Tuple[str, str]]:
+    """(the launch file's name, the refusal line) when a ``name:=value`` word given to
+    ``launcher`` (this program's roslaunch) is declared by none of its launch files: roslaunch
+    would ignore it in silence. None when each is, or ``launcher`` is no roslaunch (run by
+    hand)."""
+    from ros_hrc.commands.launch_arguments import (check_launch_command_line,
+                                                   roslaunch_command_line)
 
-    words: List[str] = own_arguments(argv)
+    found = roslaunch_command_line(launcher)
+    return None if found is None else check_launch_command_line(*found)
+
+
+def make_status_pipe(path: Path) -> None:
+    """Make the FIFO ``path`` (mode 0600; its directory made if needed, 0700) through which
+    the launch reads the pre-flight's exit status."""
+    path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+    os.mkfifo(path, 0o600)
+
+
+def hand_status_to_launch(path: Path, status: int, timeout: float = 60.0) -> None:
+    """Give ``status`` to the launch through the FIFO ``path`` (:func:`make_status_pipe`):
+    a child process waits for roslaunch to open it, removes it and writes the status. The
+    FIFO is gone once roslaunch has read it, or after ``timeout`` s if it never does (Ctrl-C
+    first): a refused launch leaves no file, and this program returns at once (roslaunch
+    waits for its output before reading the FIFO)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    if os.fork() != 0:
+        return
+    try:   # the child: it must not hold roslaunch's pipes of this program's output
+        quiet = os.open(os.devnull, os.O_RDWR)
+        for fd in (0, 1, 2):
+            os.dup2(quiet, fd)
+
+        def give_up(_signum, _frame):
+            raise TimeoutError
+
+        signal.signal(signal.SIGALRM, give_up)
+        signal.alarm(max(1, int(timeout)))
+        writer = os.open(path, os.O_WRONLY)   # blocks until roslaunch opens it to read
+        signal.alarm(0)
+        path.unlink()
+        os.write(writer, f"{status}\n".encode())
+        os.close(writer)
+    except BaseException:   # timed out, interrupted: only the FIFO is left to remove
+        try:
+            path.unlink()
+        except OSError:
+            pass
+    finally:
+        os._exit(0)
+
+
+def run(words: List[str]) -> int:
+    """The pre-flight on ``words`` (this program's arguments): the configuration on stdout,
+    notes and the refusal line on stderr; the exit status (0, or 2 on a refusal)."""
     port_check = "--no-port-check" not in words
     world_only = "--world" in words
-    words = [w for w in words if w not in ("--no-port-check", "--world")]
+    arguments_only = "--arguments-only" in words
+    words = [w for w in words if w not in ("--no-port-check", "--world", "--arguments-only")]
     prefix = "world.launch" if world_only else PREFIX
     try:
         if any(w in ("-h", "--help") for w in words):
@@ -271,8 +345,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         options = [w for w in words if w.startswith("-")]
         if options:
             raise CheckError(f"{options[0]}: unknown option; {USAGE}")
+        unknown = unknown_launch_arguments(os.getppid())
+        if unknown is not None:
+            prefix = unknown[0]     # the file the user gave roslaunch, whose arguments these are
+            raise CheckError(unknown[1])
         notes: List[str] = []
-        if world_only:
+        if arguments_only:
+            config: Dict[str, object] = {}
+        elif world_only:
             given = parse_words(words)
             resolved = settings.resolve(given)
             config = {name: resolved[name] for name in given}
@@ -308,6 +388,35 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f"{prefix}: {NAME} failed: {type(exc).__name__}: {one_line(exc)}",
               file=sys.stderr, flush=True)
         return 2
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    from ros_hrc.command_line import own_arguments
+
+    words: List[str] = own_arguments(argv)
+    pipes = [w[len(_STATUS_PIPE_OPTION):] for w in words if w.startswith(_STATUS_PIPE_OPTION)]
+    words = [w for w in words if not w.startswith(_STATUS_PIPE_OPTION)]
+    if not pipes:
+        return run(words)
+    # Run by a launch: roslaunch reads the status from the FIFO, after this program's output
+    # (a mapping, ``{}`` on a refusal, so that the <param> itself never fails: a failing
+    # <param command> makes roslaunch dump the whole tag in red after the refusal line).
+    pipe = Path(pipes[-1])
+    try:
+        make_status_pipe(pipe)
+    except OSError as exc:
+        print(f"{PREFIX}: {NAME} failed: {pipe}: {exc.strerror or exc}", file=sys.stderr,
+              flush=True)
+        return 2
+    real_stdout = sys.stdout
+    sys.stdout = io.StringIO()
+    try:
+        status = run(words)
+    finally:
+        output, sys.stdout = sys.stdout.getvalue(), real_stdout
+    sys.stdout.write(output if status == 0 else "{}\n")
+    hand_status_to_launch(pipe, status)
+    return 0
 
 
 if __name__ == "__main__":

@@ -22,8 +22,18 @@ AGENT_URDF = {"human": "human.urdf", "robot": "pr2_like.urdf"}
 
 
 def prefixed_description(urdf_text: str, prefix: str) -> str:
-    """The URDF with every link named ``<prefix>/<link>``; joints keep their names."""
+    """The URDF with every link named ``<prefix>/<link>``; joints keep their names. The root
+    link loses its ``<inertial>``: KDL (robot_state_publisher) cannot use a root link's
+    inertia and warned about it at every start. The description only names frames and shapes
+    for RViz and /tf; the world's bodies are loaded from the URDF files themselves, where
+    PyBullet needs the root's mass, so they do not change."""
     root = SafeElementTree.fromstring(urdf_text)
+    children = {joint.find("child").get("link") for joint in root.iter("joint")
+                if joint.find("child") is not None}
+    for link in root.iter("link"):
+        if link.get("name") not in children:
+            for inertial in link.findall("inertial"):
+                link.remove(inertial)
     for link in root.iter("link"):
         link.set("name", f"{prefix}/{link.get('name')}")
     for joint in root.iter("joint"):

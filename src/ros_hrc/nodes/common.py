@@ -5,8 +5,10 @@ Python logging to the node's terminal."""
 from __future__ import annotations
 
 import logging
+import os
 import socket
 import struct
+import sys
 import threading
 import time
 from dataclasses import MISSING, field, fields
@@ -90,7 +92,25 @@ def init_node(name: str, **kwargs: Any) -> None:
     """``rospy.init_node`` for every ros_hrc node, its TCPROS server guarded first
     (:func:`guard_inbound_connections`)."""
     guard_inbound_connections()
+    leave_latest_log_link_to_roslaunch()
     rospy.init_node(name, **kwargs)
+
+
+def leave_latest_log_link_to_roslaunch(argv: Optional[List[str]] = None) -> None:
+    """Keep rospy from renewing ``$ROS_HOME/log/latest`` in a node roslaunch started.
+
+    Why: roslaunch points ``latest`` at its run's log directory before it starts the nodes;
+    then each rospy node renews the link again (remove it, then link anew: not atomic), and
+    nodes starting together raced, printing ``cannot create a symlink to latest log
+    directory`` (one removed the link another had just made, or linked where one already
+    was). rospy renews it only when the node's log file (``__log:=``) is not directly in
+    ``ROS_LOG_DIR``: this makes the log file's directory the node's ``ROS_LOG_DIR``, and the
+    log file stays where roslaunch put it. A node run by hand (no ``__log:=``) keeps
+    rospy's way."""
+    words = sys.argv if argv is None else argv
+    logs = [word[len("__log:="):] for word in words if word.startswith("__log:=")]
+    if logs and os.path.isabs(logs[-1]):
+        os.environ["ROS_LOG_DIR"] = os.path.dirname(logs[-1])
 
 
 def guard_inbound_connections() -> None:

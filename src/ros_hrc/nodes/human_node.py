@@ -73,6 +73,7 @@ from typing import Dict, Optional, TextIO, Tuple
 import rospy
 from std_srvs.srv import Trigger, TriggerResponse
 
+from ros_hrc.command_line import print_whole_lines
 from ros_hrc.errors import HrcError
 from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, DispatchTable, Error,
                                    Message, MessageError, NextState, Reaction, Reset, Step,
@@ -441,6 +442,7 @@ def _isatty(stream: TextIO) -> bool:
 
 
 def main() -> None:
+    print_whole_lines()    # its step block, whole, in the terminal it shares
     init_node("hrc_human")
     route_python_logging()
     try:

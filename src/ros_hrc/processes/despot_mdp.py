@@ -52,7 +52,7 @@ import time
 from typing import Optional, TextIO, Tuple
 
 from ros_hrc import tasks
-from ros_hrc.command_line import parse_launch_options, ranged_number
+from ros_hrc.command_line import parse_launch_options, print_whole_lines, ranged_number
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Error, Message, NextState,
                                    Reaction, Reset, Step, is_reply_to, reply_error)
@@ -465,6 +465,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[list] = None) -> int:
+    print_whole_lines()
     args = parse_launch_options(build_parser(), argv)
     try:
         task = tasks.get(args.task)

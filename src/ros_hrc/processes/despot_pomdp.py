@@ -41,7 +41,7 @@ from typing import Optional
 import numpy as np
 
 from ros_hrc import tasks
-from ros_hrc.command_line import parse_launch_options
+from ros_hrc.command_line import parse_launch_options, print_whole_lines
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, DispatchTable,
                                    Message, Observation, Reset, reply_error)
@@ -224,6 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[list] = None) -> int:
+    print_whole_lines()
     args = parse_launch_options(build_parser(), argv)
     try:
         task = tasks.get(args.task)

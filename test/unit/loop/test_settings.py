@@ -27,6 +27,7 @@ DEFAULTS = {
     "start_pomdp": True, "planner": "despot",
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
+    "verbose": False,
 }
 
 
