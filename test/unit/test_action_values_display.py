@@ -50,6 +50,10 @@ def test_ties_keep_the_model_s_order_and_one_valued_action_has_no_runner_up():
                              action_values=[0.0, 0.0])
     assert ranked_action_values(tied) == [("rIdle", 0.0), ("rPoint_obj", 0.0)]
     assert action_values_text(tied) == "rIdle 0 (chosen) = rPoint_obj 0"
+    # DESPOT's numerical slack (a few 1e-7) is no value of its own.
+    slack = grasp_at_low_need(robot_action="rIdle", action_names=["rIdle", "rPoint_obj"],
+                              action_values=[-1.664e-07, -0.1])
+    assert action_values_text(slack) == "rIdle 0 (chosen) > rPoint_obj -0.1"
     alone = grasp_at_low_need(robot_action="rIdle", action_names=["rIdle"],
                               action_values=[-20.0])
     assert "does rIdle (value -20; true state S1)" in status_lines(alone)[2]

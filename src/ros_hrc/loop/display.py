@@ -49,8 +49,10 @@ def ranked_action_values(status) -> List[Tuple[str, float]]:
 
 
 def value_text(value: float) -> str:
-    """An action's value in four significant digits (``12.35``, ``-64.1``, ``0``)."""
-    return f"{value:.4g}" if value != 0 else "0"
+    """An action's value in four significant digits, to four decimals at most (``12.35``,
+    ``-64.1``, ``0``): a planner's numerical slack (DESPOT's few 1e-7) reads as 0."""
+    rounded = round(value, 4)
+    return f"{rounded:.4g}" if rounded != 0 else "0"
 
 
 def chosen_value_text(status) -> str:
