@@ -229,7 +229,6 @@ class Checker:
                                              f"{len(belief)} probabilities")
         return names
 
-
     def named_numbers(self, names_field: str, names: Any, values_field: str,
                       values: Any) -> Tuple[Tuple[str, ...], Tuple[float, ...]]:
         """Two parallel arrays, given together: distinct names and one finite number each

@@ -154,7 +154,8 @@ class PolicyPlanner(BeliefPlanner):
         future = (joint @ self.policy.alphas.T).max(axis=2).sum(axis=1)
         q = self.model.R_sa @ b + self.model.discount * future
         a = int(np.argmax(q))
-        self.last_stats = PlannerStats(lower=float(q[a]), action_values=dict(enumerate(q.tolist())))
+        self.last_stats = PlannerStats(lower=float(q[a]),
+                                       action_values=dict(enumerate(q.tolist())))
         return a
 
 
