@@ -1,6 +1,7 @@
 """What the launched loop tests share: starting hrc.launch as a user does, watching
 /hrc/status, finding a launch's processes, and checking that a step's fields agree."""
 import itertools
+import math
 import os
 import subprocess
 import sys
@@ -127,6 +128,16 @@ def check_step(case, status):
     case.assertEqual(list(status.belief_states), sorted(ROBOT_STATES), where)
     case.assertAlmostEqual(sum(status.belief), 1.0, places=6, msg=where)
     case.assertTrue(all(p >= 0 for p in status.belief), where)
+    # Why the robot acted: a planner's value of each action it compared, its choice the best
+    # (DESPOT's ties within 1e-6 relative aside); a baseline robot sends none.
+    case.assertEqual(len(status.action_names), len(status.action_values), where)
+    if status.action_values:
+        values = dict(zip(status.action_names, status.action_values))
+        case.assertLessEqual(set(values), ROBOT_ACTIONS, where)
+        case.assertTrue(all(math.isfinite(v) for v in values.values()), where)
+        best = max(values.values())
+        case.assertGreaterEqual(values.get(status.robot_action, -math.inf),
+                                best - 1e-6 * max(1.0, abs(best)), where)
     bits = status.observation_bits
     if status.human_action == "warnRobot":
         case.assertTrue(bits & task.WARNING, f"{where}: warned, but no warning observed ({bits})")

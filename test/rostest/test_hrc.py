@@ -21,8 +21,8 @@ import rospy
 import rostest
 from std_srvs.srv import Trigger
 
-from hrc_stack import (HUMAN_STATES, WAIT, StatusLog, check_epochs, check_step, start_stack,
-                       step_record, stop_stack)
+from hrc_stack import (HUMAN_STATES, ROBOT_ACTIONS, WAIT, StatusLog, check_epochs, check_step,
+                       start_stack, step_record, stop_stack)
 from ros_hrc.srv import SetHumanState
 
 
@@ -50,6 +50,10 @@ class TestWholeLoop(unittest.TestCase):
         self.assertEqual(steps, list(range(22)), "steps are numbered 0, 1, 2, ... in order")
         for status in statuses:
             self.check_step(status)
+            # DESPOT (the default planner) says why it chose: its value of each action.
+            self.assertTrue(status.action_values, f"step {status.step}: no action values")
+        self.assertTrue(any(len(s.action_values) == len(ROBOT_ACTIONS) for s in statuses),
+                        "DESPOT never valued every action")
         check_epochs(self, statuses)
         self.assertEqual(len({s.epoch for s in statuses[:22]}), 1, "one epoch, no reset")
         self.assertIsNotNone(self.log.world, "no /hrc/world_state")

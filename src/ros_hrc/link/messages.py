@@ -11,8 +11,8 @@ Types and their fields (``?`` marks an optional field, left out of the JSON when
                                                            MDP -> human node: a human who hears
                                                            the robot, his state after it acted
     observation  step, observation, bits, state, elapsed?  coordinator -> POMDP (7070)
-    decision     step, action, belief [p...], belief_states?, decision_ms?, surprise?, rule?
-                                                           POMDP -> coordinator: answers observation
+    decision     step, action, belief [p...], belief_states?, decision_ms?, surprise?, rule?,
+                 action_names?, action_values?         POMDP -> coordinator: answers observation
     action       step, action, belief? [p...], belief_states?, decision_ms?
                                                            "carry out this action" (no link
                                                            takes it since the robot node was
@@ -237,9 +237,11 @@ class Decision(Message):
     ``action`` it chose for step ``step`` and its ``belief`` after the observation (a
     probability per model state, in model order). Optional: ``belief_states`` (the states'
     names, same length), ``decision_ms`` (planning time), ``surprise`` (the observation had
-    probability 0 under the belief: the planner fell back to a documented belief) and
-    ``rule`` (which rule of a baseline robot chose the action). A reply: it carries
-    ``reply_to`` and ``epoch`` of the observation."""
+    probability 0 under the belief: the planner fell back to a documented belief), ``rule``
+    (which rule of a baseline robot chose the action), and ``action_names`` with
+    ``action_values`` (the planner's value of each action it compared, one number per name,
+    the chosen action's the best: why it chose; both or neither, e.g. a baseline robot has
+    none). A reply: it carries ``reply_to`` and ``epoch`` of the observation."""
 
     TYPE: ClassVar[str] = "decision"
     step: int
@@ -249,11 +251,18 @@ class Decision(Message):
     decision_ms: Optional[float] = None
     surprise: Optional[bool] = None
     rule: Optional[str] = None
+    action_names: Optional[Sequence[str]] = None
+    action_values: Optional[Sequence[float]] = None
 
     def _validate(self, check: Checker) -> None:
         self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         self._set("action", check.text("action", self.action))
         self._set("belief", check.belief_list("belief", self.belief))
+        if self.action_names is not None or self.action_values is not None:
+            names, values = check.named_numbers("action_names", self.action_names,
+                                                "action_values", self.action_values)
+            self._set("action_names", names)
+            self._set("action_values", values)
         if self.belief_states is not None:
             self._set("belief_states", check.belief_names(self.belief, self.belief_states))
         if self.decision_ms is not None:

@@ -229,6 +229,23 @@ class Checker:
                                              f"{len(belief)} probabilities")
         return names
 
+    def named_numbers(self, names_field: str, names: Any, values_field: str,
+                      values: Any) -> Tuple[Tuple[str, ...], Tuple[float, ...]]:
+        """Two parallel arrays, given together: distinct names and one finite number each
+        (e.g. a decision's ``action_names`` and ``action_values``)."""
+        if names is None or values is None:
+            given, missing = ((names_field, values_field) if values is None
+                              else (values_field, names_field))
+            raise self.fail(given, f"is given without {missing}")
+        checked = self.names(names_field, names)
+        if not isinstance(values, (list, tuple)):
+            raise self.fail(values_field, f"must be an array of numbers, {self._got(values)}")
+        if len(values) != len(checked):
+            raise self.fail(values_field, f"has {len(values)} numbers for {len(checked)} "
+                                          f"{names_field}")
+        return checked, tuple(self.number(f"{values_field}[{i}]", v)
+                              for i, v in enumerate(values))
+
 
 def check_extra(check: Checker, extra: Mapping[str, Any]) -> None:
     """Fields this version does not know are sent on as they came, so each must be one that

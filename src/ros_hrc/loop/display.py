@@ -9,7 +9,7 @@ robot states the step's belief is over (the seed's when none is).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.tasks.definition import Task
@@ -40,21 +40,70 @@ def holder_text(holder: str) -> str:
         holder, "nobody holds the object")
 
 
+def ranked_action_values(status) -> List[Tuple[str, float]]:
+    """The robot planner's value of each action it compared in a step (``action_names``,
+    ``action_values``), best first, ties in the model's order; empty for a baseline robot."""
+    pairs = list(zip(getattr(status, "action_names", ()), getattr(status, "action_values", ())))
+    order = sorted(range(len(pairs)), key=lambda i: (-pairs[i][1], i))
+    return [(pairs[i][0], float(pairs[i][1])) for i in order]
+
+
+def value_text(value: float) -> str:
+    """An action's value in four significant digits, to four decimals at most (``12.35``,
+    ``-64.1``, ``0``): a planner's numerical slack (DESPOT's few 1e-7) reads as 0."""
+    rounded = round(value, 4)
+    return f"{rounded:.4g}" if rounded != 0 else "0"
+
+
+def chosen_value_text(status) -> str:
+    """The chosen action's value and the next best action's, short, for the caption's robot
+    line (``value 12.35 vs rIdle 11.9``); "" when the planner sent no values."""
+    ranked = ranked_action_values(status)
+    chosen = [value for name, value in ranked if name == status.robot_action]
+    if not chosen:
+        return ""
+    others = [(name, value) for name, value in ranked if name != status.robot_action]
+    text = f"value {value_text(chosen[0])}"
+    return text + (f" vs {others[0][0]} {value_text(others[0][1])}" if others else "")
+
+
+def action_values_text(status, width: int = 80) -> str:
+    """Every action the planner valued, best first, the chosen one marked, in at most about
+    ``width`` characters (those that do not fit are counted at the end), e.g.
+    ``rGrasp_obj 12.35 (chosen) > rIdle 11.9 > rPoint_obj 4.1 (+2 more)``; "" without values."""
+    ranked = ranked_action_values(status)
+    text = ""
+    for i, (name, value) in enumerate(ranked):
+        item = f"{name} {value_text(value)}" + (" (chosen)" if name == status.robot_action else "")
+        if i:
+            same = value_text(value) == value_text(ranked[i - 1][1])
+            item = (" = " if same else " > ") + item
+        rest = len(ranked) - i - 1
+        more = f" (+{rest} more)" if rest else ""
+        if i and len(text) + len(item) + len(more) > width:
+            return text + f" (+{len(ranked) - i} more)"
+        text += item
+    return text
+
+
 def status_lines(status) -> List[str]:
     """The step in four lines: which step, what the human did and is, what the robot saw and
-    did, and what it believes; e.g. ::
+    did (with the planner's value of its action and of the next best one, when it sent
+    values), and what it believes; e.g. ::
 
         episode 2, step 3
         human: graspAttempt -> failed_to_grasp
-        robot: sees O7 (grasp_attempt+visible+in_range), does rGrasp_obj (true state S2)
+        robot: sees O7 (...), does rGrasp_obj (value 12.35 vs rIdle 11.9; true state S2)
         P(human needs help) = 0.87; nobody holds the object
     """
     bits = int(getattr(status, "observation_bits", 0))
     task = task_of(getattr(status, "belief_states", ()))
+    why = chosen_value_text(status)
     lines = [f"episode {getattr(status, 'episode', 0)}, step {status.step}",
              f"human: {status.human_action or '-'} -> {status.human_state or '-'}",
              f"robot: sees {status.robot_observation or '-'} ({task.describe_bits(bits)}), "
-             f"does {status.robot_action or '-'} (true state {status.robot_state or '-'})"]
+             f"does {status.robot_action or '-'} ({why + '; ' if why else ''}true state "
+             f"{status.robot_state or '-'})"]
     help_p = needs_help_probability(status.belief_states, status.belief)
     tail = holder_text(getattr(status, "object_holder", "none"))
     if getattr(status, "episode_over", False):

@@ -278,6 +278,10 @@ class StepReport:
     decision_ms: float = 0.0
     surprise: bool = False
     rule: str = ""
+    #: The planner's value of each action it compared, parallel lists (empty: a baseline robot,
+    #: or a planner that sends none).
+    action_names: Tuple[str, ...] = ()
+    action_values: Tuple[float, ...] = ()
     sim_time: float = 0.0
     episode_start_time: float = 0.0
     object_holder: str = "none"

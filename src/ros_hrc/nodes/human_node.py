@@ -83,6 +83,7 @@ from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import settings, tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
                                       WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig)
+from ros_hrc.loop.display import action_values_text
 from ros_hrc.loop.effects import (DECISION_IN_REPORT, ReactionRequest, STEP_TIMINGS, StepReport,
                                   StepRequest)
 from ros_hrc.loop.runner import LoopRunner, ReportPort
@@ -173,6 +174,9 @@ def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
         f"robot action      : {status.robot_action or '-'}",
         f"robot belief      : {belief or '-'}",
     ]
+    values = action_values_text(status)
+    if values:   # why the robot chose its action (a baseline robot sends no values)
+        lines.insert(-1, f"robot values      : {values}")
     if status.fault:
         lines.append(f"STEP FAILED       : {status.fault}")
     else:

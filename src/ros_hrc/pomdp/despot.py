@@ -18,7 +18,10 @@ built anytime, by trials, within a time budget (and an optional trial cap):
 * the path is then backed up (ρ(b,a) = Σ_φ γ^Δ R / K − λ):
   μ(b) = max(ℓ0(b), max_a ρ(b,a) + Σ μ(b')),  ℓ(b) likewise,  U(b) = max_a ρ(b,a) + λ + Σ U(b'),
 * the action returned is the one with the best lower bound ℓ(b0, a) (or the default action when
-  no expanded action beats it).
+  no expanded action beats it). Those values are what ``last_stats.action_values`` reports
+  per action (why the robot acted: the value it chose by, against the others'); they are the
+  lower bounds, not the upper bounds μ the trials descend by, because the choice compares
+  them (and μ of an action the trials never entered is only its heuristic bound).
 
 Bounds: the upper bound is the fully observable MDP's value ("mdp", default), the fast informed
 bound max_a of the scenarios' mean Q_FIB(s, a) ("fib", small models), or the trivial
@@ -65,7 +68,7 @@ from functools import reduce
 from itertools import accumulate
 from operator import add
 from dataclasses import dataclass
-from typing import List, Optional
+from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -620,7 +623,8 @@ class DespotPlanner(BeliefPlanner):
         rest to fit (the time to free a tree is measured on each act). A search bounded by
         ``max_trials`` under a generous budget makes the same trials and random draws whatever
         the clock says. ``last_stats`` then holds the trials, the seconds act() took, the root's
-        regularized bounds, the tree's size and depth.
+        regularized bounds, the tree's size and depth, and each root action's value that the
+        choice compared (:meth:`_root_values`).
         """
         start = time.perf_counter()
         budget = self.config.time_per_step - self._update_seconds
@@ -633,9 +637,11 @@ class DespotPlanner(BeliefPlanner):
         gc.disable()
         try:
             root = self._search(start + budget)
-            action = self._best_action(root, self._root_action)
+            values = self._root_values(root, self._root_action)
+            action = self._best_action(values)
             stats = PlannerStats(trials=self._trials, lower=root.lower, upper=root.upper,
-                                 nodes=self._nodes, depth=self._max_depth)
+                                 nodes=self._nodes, depth=self._max_depth,
+                                 action_values=values)
             freeing = time.thread_time()              # CPU time: immune to preemption
             del root                                  # the whole tree, by reference counting
             end = time.perf_counter()
@@ -678,8 +684,23 @@ class DespotPlanner(BeliefPlanner):
         return root
 
     @staticmethod
-    def _best_action(root: _VNode, default_action: int) -> int:
-        """The root's action with the best lower bound, or its default action.
+    def _root_values(root: _VNode, default_action: int) -> Dict[int, float]:
+        """The value of each root action that the choice compares: its action node's lower
+        bound ℓ(b0, a) (regularized: the scenarios' mean discounted return of the best policy
+        the tree holds under it, less λ per policy node), and for the default action the
+        default policy's value ℓ0(b0) when that is larger. Only the default action has a value
+        when the root was never expanded (no trial ran). In the model's reward units, from the
+        belief the search started at."""
+        values = {default_action: root.lower0}
+        for q in root.children or ():
+            if q.action not in values or q.lower > values[q.action]:
+                values[q.action] = q.lower
+        return values
+
+    @staticmethod
+    def _best_action(values: Dict[int, float]) -> int:
+        """The action of the best value of :meth:`_root_values` (the root's best lower bound,
+        or its default action).
 
         Values within :data:`TIE_TOLERANCE` (relative) of the best are ties, and a tie goes to
         the action the model lists first. The bounds carry numerical slack (the blind policies'
@@ -687,9 +708,6 @@ class DespotPlanner(BeliefPlanner):
         to gain (the human holds the object: every action is worth 0) would pick whichever
         action's slack happens to be smallest, e.g. pointing; the model's first action, rIdle
         in the robot model, is the one that does nothing."""
-        candidates = [(root.lower0, default_action)]
-        if root.children is not None:
-            candidates += [(q.lower, q.action) for q in root.children]
-        best = max(value for value, _ in candidates)
+        best = max(values.values())
         tolerance = TIE_TOLERANCE * max(1.0, abs(best))
-        return int(min(a for value, a in candidates if value >= best - tolerance))
+        return int(min(a for a, value in values.items() if value >= best - tolerance))

@@ -24,8 +24,8 @@ from __future__ import annotations
 import logging
 import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import Optional
+from dataclasses import dataclass, field
+from typing import Dict, Optional
 
 import numpy as np
 
@@ -41,7 +41,10 @@ log = logging.getLogger("ros_hrc.pomdp")
 
 @dataclass
 class PlannerStats:
-    """What the last ``act`` did: search trials, time, bounds at the root, tree size."""
+    """What the last ``act`` did: search trials, time, bounds at the root, tree size, and
+    ``action_values``: action index -> the value the planner compared that action by (its
+    choice has the best one, ties aside); only the actions it valued, empty for a planner that
+    decides without values (a baseline robot). Reported, never used to decide."""
 
     trials: int = 0
     seconds: float = 0.0
@@ -49,6 +52,7 @@ class PlannerStats:
     upper: float = math.nan
     nodes: int = 0
     depth: int = 0
+    action_values: Dict[int, float] = field(default_factory=dict)
 
 
 class Planner(ABC):
@@ -142,14 +146,16 @@ class PolicyPlanner(BeliefPlanner):
         b = self.belief
         if not self.lookahead:
             a = self.policy.action(b)
-            self.last_stats = PlannerStats(lower=self.policy.value(b))
+            self.last_stats = PlannerStats(lower=self.policy.value(b),
+                                           action_values=self.policy.action_values(b))
             return a
         joint = (b @ self._T)[:, None, :] * self._OT                  # (A, Z, S')
         # Σ_o P(o) max_i α_i·b_ao = Σ_o max_i α_i·joint_o (the normaliser cancels).
         future = (joint @ self.policy.alphas.T).max(axis=2).sum(axis=1)
         q = self.model.R_sa @ b + self.model.discount * future
         a = int(np.argmax(q))
-        self.last_stats = PlannerStats(lower=float(q[a]))
+        self.last_stats = PlannerStats(lower=float(q[a]),
+                                       action_values=dict(enumerate(q.tolist())))
         return a
 
 
@@ -177,5 +183,6 @@ class MdpPlanner(BeliefPlanner):
     def act(self) -> int:
         q = self.Q @ self.belief
         a = int(np.argmax(q))
-        self.last_stats = PlannerStats(lower=float(q[a]), upper=float(q[a]))
+        self.last_stats = PlannerStats(lower=float(q[a]), upper=float(q[a]),
+                                       action_values=dict(enumerate(q.tolist())))
         return a

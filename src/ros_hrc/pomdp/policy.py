@@ -33,7 +33,7 @@ import json
 import os
 import zipfile
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -86,6 +86,15 @@ class Policy:
     def value(self, belief: np.ndarray) -> float:
         """The policy's value at ``belief``: max_i α_i · b."""
         return float(np.max(self.alphas @ np.asarray(belief, dtype=float)))
+
+    def action_values(self, belief: np.ndarray) -> Dict[int, float]:
+        """Each action's value at ``belief`` under the policy: the best α_i · b over the
+        vectors of that action (the policy takes the action of the largest); an action without
+        a vector has none and is left out."""
+        values = self.alphas @ np.asarray(belief, dtype=float)
+        best = np.full(int(self.actions.max()) + 1, -np.inf)
+        np.maximum.at(best, self.actions, values)
+        return {a: float(v) for a, v in enumerate(best.tolist()) if v != -np.inf}
 
     def check(self, model: Model) -> None:
         """Raise SolverError unless the policy was made for a model of this shape."""

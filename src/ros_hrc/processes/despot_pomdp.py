@@ -164,9 +164,13 @@ class PomdpProcess:
         why = (f"rule {rule}, " if rule else "") + (f"MDP state {mdp_state}, " if mdp_state else "")
         print(f"- Belief:\n{self._belief_text()}\n- Action = {model.actions[action]} "
               f"({why}{decision_ms:.1f} ms)", flush=True)
+        # Why it chose: the value of each action the planner compared (none from a baseline).
+        values = sorted(self.agent.planner.last_stats.action_values.items())
         return Decision(step=msg.step, action=model.actions[action], belief=belief.tolist(),
                         belief_states=list(model.states), decision_ms=decision_ms,
-                        surprise=bool(note), rule=rule or None, epoch=msg.epoch,
+                        surprise=bool(note), rule=rule or None,
+                        action_names=[model.actions[a] for a, _ in values] or None,
+                        action_values=[v for _, v in values] or None, epoch=msg.epoch,
                         reply_to=msg.id)
 
     def _belief_text(self) -> str:

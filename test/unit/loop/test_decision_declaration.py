@@ -69,9 +69,14 @@ def test_a_decision_message_is_taken_whole():
                                 reply_to=11)
     assert Decision.of(message) == Decision("rPoint_obj", (0.25, 0.75), ("S0", "S2"), 2.5,
                                             True, "help")
+    valued = protocol.Decision(3, "rGrasp_obj", [1.0], action_names=["rIdle", "rGrasp_obj"],
+                               action_values=[11.9, 12.3])
+    assert Decision.of(valued) == Decision("rGrasp_obj", (1.0,), action_names=(
+        "rIdle", "rGrasp_obj"), action_values=(11.9, 12.3))
     # What the message leaves out is empty, never None.
     assert Decision.of(protocol.Decision(0, "rIdle", [1.0])) == Decision(
-        "rIdle", belief=(1.0,), belief_states=(), decision_ms=0.0, surprise=False, rule="")
+        "rIdle", belief=(1.0,), belief_states=(), decision_ms=0.0, surprise=False, rule="",
+        action_names=(), action_values=())
 
 
 def test_a_status_msg_that_disagrees_is_caught():
