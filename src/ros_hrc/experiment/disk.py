@@ -60,7 +60,7 @@ def mount_point(path: Union[str, os.PathLike]) -> Path:
 
 def ros_home() -> Path:
     """``$ROS_HOME``, or ``~/.ros`` as ROS takes it when unset."""
-    return Path(os.environ.get("ROS_HOME") or Path.home() / ".ros")
+    return Path(os.environ.get("ROS_HOME") or os.path.expanduser("~/.ros"))
 
 
 def room_left(path: Union[str, os.PathLike]) -> Optional[str]:
