@@ -406,6 +406,10 @@ _TABLE: Tuple[Setting, ...] = (
         _port("pomdp_port", 7070, "POMDP process's server, for the observations of hrc_human "
               "(the coordinator)"),
         _port("human_port", 9090, "hrc_human's server, for the steps of the MDP process"),
+        _s("link_read_timeout", "float", 5.0, "how long a websocket server keeps a client "
+           "whose outbox has not moved (it reads nothing it is sent) before it disconnects it; "
+           "a client that reads, however slowly, stays (docs/protocol.md)", minimum=0,
+           maximum=3600, exclusive_minimum=True, unit="s"),
     ),
     *_group(
         "the human (MDP) and the episodes",

@@ -43,9 +43,9 @@ def launch(tmp_path):
     script.write_text(STAND_IN.format(guard=GUARD))
     started = []
 
-    def start(*world):
+    def start(*world, stderr=subprocess.PIPE):
         proc = subprocess.Popen([sys.executable, str(script)] + list(world),
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                stdout=subprocess.PIPE, stderr=stderr, text=True,
                                 env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)))
         guard, other = (int(word) for word in proc.stdout.readline().split())
         deadline = time.monotonic() + WAIT
@@ -94,6 +94,18 @@ def test_a_world_that_dies_ends_its_roslaunch_non_zero_and_every_child_with_it(l
         "roslaunch exits with status 137 (Killed)"]
     assert gone(other) and gone(guard)
     assert "the guard ended" not in proc.stdout.read()   # roslaunch saw nothing
+
+
+def test_a_world_that_dies_ends_its_roslaunch_even_when_its_line_cannot_be_written(launch):
+    """The launch's log on a full disk (here /dev/full: every write fails with ENOSPC).
+    Before: the guard froze roslaunch, its line failed before the kill, and roslaunch stayed
+    frozen for good, its children zombies, and the experiment's cell hung."""
+    with open("/dev/full", "w") as full_disk:
+        proc, guard, other, world = launch(*SLEEPER, stderr=full_disk)
+    os.kill(world, signal.SIGKILL)
+    proc.wait(WAIT)
+    assert proc.returncode == -signal.SIGKILL
+    assert gone(other) and gone(guard)
 
 
 def test_the_guard_names_the_node_and_a_non_zero_status(launch):

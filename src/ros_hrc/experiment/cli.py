@@ -25,7 +25,9 @@ The whole grid is checked before any stack starts (every model against the task'
 every setting as hrc.launch checks it, every number against what its consumer takes); a bad
 one is one line naming the argument or the file, exit status 2. The grid is planned lazily
 (each cell's episodes to run are ranges, never a list of every episode). A file that cannot
-be written (a full disk) is one line naming it, exit status 1. ``--out`` is locked for the whole run: a second run on the same directory is
+be written is one line naming it, exit status 1; a full disk under the run (the results',
+every stack's logs, ``$ROS_HOME``) stops it within seconds, in one line naming the disk and
+what was kept, exit status 1. ``--out`` is locked for the whole run: a second run on the same directory is
 refused. SIGINT or SIGTERM stops every cell's stack, keeps what was recorded and exits 130 or
 143; the same command then resumes.
 """
@@ -34,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import sys
 from pathlib import Path
 from typing import List, Optional
@@ -52,7 +55,8 @@ from ros_hrc.experiment.grid import (DEFAULT_HUMANS, GridError, apply_task_defau
                                      plan_cells, resolve_files, task_of)
 from ros_hrc.experiment.plots import (NothingToPlot, plot_belief, plot_outcomes, plot_success,
                                       plot_time_gain)
-from ros_hrc.experiment.pool import run_stoppable
+from ros_hrc.experiment.disk import DiskFull, full_disk_line, is_full_disk
+from ros_hrc.experiment.pool import run_stoppable, say_last
 from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder, open_results
 from ros_hrc.experiment.stack import MAX_EPISODES, check_launch_settings
 from ros_hrc.experiment.statistics import summarize, write_summary
@@ -307,8 +311,18 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
               f"(the human-alone ones included): {figures['episodes_per_minute']:.1f} "
               f"episodes/min, {figures['simulated_seconds']:.1f} simulated s, "
               f"speed-up over real time x{figures['speedup_over_real_time']:.1f}")
-        write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
-    report(store, out, plots=not args.no_plots)
+    try:
+        if figures:
+            write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
+        report(store, out, plots=not args.no_plots)
+    except OSError as exc:
+        if not is_full_disk(exc):
+            raise
+        # Each file is whole or not there (written beside, then renamed): the episodes are
+        # all kept, and the same command writes what is missing once there is room.
+        say_last(full_disk_line(NAME, DiskFull.of_error(exc), len(store.done()), out,
+                                shlex.join([NAME] + list(words))))
+        return 1
     if figures and figures["failed_cells"]:
         print(f"{NAME}: {len(figures['failed_cells'])} cells failed (logs in {out / 'logs'}); "
               "run again to retry them", file=sys.stderr)

@@ -7,7 +7,9 @@ robots' episodes of that stream; a cell whose episodes are all in gives its plac
 one while its stack shuts down. Each cell runs in its own worker process
 (:func:`ros_hrc.experiment.stack.worker_command`), in up to three attempts
 (:mod:`ros_hrc.experiment.attempts`). SIGINT or SIGTERM stops every cell's stack
-(:class:`Stopper`), keeps what was recorded and says how to resume.
+(:class:`Stopper`), keeps what was recorded and says how to resume; so does a full disk under
+the run (:mod:`ros_hrc.experiment.disk`: the results' disk or ``$ROS_HOME``'s without room,
+or a write of the run's own that found none), in one line naming the disk.
 """
 from __future__ import annotations
 
@@ -24,6 +26,8 @@ from typing import Callable, Dict, List, Optional, Sequence, Set, TextIO, Tuple
 
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.attempts import CellAttempts, Deliver
+from ros_hrc.experiment.disk import (CHECK_INTERVAL, DiskFull, DiskWatch, full_disk_line,
+                                     is_full_disk)
 from ros_hrc.experiment.episode import ALONE_POLICY
 from ros_hrc.experiment.recording import Progress
 from ros_hrc.experiment.stack import (CellSpec, cell_name, decode_episode, worker_command,
@@ -31,18 +35,21 @@ from ros_hrc.experiment.stack import (CellSpec, cell_name, decode_episode, worke
 
 
 class Stopper:
-    """SIGINT / SIGTERM to hrc_experiment: every worker gets SIGTERM (each stops its own
-    stack), no new cell starts, and the run ends with what was recorded."""
+    """SIGINT / SIGTERM to hrc_experiment, or a full disk under the run (``disks``, looked
+    at by :meth:`check_disks`): every worker gets SIGTERM (each stops its own stack), no new
+    cell starts, and the run ends with what was recorded."""
 
-    def __init__(self) -> None:
+    def __init__(self, disks: Optional[DiskWatch] = None) -> None:
         self.signum: Optional[int] = None
+        self.disk_full: Optional[DiskFull] = None
+        self.disks = disks
         self._lock = threading.Lock()
         self._workers: Set[subprocess.Popen] = set()
         self._previous: Dict[int, object] = {}
 
     @property
     def stopping(self) -> bool:
-        return self.signum is not None
+        return self.signum is not None or self.disk_full is not None
 
     def install(self) -> None:
         """Catch SIGINT and SIGTERM (main thread only) until :meth:`uninstall`."""
@@ -61,6 +68,27 @@ class Stopper:
         """Stop the run: SIGTERM to every worker (again on a second signal)."""
         if self.signum is None:
             self.signum = signum
+        self._terminate_all()
+
+    def stop_for_full_disk(self, full: DiskFull) -> None:
+        """Stop the run because ``full`` has no room (the first such disk is the one said)."""
+        with self._lock:
+            if self.disk_full is None:
+                self.disk_full = full
+        self._terminate_all()
+
+    def check_disks(self, error: Optional[BaseException] = None) -> bool:
+        """Whether the run stops for a full disk: ``error`` is a write that found no room, a
+        watched disk has none left now, or one had before. The first two stop it."""
+        if error is not None and is_full_disk(error):
+            self.stop_for_full_disk(DiskFull.of_error(error))   # type: ignore[arg-type]
+        elif self.disk_full is None and self.disks is not None:
+            full = self.disks.full()
+            if full is not None:
+                self.stop_for_full_disk(full)
+        return self.disk_full is not None
+
+    def _terminate_all(self) -> None:
         with self._lock:
             workers = list(self._workers)
         for proc in workers:
@@ -145,6 +173,8 @@ def run_local_cell(cell: CellSpec, deliver: Deliver, log: TextIO,
         try:
             _run_worker(spec, attempts.take, log, stopper)
         except RuntimeError as exc:
+            if stopper is not None and stopper.check_disks():
+                return "", ()       # no retry: the run stops for the full disk
             return str(exc), ()
         return "", ()
 
@@ -226,17 +256,31 @@ def run_grid(cells: List[CellSpec], store, jobs: int,
                     return
                 name = cell_name(cell)
                 cell_logs = Path(cell.log_dir)
-                cell_logs.mkdir(parents=True, exist_ok=True)
-                with open(cell_logs / f"{name}.worker.log", "a") as log:
-                    try:
+                try:
+                    cell_logs.mkdir(parents=True, exist_ok=True)
+                    with open(cell_logs / f"{name}.worker.log", "a") as log:
                         worker(cell, progress.deliver, log, stopper, on_all_delivered=release)
-                    except (RuntimeError, OSError) as exc:
+                except (RuntimeError, OSError) as exc:
+                    # A full disk is no failure of this cell: the whole run stops for it.
+                    if not stopper.check_disks(exc):
                         progress.cell_failed(name, exc)
             finally:
                 release()
 
-        with ThreadPoolExecutor(max_workers=2 * max(1, jobs)) as pool:
-            list(pool.map(run, cells))
+        over = threading.Event()
+
+        def watch_disks() -> None:
+            while not over.wait(CHECK_INTERVAL) and not stopper.check_disks():
+                pass
+
+        watcher = threading.Thread(target=watch_disks, name="disk-watch", daemon=True)
+        watcher.start()
+        try:
+            with ThreadPoolExecutor(max_workers=2 * max(1, jobs)) as pool:
+                list(pool.map(run, cells))
+        finally:
+            over.set()
+            watcher.join()
     return progress.figures(jobs)
 
 
@@ -249,8 +293,9 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
     stopped it, ``(None, 128 + signal)`` after saying what is kept and how to resume.
     ``cluster`` (``--cluster``): the cells run as Ray tasks there
     (:mod:`ros_hrc.experiment.cluster`, the only place Ray is imported); a cluster that cannot
-    be joined is one line and ``(None, 2)``."""
-    stopper = Stopper()
+    be joined is one line and ``(None, 2)``. A full disk under the run (``out``'s, or
+    ``$ROS_HOME``'s) stops it as a signal does: one line naming the disk, ``(None, 1)``."""
+    stopper = Stopper(DiskWatch.of_run(out))
     figures = None
     remote = None
     try:
@@ -282,7 +327,19 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
             remote.close()
     if not stopper.stopping:
         return figures, None
+    command = shlex.join([program] + list(words))
+    if stopper.disk_full is not None:
+        say_last(full_disk_line(program, stopper.disk_full, len(store.done()), out, command))
+        return None, 1
     name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
     print(f"\n{program}: stopped by {name}; {len(store.done())} episodes are kept in {out}. "
-          f"Resume with: {shlex.join([program] + list(words))}", file=sys.stderr, flush=True)
+          f"Resume with: {command}", file=sys.stderr, flush=True)
     return None, 128 + int(stopper.signum)  # type: ignore[arg-type]
+
+
+def say_last(line: str) -> None:
+    """A run's last line on stderr; dropped when stderr itself is on the full disk."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:
+        pass

@@ -381,10 +381,12 @@ class StackWatch:
 
 def stop_launched(proc: subprocess.Popen, grace: float = 60.0) -> None:
     """Stop a roslaunch (or rosbag) started with ``start_new_session=True`` as Ctrl-C would:
-    SIGINT to its whole process group, SIGKILL if it is still there after ``grace`` s."""
+    SIGINT to its whole process group, SIGKILL if it is still there after ``grace`` s. A
+    roslaunch its world's guard froze (SIGSTOP) is woken to take the SIGINT."""
     if proc.poll() is None:
         try:
             os.killpg(proc.pid, signal.SIGINT)
+            os.killpg(proc.pid, signal.SIGCONT)
         except ProcessLookupError:
             pass
         try:

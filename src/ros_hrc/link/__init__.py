@@ -16,7 +16,7 @@ gathers its public names); the only modules that import a websocket library:
   session      what both ends share: where a link is, the websocket settings, and the hello
                handshake of one connection (Session)
   server       MessageServer (a thread per connection; refusals; dispatch)
-  peer         Peer: one client of a server; its sends only queue (a bounded outbox)
+  peer         Peer: one client of a server; its sends only queue (cut off after link_read_timeout unread)
   client       MessageClient: reconnects by itself, request() by correlation id
   inbox        Inbox: what a client received, and its requests in flight matched to their
                answers (Sans-I/O)

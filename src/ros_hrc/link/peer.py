@@ -1,6 +1,11 @@
 """One client connected to a :class:`~ros_hrc.link.server.MessageServer`, as the server's
-handler sees it: :class:`Peer`, with a bounded outbox that a writer thread of its own drains, so
-that a send never blocks the server."""
+handler sees it: :class:`Peer`, with an outbox that a writer thread of its own drains, so that a
+send never blocks the server.
+
+A client that reads slowly is served, however many frames wait for it; one that stops reading
+is cut off by time: when its outbox has not moved for ``link_read_timeout`` seconds (the
+server's watchdog, :meth:`Peer._stalled_for`). The outbox's size in bytes is the last resort
+(:data:`OUTBOX_BYTES`), a bound on the memory one client can hold, never the usual way out."""
 from __future__ import annotations
 
 import collections
@@ -17,11 +22,16 @@ from websockets.sync.server import ServerConnection
 from ros_hrc.link.codec import encode
 from ros_hrc.link.messages import Message
 from ros_hrc.link.session import CLOSE_REFUSED, Session
+from ros_hrc import settings
 
-#: Frames a peer's outbox holds; one more and the peer is disconnected as not reading.
-OUTBOX_FRAMES = 1024
-#: Seconds one frame may stay blocked in a peer's socket before the peer is disconnected.
-SEND_TIMEOUT = 5.0
+#: The bytes (UTF-8) a peer's outbox may hold: one frame more and the peer is disconnected.
+#: A memory bound, the last resort: a client that reads, however slowly, is never near it
+#: (the fuzzer's 20,000 replies are about 3 MB), and one that stops reading is cut off by
+#: time first unless it is flooded. The same bound as 1024 frames of the largest message.
+OUTBOX_BYTES = 64 * 1024 * 1024
+#: Seconds a peer's outbox may go without a frame sent before the peer is disconnected as not
+#: reading: the launch's ``link_read_timeout`` (settings.py).
+READ_TIMEOUT = settings.default("link_read_timeout")
 # A websocket close reason is at most 123 bytes of UTF-8.
 _MAX_CLOSE_REASON = 123
 
@@ -40,18 +50,19 @@ class Peer:
     ``who`` is the name the client gave in its hello (``"?"`` before that), ``address`` its
     (host, port), ``session`` its handshake. Calling the peer, or :meth:`send`, queues a frame
     for that client only and returns at once: a writer thread of the peer's own sends the
-    queue in order. A peer that does not read is disconnected (its outbox is full, or a send
-    stayed blocked longer than the server's ``send_timeout``).
+    queue in order.
 
     Why an outbox of our own: a send on websockets' threaded connection blocks in the socket
     (holding the connection's lock) for as long as the peer does not read, and the library
     has no send timeout or write limit there. Queuing here keeps every handler and callback
-    from ever waiting on one peer."""
+    from ever waiting on one peer. A peer that does not read is disconnected when its outbox
+    has not moved for the server's ``read_timeout`` (the server's watchdog asks
+    :meth:`_stalled_for`), or, the last resort, when it holds ``outbox_bytes``."""
 
     _ids = itertools.count(1)
 
     def __init__(self, connection: ServerConnection, session: Session, *,
-                 server_name: str = "server", outbox_frames: int = OUTBOX_FRAMES,
+                 server_name: str = "server", outbox_bytes: int = OUTBOX_BYTES,
                  log: logging.Logger = _log,
                  on_writer_exit: Optional[Callable[["Peer"], None]] = None) -> None:
         self.id = next(Peer._ids)
@@ -62,16 +73,19 @@ class Peer:
             self.address = ()
         self._connection = connection
         self._server_name = server_name
-        self._limit = max(1, int(outbox_frames))
+        self._limit = max(1, int(outbox_bytes))
         self._log = log
         self._on_writer_exit = on_writer_exit
-        self._cond = threading.Condition()     # guards the five below
-        self._outbox: Deque[str] = collections.deque()
+        self._cond = threading.Condition()     # guards the six below
+        self._outbox: Deque[Tuple[str, int]] = collections.deque()   # frames and their bytes
+        self._queued_bytes = 0
         self._open = True                      # takes new frames
         self._close_args: Optional[Tuple[int, str]] = None  # close() was called
         self._gone = False                     # connection lost or aborted: send nothing more
         self._aborted = False
-        self._sending_since: Optional[float] = None  # monotonic start of the send under way
+        # When the outbox last moved (a frame went out, or the first one came into an empty
+        # outbox); None while nothing waits to be sent.
+        self._moved_at: Optional[float] = None
         self._writer = threading.Thread(target=self._write_loop, daemon=True,
                                         name=f"link-{server_name}-peer{self.id}")
 
@@ -101,16 +115,23 @@ class Peer:
     __call__ = send
 
     def send_text(self, text: str) -> bool:
-        """Queue an already encoded frame; ``False`` if the client is gone or closing. A full
-        outbox disconnects the client (it does not read) and also gives ``False``."""
+        """Queue an already encoded frame; ``False`` if the client is gone or closing. An
+        outbox that would hold more than its bytes disconnects the client (the last resort
+        against a client that does not read) and also gives ``False``."""
+        size = len(text.encode("utf-8"))
         with self._cond:
             if not self._open:
                 return False
-            if len(self._outbox) < self._limit:
-                self._outbox.append(text)
+            if self._queued_bytes + size <= self._limit:
+                if self._moved_at is None:
+                    self._moved_at = time.monotonic()
+                self._outbox.append((text, size))
+                self._queued_bytes += size
                 self._cond.notify()
                 return True
-        self.abort(f"its outbox is full ({self._limit} frames unsent): it does not read")
+            unsent = len(self._outbox)
+        self.abort(f"its outbox is full ({unsent} frames, {self._queued_bytes} bytes unsent, "
+                   f"the limit is {self._limit}): it does not read")
         return False
 
     def close(self, code: int = CLOSE_REFUSED, reason: str = "") -> None:
@@ -133,7 +154,7 @@ class Peer:
                 return
             self._aborted, self._open, self._gone = True, False, True
             dropped = len(self._outbox)
-            self._outbox.clear()
+            self._drop_outbox()
             self._cond.notify()
         self._log.warning("%s: disconnecting %r: %s (%d queued frames dropped)",
                           self._server_name, self, why, dropped)
@@ -161,12 +182,19 @@ class Peer:
         """The connection ended: drop what is queued and let the writer go."""
         with self._cond:
             self._open, self._gone = False, True
-            self._outbox.clear()
+            self._drop_outbox()
             self._cond.notify()
 
-    def _stuck_for(self, now: float) -> float:
-        """Seconds the send under way has been blocked (0 if none)."""
-        since = self._sending_since
+    def _drop_outbox(self) -> None:
+        """Forget every queued frame (the caller holds ``_cond``)."""
+        self._outbox.clear()
+        self._queued_bytes = 0
+        self._moved_at = None
+
+    def _stalled_for(self, now: float) -> float:
+        """Seconds the outbox has gone without a frame sent while frames wait (0 if none
+        waits): how long this client has read nothing it was sent."""
+        since = self._moved_at
         return 0.0 if since is None else now - since
 
     def _write_loop(self) -> None:
@@ -181,8 +209,7 @@ class Peer:
                         assert self._close_args is not None
                         code, reason = self._close_args
                         break
-                    text = self._outbox.popleft()
-                    self._sending_since = time.monotonic()
+                    text, size = self._outbox[0]     # still counted while it is sent
                 try:
                     self._connection.send(text)
                 except ConnectionClosed:
@@ -192,8 +219,12 @@ class Peer:
                         self._log.warning("%s: sending to %r failed: %s", self._server_name,
                                           self, exc)
                     return
-                finally:
-                    self._sending_since = None
+                with self._cond:
+                    if self._gone:
+                        return
+                    self._outbox.popleft()
+                    self._queued_bytes -= size
+                    self._moved_at = time.monotonic() if self._outbox else None
             # The close handshake is bounded by the connection's close_timeout.
             try:
                 self._connection.close(code, reason)
@@ -202,6 +233,6 @@ class Peer:
         finally:
             with self._cond:
                 self._open, self._gone = False, True
-                self._outbox.clear()
+                self._drop_outbox()
             if self._on_writer_exit is not None:
                 self._on_writer_exit(self)

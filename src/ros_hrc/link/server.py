@@ -10,10 +10,11 @@ handler is caught at the dispatch point, logged and answered with an ``error`` (
 a client only once its hello proves the token (:class:`~ros_hrc.link.session.Session`); any
 other first frame, or none within the hello timeout, is refused with one ``error`` and closed.
 
-Sends never block the server: each client is a :class:`~ros_hrc.link.peer.Peer` with a bounded
-outbox. A peer that does not read (its outbox fills up, or one frame stays stuck in its socket
-longer than ``send_timeout``) is disconnected, with one warning, and everybody else is served
-as before. A frame larger than :data:`~ros_hrc.link.session.FRAME_LIMIT_BYTES` is not even
+Sends never block the server: each client is a :class:`~ros_hrc.link.peer.Peer` with an outbox
+of its own. A peer that does not read (its outbox has not moved for ``read_timeout`` seconds,
+the launch's ``link_read_timeout``; or, the last resort, it holds ``outbox_bytes``) is
+disconnected, with one warning, and everybody else is served as before; a peer that reads
+slowly is served however far behind it is. A frame larger than :data:`~ros_hrc.link.session.FRAME_LIMIT_BYTES` is not even
 read: websockets closes that connection with code 1009 (message too big).
 
 Threads: every public method is thread-safe. The handler and the ``on_connect`` /
@@ -36,7 +37,7 @@ from websockets.sync.server import Server, ServerConnection, serve
 from ros_hrc.errors import LinkError
 from ros_hrc.link.codec import decode, encode
 from ros_hrc.link.messages import PROTOCOL_VERSION, REPLY_TYPES, Error, Hello, Message
-from ros_hrc.link.peer import OUTBOX_FRAMES, SEND_TIMEOUT, Peer
+from ros_hrc.link.peer import OUTBOX_BYTES, READ_TIMEOUT, Peer
 from ros_hrc.link.refusals import (ERR_FAILED, ERR_REFUSED, ERR_UNAUTHORIZED, ERR_VERSION,
                                    MessageError)
 from ros_hrc.link.replies import as_reply, error_reply
@@ -115,23 +116,24 @@ class MessageServer:
 
     ``token`` is the launch's link token: a client must prove it in its hello, within
     ``hello_timeout`` seconds (``None``: no proof asked, as in tests). Sends never block:
-    ``send_timeout`` (seconds) and ``outbox_frames`` bound how far a peer may fall behind
-    before it is disconnected."""
+    ``read_timeout`` (seconds a peer's outbox may go without a frame sent) and
+    ``outbox_bytes`` (the memory it may hold, the last resort) bound how long a peer may stop
+    reading before it is disconnected."""
 
     def __init__(self, port: int, handler: Handler, *, host: str = DEFAULT_HOST,
                  name: str = "server", on_connect: Optional[PeerCallback] = None,
                  on_disconnect: Optional[PeerCallback] = None,
-                 send_timeout: float = SEND_TIMEOUT,
-                 outbox_frames: int = OUTBOX_FRAMES, token: Optional[str] = None,
+                 read_timeout: float = READ_TIMEOUT,
+                 outbox_bytes: int = OUTBOX_BYTES, token: Optional[str] = None,
                  hello_timeout: float = HELLO_TIMEOUT) -> None:
-        if not send_timeout > 0:
-            raise ValueError(f"{name}: send_timeout must be > 0, got {send_timeout}")
-        if outbox_frames < 1:
-            raise ValueError(f"{name}: outbox_frames must be >= 1, got {outbox_frames}")
+        if not read_timeout > 0:
+            raise ValueError(f"{name}: read_timeout must be > 0, got {read_timeout}")
+        if outbox_bytes < 1:
+            raise ValueError(f"{name}: outbox_bytes must be >= 1, got {outbox_bytes}")
         self.host = host
         self.name = name
-        self.send_timeout = float(send_timeout)
-        self.outbox_frames = int(outbox_frames)
+        self.read_timeout = float(read_timeout)
+        self.outbox_bytes = int(outbox_bytes)
         self.hello_timeout = float(hello_timeout)
         self._token = token
         self._used_nonces = UsedNonces()
@@ -269,18 +271,20 @@ class MessageServer:
     # -- on the server's threads -------------------------------------------------------------
 
     def _watch(self) -> None:
-        """Disconnect a peer whose socket took no data for longer than ``send_timeout``: the
-        writer thread itself is blocked in the send, and websockets has no send timeout."""
-        interval = min(0.5, max(0.01, self.send_timeout / 4))
+        """Disconnect a peer whose outbox has not moved for longer than ``read_timeout``: it
+        reads nothing (its writer thread is blocked in a send, and websockets has no send
+        timeout)."""
+        interval = min(0.5, max(0.01, self.read_timeout / 4))
         while not self._stopping.wait(interval):
             now = time.monotonic()
             with self._peers_changed:
                 live = list(self._live)
             for peer in live:
-                stuck = peer._stuck_for(now)
-                if stuck > self.send_timeout:
-                    peer.abort(f"a send has been blocked for {stuck:.1f} s (send_timeout "
-                               f"{self.send_timeout:g} s): it does not read")
+                stalled = peer._stalled_for(now)
+                if stalled > self.read_timeout:
+                    peer.abort(f"it has read nothing for {stalled:.1f} s with "
+                               f"{peer.queued} frames waiting (link_read_timeout "
+                               f"{self.read_timeout:g} s): it does not read")
 
     def _admit(self, connection: ServerConnection, request: Any) -> Any:
         """websockets' ``process_request``: refuse the handshake while stopping."""
@@ -294,7 +298,7 @@ class MessageServer:
 
     def _serve_connection(self, connection: ServerConnection) -> None:
         peer = Peer(connection, Session("server", self.name, self.port, self._token),
-                    server_name=self.name, outbox_frames=self.outbox_frames, log=self._log,
+                    server_name=self.name, outbox_bytes=self.outbox_bytes, log=self._log,
                     on_writer_exit=self._writer_done)
         with self._peers_changed:
             self._peers[peer.id] = peer

@@ -7,7 +7,7 @@ modules move its text frames:
   ros_hrc.link.session  what both ends share: where a link is, the websocket settings, and the
                         hello handshake with its link-token proofs (Session)
   ros_hrc.link.server   MessageServer: one thread per connection, refusals, dispatch
-  ros_hrc.link.peer     Peer: one client of a server, whose sends only queue (a bounded outbox)
+  ros_hrc.link.peer     Peer: one client of a server, whose sends only queue (an outbox cut off by time)
   ros_hrc.link.client   MessageClient: reconnects, says hello, request() by correlation id;
                         LinkTimeout, LinkClosed, LinkDropped, ReplyRejected
   ros_hrc.link.inbox    Inbox: what a client received, its requests matched to their answers
@@ -20,7 +20,7 @@ reconnects.
 """
 from ros_hrc.link.client import (LinkClosed, LinkDropped, LinkTimeout, MessageClient,
                                  ReplyRejected, connect_failure)
-from ros_hrc.link.peer import OUTBOX_FRAMES, SEND_TIMEOUT, Peer
+from ros_hrc.link.peer import OUTBOX_BYTES, READ_TIMEOUT, Peer
 from ros_hrc.link.server import Handler, MessageServer, PeerCallback
 from ros_hrc.link.session import (CLOSE_GOING_AWAY, CLOSE_REFUSED, CLOSE_TIMEOUT, DEFAULT_HOST,
                                   FRAME_LIMIT_BYTES, HELLO_TIMEOUT, KEEPALIVE_INTERVAL,
@@ -30,6 +30,6 @@ __all__ = [
     "MessageServer", "Handler", "PeerCallback", "Peer", "MessageClient",
     "LinkTimeout", "LinkClosed", "LinkDropped", "ReplyRejected", "connect_failure",
     "DEFAULT_HOST", "FRAME_LIMIT_BYTES", "CLOSE_TIMEOUT", "CLOSE_REFUSED", "CLOSE_GOING_AWAY",
-    "HELLO_TIMEOUT", "KEEPALIVE_INTERVAL", "KEEPALIVE_TIMEOUT", "OUTBOX_FRAMES",
-    "SEND_TIMEOUT", "free_port", "link_url",
+    "HELLO_TIMEOUT", "KEEPALIVE_INTERVAL", "KEEPALIVE_TIMEOUT", "OUTBOX_BYTES",
+    "READ_TIMEOUT", "free_port", "link_url",
 ]

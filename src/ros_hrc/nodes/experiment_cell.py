@@ -46,8 +46,10 @@ from ros_hrc.pomdp.model import Model
 
 #: Seconds a stopped stack gets to shut down (roslaunch stops its nodes) before SIGKILL.
 STOP_GRACE = 60.0
-#: The same when the cell is stopped by a signal: the user is waiting.
-INTERRUPT_GRACE = 20.0
+#: The same when the cell is stopped by a signal (Ctrl-C, or hrc_experiment stopping for a
+#: full disk): the user is waiting, and a stack cut short loses nothing, since an episode is
+#: recorded whole or not at all. What roslaunch leaves then is ended by ``stop_stack``.
+INTERRUPT_GRACE = 5.0
 
 
 class CellStopped(BaseException):

@@ -21,9 +21,10 @@ How the world ends, and what the guard does:
   crash, a fault at start-up), and the guard's parent is a roslaunch: the guard stops that
   roslaunch (SIGSTOP: it sees nothing more, respawns nothing), shuts down roslaunch's own
   children as roslaunch would (SIGINT to each one's process group, SIGTERM after 15 s, SIGKILL
-  after 2 s more; rosout, then rosmaster, last, and only if that roslaunch started them), prints
-  one line saying the world died, and kills the roslaunch (SIGKILL): its exit status is 137,
-  which the shell shows as "Killed". Under anything else (rostest, rosrun) the guard only says
+  after 2 s more; rosout, then rosmaster, last, and only if that roslaunch started them), kills
+  the roslaunch (SIGKILL: its exit status is 137, which the shell shows as "Killed"), then
+  prints one line saying the world died (a line that cannot be written, its log on a full
+  disk, is dropped: the kill comes first). Under anything else (rostest, rosrun) the guard only says
   the world died and ends with the world's status.
 
 The guard touches no process but the roslaunch that is its parent (checked by its command line)
@@ -219,18 +220,29 @@ def guard(child: int, name: str) -> int:
         return ending            # own shutdown goes on
     launcher = os.getppid()
     if not is_roslaunch(launcher):
-        print(f"{name} died ({describe_end(code)})", file=sys.stderr, flush=True)
+        say(f"{name} died ({describe_end(code)})")
         return ending
     if not stop_launch(launcher, os.getpid()):
         return ending
-    print(f"{name} died ({describe_end(code)}): it is required, so the launch stops with it; "
-          f"roslaunch exits with status {128 + LAUNCH_ENDING_SIGNAL} "
-          f"({signal.strsignal(LAUNCH_ENDING_SIGNAL)})", file=sys.stderr, flush=True)
+    # Killed before it is said: the line goes to the launch's log, which may be on a full
+    # disk; a roslaunch left frozen because a print failed would hang its user for good.
     try:
         os.kill(launcher, LAUNCH_ENDING_SIGNAL)   # ends it stopped as it is
     except ProcessLookupError:
         pass
+    say(f"{name} died ({describe_end(code)}): it is required, so the launch stops with it; "
+        f"roslaunch exits with status {128 + LAUNCH_ENDING_SIGNAL} "
+        f"({signal.strsignal(LAUNCH_ENDING_SIGNAL)})")
     return ending
+
+
+def say(line: str) -> None:
+    """One line on stderr, or nothing when it cannot be written (a full disk, a closed
+    pipe): what the guard does never waits on what it says."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

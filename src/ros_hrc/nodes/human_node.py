@@ -103,6 +103,7 @@ class HumanNodeConfig:
     host: str = settings.default("host")
     human_port: int = settings.default("human_port")
     pomdp_port: int = settings.default("pomdp_port")
+    link_read_timeout: float = settings.default("link_read_timeout")
     mode: str = settings.default("mode")
     max_steps: int = settings.default("max_steps")
     on_episode_end: str = settings.default("on_episode_end")
@@ -319,7 +320,8 @@ class HumanNode:
         table.on(Error, self._on_answer)
         self.server = MessageServer(config.human_port, table, host=config.host,
                                     name="hrc_human", on_connect=self.runner.mdp_connected,
-                                    on_disconnect=self.runner.mdp_disconnected, token=token)
+                                    on_disconnect=self.runner.mdp_disconnected,
+                                    read_timeout=config.link_read_timeout, token=token)
         self._next_state_ids = itertools.count(1)   # correlation ids of next_state requests
         self._answers: Dict[int, Message] = {}
         self._answered = threading.Condition()

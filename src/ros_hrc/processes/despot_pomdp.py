@@ -213,6 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "robot_model", "--model")
     settings.add_argument(p, "host")
     settings.add_argument(p, "pomdp_port", "--port")
+    settings.add_argument(p, "link_read_timeout")
     settings.add_argument(p, "planner")
     settings.add_argument(p, "policy_file", "--policy")
     settings.add_argument(p, "reactive_budget")
@@ -245,7 +246,7 @@ def main(argv: Optional[list] = None) -> int:
     process = PomdpProcess(RobotAgent(model, planner, first_action=task.robot_idle_action,
                                       seed=args.seed))
     server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,
-                           token=token)
+                           read_timeout=args.link_read_timeout, token=token)
     try:
         server.start()
     except LinkError as exc:

@@ -403,7 +403,11 @@ def test_a_full_disk_while_writing_the_summary_is_one_line(tmp_path):
                           text=True, timeout=120, stdin=subprocess.DEVNULL)
     assert done.returncode == 1, done.stderr
     assert done.stderr.splitlines() == [
-        f"hrc_experiment: {out / 'summary.csv'}: No space left on device"]
+        f"hrc_experiment: the disk at {disk} is full (No space left on device: "
+        f"{out / 'summary.csv'}): 1 whole episode kept in {out}; resume with: hrc_experiment "
+        f"--human-models tired --policies no_robot --seeds 0 --episodes 1 --no-plots --out "
+        f"{out} once there is room on {disk} (or copy {out} to another disk and give --out "
+        "that copy)"]
     assert "0 to run" in done.stdout
 
 

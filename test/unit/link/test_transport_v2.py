@@ -84,14 +84,14 @@ def read_until(ws, predicate):
 
 # -- sends never block the server -------------------------------------------------------------
 
-@pytest.mark.parametrize("outbox_frames,send_timeout", [(16, 60.0), (100000, 0.3)],
-                         ids=["outbox full", "send blocked too long"])
+@pytest.mark.parametrize("outbox_bytes,read_timeout", [(256 * 1024, 60.0), (10**9, 0.3)],
+                         ids=["outbox full", "read nothing for too long"])
 def test_a_peer_that_never_reads_is_disconnected_and_the_others_are_served(
-        outbox_frames, send_timeout, caplog):
+        outbox_bytes, read_timeout, caplog):
     log = Log()
     big = NextState(None, extra={"padding": "x" * 16000})
     with MessageServer(0, echo(log), name="busy", on_disconnect=log.left,
-                       outbox_frames=outbox_frames, send_timeout=send_timeout) as srv, \
+                       outbox_bytes=outbox_bytes, read_timeout=read_timeout) as srv, \
             MessageClient(srv.url, "fast", backoff=FAST_BACKOFF) as fast:
         assert srv.wait_for_client(SAFETY, who="fast")
         slow = raw(srv, "slow")  # connects, says hello, and never reads again
@@ -128,7 +128,7 @@ def test_a_peer_that_never_reads_is_disconnected_and_the_others_are_served(
             warnings = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
             assert len(warnings) == 1 and "disconnecting" in warnings[0]
             assert "'slow'" in warnings[0]
-            expected = "outbox is full" if outbox_frames == 16 else "blocked for"
+            expected = "outbox is full" if read_timeout == 60.0 else "it has read nothing for"
             assert expected in warnings[0]
         finally:
             slow.vanish()
@@ -151,7 +151,7 @@ def test_a_handler_sending_to_a_stuck_peer_does_not_stall_the_server():
             stuck["slow"] = peer
 
     with MessageServer(0, handler, name="pusher", on_connect=remember, on_disconnect=log.left,
-                       send_timeout=0.3) as srv, \
+                       read_timeout=0.3) as srv, \
             MessageClient(srv.url, "fast", backoff=FAST_BACKOFF) as fast:
         assert srv.wait_for_client(SAFETY, who="fast")
         slow = raw(srv, "slow")
@@ -162,6 +162,62 @@ def test_a_handler_sending_to_a_stuck_peer_does_not_stall_the_server():
             assert stuck["slow"].send(Ack(0)) is False and not stuck["slow"].connected
         finally:
             slow.vanish()
+
+
+def test_a_slow_but_steady_reader_is_never_cut_off(caplog):
+    """Before: a peer was cut off once 1024 frames waited for it, though it was reading; the
+    fuzzer's token holder (20,000 invalid frames, the replies read more slowly than the server
+    wrote them) was cut off once in four runs. Now only time without reading cuts a peer off
+    (the launch's link_read_timeout, default here): 20,000 frames queued at once, read at a
+    fraction of the pace they were queued, all arrive."""
+    frames = 20000
+    with MessageServer(0, echo(Log()), name="steady") as srv:
+        reader = raw(srv, "reader")
+        try:
+            with caplog.at_level(logging.WARNING, logger="ros_hrc.link"):
+                padding = "z" * 1000
+                queued = sum(srv.send(NextState(None, extra={"n": n, "padding": padding}),
+                                      who="reader") for n in range(frames))
+                assert queued == frames and srv.clients()[0].queued > 1024
+                got = []
+                while len(got) < frames:
+                    msg = decode(reader.recv())
+                    if isinstance(msg, NextState):      # (not the server's hello)
+                        got.append(msg.extra["n"])
+                    if len(got) % 50 == 0:
+                        time.sleep(0.001)    # slower than the server wrote them
+            assert got == list(range(frames))
+            assert [p.who for p in srv.clients()] == ["reader"]
+            assert [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING] == []
+        finally:
+            reader.vanish()
+
+
+def test_a_peer_that_stops_reading_is_cut_off_once_its_outbox_has_not_moved_for_the_timeout(
+        caplog):
+    log = Log()
+    with MessageServer(0, echo(log), name="stopper", on_disconnect=log.left,
+                       read_timeout=0.5) as srv:
+        reader = raw(srv, "reader")
+        try:
+            big = NextState(None, extra={"padding": "q" * 16000})
+            with caplog.at_level(logging.WARNING, logger="ros_hrc.link"):
+                for _ in range(100):
+                    assert srv.send(big, who="reader") == 1
+                for _ in range(100):
+                    reader.recv()       # it reads what it was sent, then stops reading
+                sent = 0
+                while srv.send(big, who="reader") == 1:    # until it is cut off
+                    sent += 1
+                    time.sleep(0.002)
+                log.wait_until(lambda: "reader" in log.gone)
+            warnings = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+            assert len(warnings) == 1 and "'reader'" in warnings[0], warnings
+            assert "it has read nothing for" in warnings[0]
+            assert "(link_read_timeout 0.5 s): it does not read" in warnings[0]
+            assert sent > 0 and srv.clients() == []
+        finally:
+            reader.vanish()
 
 
 # -- correlation ids ---------------------------------------------------------------------------

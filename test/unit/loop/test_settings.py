@@ -21,7 +21,7 @@ DEFAULTS = {
     "belt_speed": 0.02, "away_time": None, "viz": True, "rviz": False, "snapshot_dir": "", "camera_rate": 0.0,
     "publish_rate": 10.0,
     "host": "127.0.0.1", "pomdp_port": 7070,
-    "human_port": 9090, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
+    "human_port": 9090, "link_read_timeout": 5.0, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
     "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
     "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "wait_for_listener": False,
     "start_pomdp": True, "planner": "despot",
@@ -127,6 +127,8 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("scenarios", "0", "scenarios:=0: must be an integer from 1 to 100000"),
     ("scenarios", "100001", "scenarios:=100001: must be an integer from 1 to 100000"),
     ("depth", "0", "depth:=0: must be an integer from 1 to 1000"),
+    # a server that never cut off a client that stopped reading would hold its frames for good
+    ("link_read_timeout", "0", "link_read_timeout:=0: must be a number > 0 and <= 3600 (s)"),
     ("lambda", "-0.1", "lambda:=-0.1: must be a number from 0 to 1000"),
     ("max_trials", "-1", "max_trials:=-1: must be an integer from 0 to 2147483647"),
     ("reactive_budget", "-2", "reactive_budget:=-2: must be an integer from 0 to 2147483647"),
