@@ -4,6 +4,7 @@ stand-in roslaunch (a script named roslaunch that starts its children as roslaun
 a session of its own), no ROS needed."""
 import os
 import signal
+import stat
 import subprocess
 import sys
 import textwrap
@@ -96,11 +97,18 @@ def test_a_world_that_dies_ends_its_roslaunch_non_zero_and_every_child_with_it(l
     assert "the guard ended" not in proc.stdout.read()   # roslaunch saw nothing
 
 
-def test_a_world_that_dies_ends_its_roslaunch_even_when_its_line_cannot_be_written(launch):
-    """The launch's log on a full disk (here /dev/full: every write fails with ENOSPC).
+def test_a_world_that_dies_ends_its_roslaunch_even_when_its_line_cannot_be_written(launch,
+                                                                                tmp_path):
+    """The launch's log on a full disk (here a private "full" device node, as /dev/full: every
+    write fails with ENOSPC; a node of our own, so the test never opens the machine's).
     Before: the guard froze roslaunch, its line failed before the kill, and roslaunch stayed
     frozen for good, its children zombies, and the experiment's cell hung."""
-    with open("/dev/full", "w") as full_disk:
+    full_device = tmp_path / "full"
+    try:
+        os.mknod(full_device, 0o600 | stat.S_IFCHR, os.makedev(1, 7))   # Linux's "full" device
+    except PermissionError:
+        pytest.skip("making a device node needs root (CAP_MKNOD)")
+    with open(full_device, "w") as full_disk:
         proc, guard, other, world = launch(*SLEEPER, stderr=full_disk)
     os.kill(world, signal.SIGKILL)
     proc.wait(WAIT)
