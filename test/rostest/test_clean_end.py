@@ -28,6 +28,7 @@ from ros_hrc.process_tree import alive, children_of
 
 START_WAIT = 300.0      # a GUI world under a loaded software renderer: generous, not asserted
 END_WAIT = 90.0
+PORT_TRIES = 3
 
 
 def descendants(pid):
@@ -51,10 +52,8 @@ class CleanEnd(unittest.TestCase):
         with os.fdopen(read_end) as numbers:
             display = numbers.readline().strip()
         self.assertTrue(display, "Xvfb did not start")
-        ports = pick_ports()
-        self.ports = ports
-        self.env = dict(os.environ, DISPLAY=f":{display}",
-                        ROS_MASTER_URI=f"http://127.0.0.1:{ports['master']}")
+        self.display = f":{display}"
+        self.env = dict(os.environ, DISPLAY=self.display)
         self.launch = None
         self.pids = set()
 
@@ -72,7 +71,21 @@ class CleanEnd(unittest.TestCase):
         return subprocess.run(["xdotool", *args], env=self.env, capture_output=True, text=True,
                               timeout=30)
 
-    def start(self, *args):
+    def start(self, *args, until):
+        """Start the stack on free ports and wait for ``until`` in its output; on fresh ports
+        again when another process took one of them first (picked free, they may be taken
+        before the stack binds them)."""
+        for _ in range(PORT_TRIES):
+            self.launch_on_fresh_ports(*args)
+            if self.wait_for(until):
+                return
+            self.assertIn("already in use", self.output(),
+                          f"the launch ended before {until!r}:\n" + self.output()[-3000:])
+        self.fail(f"no free ports in {PORT_TRIES} tries")
+
+    def launch_on_fresh_ports(self, *args):
+        self.ports = pick_ports()
+        self.env["ROS_MASTER_URI"] = f"http://127.0.0.1:{self.ports['master']}"
         self.log = Path(tempfile.NamedTemporaryFile(
             prefix="test_clean_end_", suffix=".log", dir=os.environ.get("ROS_LOG_DIR"),
             delete=False).name)
@@ -92,12 +105,14 @@ class CleanEnd(unittest.TestCase):
         return self.log.read_text(errors="replace")
 
     def wait_for(self, text):
+        """True once ``text`` is in the launch's output; False if the launch ended first."""
         deadline = time.monotonic() + START_WAIT
         while text not in self.output():
-            self.assertIsNone(self.launch.poll(), f"the launch ended before {text!r}:\n"
-                                                  + self.output()[-3000:])
+            if self.launch.poll() is not None:
+                return text in self.output()
             self.assertLess(time.monotonic(), deadline, f"no {text!r} in the launch's output")
             time.sleep(0.2)
+        return True
 
     def press_escape(self):
         windows = self.xdotool("search", "--name", "^ros_hrc").stdout.split()
@@ -129,18 +144,15 @@ class CleanEnd(unittest.TestCase):
         self.assertEqual(len(closed), 1 if window_closed else 0, after)
 
     def test_escape_while_a_step_is_under_way(self):
-        self.start()
-        self.wait_for("------ step 0 ------")   # step 1 is under way at once (step_delay 0)
+        self.start(until="------ step 0 ------")   # step 1 is under way at once (step_delay 0)
         self.end_and_check(self.press_escape, window_closed=True)
 
     def test_escape_after_the_episode_ended(self):
-        self.start("max_steps:=1", "on_episode_end:=wait")
-        self.wait_for("episode 1 over")
+        self.start("max_steps:=1", "on_episode_end:=wait", until="episode 1 over")
         self.end_and_check(self.press_escape, window_closed=True)
 
     def test_ctrl_c_while_a_step_is_under_way(self):
-        self.start()
-        self.wait_for("------ step 0 ------")
+        self.start(until="------ step 0 ------")
         self.end_and_check(lambda: os.killpg(self.launch.pid, signal.SIGINT),
                            window_closed=False)
 
