@@ -6,6 +6,7 @@
     ├── SolverError          a solver or planner could not do what was asked
     │   └── ZeroProbabilityObservation   Bayes' rule met an observation the belief gives probability 0
     ├── SimulationError      the world could not carry out an action or query
+    ├── StackEnding          a part of the stack ends with the run (the launch stops): the end, not a fault
     └── LinkError            the websocket link failed
         └── ProtocolError    a message is malformed, unknown or too large
 """
@@ -50,6 +51,17 @@ class ZeroProbabilityObservation(SolverError):
 
 class SimulationError(HrcError):
     """The simulated world could not carry out a request."""
+
+
+#: How the world's services say that the world ends with the run (the window was closed, or
+#: the launch stops), in the service error they answer: hrc_human reads it as the end.
+WORLD_ENDING = "the world is shutting down"
+
+
+class StackEnding(HrcError):
+    """A part of the stack ends because the run does (Ctrl-C, Esc in the window, the launch
+    stopping): what was asked of it will not be done, and that is the end of the run, not a
+    fault to report or to recover from by a reset."""
 
 
 class LinkError(HrcError):

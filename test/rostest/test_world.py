@@ -137,6 +137,7 @@ class WorldServices(WorldTestBase):
         self.assertTrue(ok, message)
         self.assertIn("ready to grasp", message)
         state = self.state()
+        # (the seed's robot has no action that moves so: the world's name for it)
         self.assertEqual((state.robot_action, state.holder), ("grasp_planning", "none"))
         ok, message = self.call("/robot/grasp")
         self.assertTrue(ok, message)
@@ -145,12 +146,14 @@ class WorldServices(WorldTestBase):
     def test_point_then_cancel_then_reset(self):
         ok, message = self.call("/robot/point_to_obj")
         self.assertTrue(ok, message)
-        self.assertEqual(self.state().robot_action, "point_to_obj")
+        # The robot's actions by the task's names, as the step block shows them.
+        self.assertEqual(self.state().robot_action, "rPoint_obj")
         ok, message = self.call("/robot/cancel_action")
         self.assertTrue(ok, message)
+        self.assertEqual(self.state().robot_action, "rStop_all")
         ok, message = self.call("/robot/reset")
         self.assertTrue(ok, message)
-        self.assertEqual(self.state().robot_action, "idle")
+        self.assertEqual(self.state().robot_action, "rIdle")
 
     def test_world_state_is_published_and_the_belt_carries_the_object(self):
         before = self.state()

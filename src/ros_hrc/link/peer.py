@@ -17,6 +17,7 @@ import time
 from typing import Any, Callable, Deque, Optional, Tuple
 
 from websockets.exceptions import ConnectionClosed
+from websockets.frames import CloseCode
 from websockets.sync.server import ServerConnection
 
 from ros_hrc.link.codec import encode
@@ -99,6 +100,15 @@ class Peer:
         """Whether frames can still be queued for this client (not closed, not gone)."""
         with self._cond:
             return self._open and not self._gone
+
+    @property
+    def stopped(self) -> bool:
+        """Whether the client ended the connection itself with a normal close (1000, or 1001
+        going away): it was asked to stop. False while connected, and when it vanished (a
+        crash, a cut link: no close frame) or this server closed or cut it off."""
+        if self._close_args is not None or self._aborted:
+            return False
+        return self._connection.close_code in (CloseCode.NORMAL_CLOSURE, CloseCode.GOING_AWAY)
 
     @property
     def queued(self) -> int:

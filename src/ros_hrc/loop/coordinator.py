@@ -82,9 +82,9 @@ from ros_hrc.tasks.seed import SEED
 #: Episode policies after an episode ends (the ``on_episode_end`` setting).
 EPISODE_END_POLICIES = settings.SETTINGS["on_episode_end"].choices
 
-#: The phases of the loop.
-IDLE, RESETTING, READY, STEPPING, EPISODE_OVER, BROKEN = (
-    "idle", "resetting", "ready", "stepping", "episode_over", "broken")
+#: The phases of the loop (ENDED: the run is over, the world ends with it: nothing more).
+IDLE, RESETTING, READY, STEPPING, EPISODE_OVER, BROKEN, ENDED = (
+    "idle", "resetting", "ready", "stepping", "episode_over", "broken", "ended")
 
 #: Seconds before the first retry of a failed reset; each retry doubles it up to
 #: :data:`MAX_RETRY_DELAY`.
@@ -240,6 +240,8 @@ class Coordinator:
     def mdp_connected(self, peer: Any) -> None:
         """A client connected to the human MDP's port. The first one is seated (a reset
         starts its first episode); any other is refused while one is seated."""
+        if self.phase == ENDED:
+            return
         if self.seat is not None and self.seat != peer:
             self._emit(SeatRefused(peer, "refused: an MDP process is already served on this "
                                          "port; one MDP at a time (start the stack with "
@@ -251,14 +253,42 @@ class Coordinator:
         self._note("info", "an MDP process connected: it is served")
         self._begin_reset("an MDP process connected", None)
 
-    def mdp_disconnected(self, peer: Any) -> None:
+    def mdp_disconnected(self, peer: Any, stopped: bool = False) -> None:
         """A client of the MDP's port left. If it was the seated one, the seat is free and
-        the loop resets (the next MDP to connect is served after a reset of its own)."""
+        the loop resets (the next MDP to connect is served after a reset of its own).
+
+        ``stopped``: it closed its link itself (it was asked to stop, as every process is
+        when the launch stops): nothing to report and nothing to recover from; its step
+        under way, if any, is dropped unreported, and the next MDP to connect is served
+        after its reset, as always."""
         if peer != self.seat:
             return
         self.seat = None
+        if self.phase == ENDED:
+            return
+        if stopped:
+            self._note("debug", "the MDP process stopped: the next one to connect is served "
+                                "after a reset")
+            if self._step is not None:
+                self._step = None
+                self.phase = READY
+            return
         self._note("warn", "the MDP process left: waiting for the next one")
         self._begin_reset("the MDP process left", None)
+
+    def run_ended(self, why: str) -> None:
+        """The run ends: the world is shutting down (its window was closed, the launch
+        stops), ``why``. Not a fault: nothing is reported, retried or reset from now on; the
+        step under way is dropped, a reset asked for is answered that none comes."""
+        if self.phase == ENDED:
+            return
+        self.phase = ENDED
+        self._step = None
+        self._retry_timer = self._join_timer = None
+        self._note("debug", f"the run ends: {why}")
+        tokens, self._reset_tokens = tuple(self._reset_tokens), []
+        if tokens:
+            self._emit(ResetDone(tokens, False, f"no reset: the run ends ({why})"))
 
     # -- steps ---------------------------------------------------------------------------------
     def step_requested(self, peer: Any, request: StepRequest) -> None:
@@ -279,6 +309,8 @@ class Coordinator:
                 self._begin_reset(f"the MDP's step {request.step} was refused ({code}: "
                                   f"{message.split(';')[0]})", None)
 
+        if self.phase == ENDED:
+            return refuse(NOT_READY, "the run ends: the world is shutting down")
         if peer != self.seat:
             return refuse(SEAT_TAKEN, "another MDP process is being served")
         if request.epoch != self.epoch or self.epoch is None:
@@ -351,8 +383,8 @@ class Coordinator:
         """A call came back with its result (or a :class:`Fault`). The one place where
         results of an older epoch are dropped."""
         call = self._outstanding.pop(call_id, None)
-        if call is None:
-            return   # unknown or answered twice: nothing to do
+        if call is None or self.phase == ENDED:
+            return   # unknown or answered twice, or the run ended: nothing to do
         if call.epoch != self.epoch:
             self.dropped += 1
             self._continue_reset()   # a reset may be waiting for this call
@@ -455,12 +487,10 @@ class Coordinator:
         if not reason:
             return
         policy = self.config.on_episode_end
-        self._note("info", f"episode {self.episode} over after {report.step + 1} steps: "
-                           f"{reason}")
+        self._note("info", episode_over_line(self.episode, reason, report.step + 1, policy,
+                                             self.config.episodes if played_out else None))
         if played_out:
             self.phase = EPISODE_OVER
-            self._note("info", f"the episodes asked for ({self.config.episodes.text()}) are "
-                               "all played: no reset starts another")
         elif policy == "wait":
             self.phase = EPISODE_OVER
         elif policy == "reset":
@@ -518,6 +548,8 @@ class Coordinator:
     def timer_fired(self, timer_id: int) -> None:
         """A :class:`Timer` ran out: retry the reset that failed, say what a step waits for
         (or fail it when the world has not answered in time), or close a reset to joiners."""
+        if self.phase == ENDED:
+            return
         if timer_id in self._wait_timers:
             return self._step_waits(*self._wait_timers.pop(timer_id))
         ctx = self._step
@@ -565,6 +597,11 @@ class Coordinator:
         return schedule.after(self.episode)
 
     def _begin_reset(self, reason: str, token: Any) -> None:
+        if self.phase == ENDED:
+            if token is not None:
+                self._emit(ResetDone((token,), False, "no reset: the run ends (the world is "
+                                                      "shutting down)"))
+            return
         if self.phase == RESETTING:
             # Joins the reset under way: nothing has stepped since it began.
             if token is not None:
@@ -682,6 +719,28 @@ class Coordinator:
         self._retry_timer = next(self._ids)
         self._emit(Timer(self._retry_timer, self._retry_delay))
         self._retry_delay = min(self._retry_delay * 2, self.config.max_retry_delay)
+
+
+def counted(number: int, noun: str) -> str:
+    """``1 step``, ``4 steps``: a count and its noun, singular for one."""
+    return f"{number} {noun}" if number == 1 else f"{number} {noun}s"
+
+
+def episode_over_line(episode: int, reason: str, steps: int, policy: str,
+                      played: Optional[EpisodeSchedule] = None) -> str:
+    """What the terminal says, once, when an episode ends: how, after how many steps, and
+    what happens next by ``policy`` (the ``on_episode_end`` setting), or that the episodes
+    asked for (``played``) are all played."""
+    over = f"episode {episode} over ({reason}) after {counted(steps, 'step')}"
+    if played is not None:
+        return (f"{over}: the episodes asked for ({played.text()}) are all played: no reset "
+                "starts another")
+    if policy == "wait":
+        return (f"{over}: Enter (or `rosservice call /hrc/reset`) resets and starts the next, "
+                "or on_episode_end:=reset to go on by itself")
+    if policy == "reset":
+        return f"{over}: the next starts now (on_episode_end:=reset)"
+    return f"{over}: stepping goes on (on_episode_end:=continue)"
 
 
 def _what(call: Call) -> str:

@@ -12,7 +12,11 @@ The interfaces are plain classes the adapters provide (:class:`WorldPort`,
 :class:`PlannerPort`, :class:`ExecutorPort`, :class:`MdpPort`, :class:`ReportPort`): the ROS
 nodes implement them with services and websockets, the unit tests with fakes. Any exception a
 blocking call raises becomes a :class:`~ros_hrc.loop.effects.Fault` with its text: this
-is the dispatch point, so nothing an interface does can stop the loop.
+is the dispatch point, so nothing an interface does can stop the loop. Except the run's end:
+a call that raises :class:`~ros_hrc.errors.StackEnding` (the world is shutting down) tells
+the coordinator that the run ends (:meth:`~ros_hrc.loop.coordinator.Coordinator.run_ended`),
+and once :meth:`LoopRunner.stop` is called (the node ends) nothing more is carried out: no
+line, no step, no reset.
 """
 from __future__ import annotations
 
@@ -23,7 +27,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Optional, Tuple
 
-from ros_hrc.errors import HrcError
+from ros_hrc.errors import HrcError, StackEnding
 from ros_hrc.loop.coordinator import Coordinator
 from ros_hrc.loop.effects import (ActHuman, ActRobot, Call, Decide, Decision, Fault, MdpRefused,
                                   MdpReset, MdpStepDone, Note, ObserveWorld, Outcome, PublishStep,
@@ -91,7 +95,9 @@ class ReportPort:
         pass
 
     def note(self, level: str, text: str) -> None:
-        (_log.error if level == "error" else _log.warning if level == "warn" else _log.info)(text)
+        """A line of the loop's, at ``level``: error, warn, info, or debug (for the logs)."""
+        {"error": _log.error, "warn": _log.warning, "debug": _log.debug}.get(level, _log.info)(
+            text)
 
 
 #: Calls whose wall time a step's report carries (see coordinator.STEP_TIMINGS).
@@ -136,6 +142,8 @@ class LoopRunner:
         return self
 
     def stop(self) -> None:
+        """Stop at once: events and effects not carried out yet are dropped (the node ends:
+        what its peers do meanwhile, as they end too, is no news)."""
         self._stopped.set()
         self._events.put(None)
         for timer in self._timers:
@@ -153,8 +161,9 @@ class LoopRunner:
     def mdp_connected(self, peer: Any) -> None:
         self.post(lambda: self.coordinator.mdp_connected(peer))
 
-    def mdp_disconnected(self, peer: Any) -> None:
-        self.post(lambda: self.coordinator.mdp_disconnected(peer))
+    def mdp_disconnected(self, peer: Any, stopped: bool = False) -> None:
+        """The MDP ``peer`` left; ``stopped``: it closed its link itself (it was asked to)."""
+        self.post(lambda: self.coordinator.mdp_disconnected(peer, stopped))
 
     def step_requested(self, peer: Any, request: StepRequest) -> None:
         arrived = time.perf_counter()
@@ -188,6 +197,8 @@ class LoopRunner:
             try:
                 event()
                 for effect in self.coordinator.effects():
+                    if self._stopped.is_set():
+                        return
                     self._carry_out(effect)
             except Exception:   # a bug here must not stop the loop: say it and go on
                 _log.exception("the loop failed on an event")
@@ -237,6 +248,10 @@ class LoopRunner:
         started = time.perf_counter()
         try:
             result = self._perform(call)
+        except StackEnding as exc:
+            why = str(exc)
+            self.post(lambda: self.coordinator.run_ended(why))
+            return
         except HrcError as exc:
             result = Fault(str(exc))
         except Exception as exc:   # the dispatch point: any failure is the call's fault

@@ -181,11 +181,17 @@ def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
     if status.fault:
         lines.append(f"STEP FAILED       : {status.fault}")
     else:
-        lines.append(f"object            : {object_text(status)} (t = {status.sim_time:.2f} s "
-                     "simulated)")
+        lines.append(f"object            : {object_text(status)} (t = "
+                     f"{episode_time(status):.2f} s simulated since the episode's start)")
     if status.episode_over:
         lines.append(f"episode           : {status.episode} over ({status.end_reason})")
     return "\n".join(lines)
+
+
+def episode_time(status: Status) -> float:
+    """The step's simulated time counted from its episode's start (the message keeps the
+    world's raw ``sim_time``, which counts from the launch)."""
+    return max(0.0, status.sim_time - status.episode_start_time)
 
 
 def object_text(status: Status) -> str:
@@ -240,8 +246,8 @@ class Terminal(ReportPort):
         if text.startswith("RESET"):
             print(f"=============== {text} ===============", flush=True)
             return
-        {"error": rospy.logerr, "warn": rospy.logwarn}.get(level, rospy.loginfo)(
-            "hrc_human: %s", text)
+        {"error": rospy.logerr, "warn": rospy.logwarn, "debug": rospy.logdebug}.get(
+            level, rospy.loginfo)("hrc_human: %s", text)
 
 
 # -- this node's terminal ---------------------------------------------------------------------
@@ -320,7 +326,7 @@ class HumanNode:
         table.on(Error, self._on_answer)
         self.server = MessageServer(config.human_port, table, host=config.host,
                                     name="hrc_human", on_connect=self.runner.mdp_connected,
-                                    on_disconnect=self.runner.mdp_disconnected,
+                                    on_disconnect=self._mdp_left,
                                     read_timeout=config.link_read_timeout, token=token)
         self._next_state_ids = itertools.count(1)   # correlation ids of next_state requests
         self._answers: Dict[int, Message] = {}
@@ -343,11 +349,18 @@ class HumanNode:
         self.server.start()
 
     def stop(self) -> None:
+        """The node ends (rospy's shutdown: Ctrl-C, the launch stopping): the loop first,
+        so that what the other processes do as they end with it (the MDP leaving, the
+        planner going away, the world shutting down) is no news: no line, no step, no
+        reset."""
+        self.runner.stop()
         self.startup.stop()
         self.server.stop()
-        self.runner.stop()
         self.pomdp.close()
         self.call.close()
+
+    def _mdp_left(self, peer: Peer) -> None:
+        self.runner.mdp_disconnected(peer, stopped=peer.stopped)
 
     # -- the MDP's messages -------------------------------------------------------------------
     def _on_step(self, msg: Step, peer: Peer) -> None:

@@ -3,22 +3,29 @@ the world's ROS services, the POMDP process's link, the robot executor (the worl
 ``/robot/*`` services) and the served MDP's connection. Each carries a call out and reports
 what came back; none keeps loop state. The node that wires them is
 :mod:`ros_hrc.nodes.human_node`.
+
+The run's end is not a fault: a world that answers that it is shutting down
+(:data:`~ros_hrc.errors.WORLD_ENDING`: its window was closed, or the launch stops) raises
+:class:`~ros_hrc.errors.StackEnding`, and a POMDP process that closed its link itself
+(going away: it was asked to stop) is waited for, not reported, until it is back (a respawn)
+or this node ends with it (the launch stops).
 """
 from __future__ import annotations
 
 import math
-from typing import Callable, Mapping, Optional
+from contextlib import contextmanager
+from typing import Callable, Iterator, Mapping, Optional
 
 import rospy
 
-from ros_hrc.errors import LinkError
+from ros_hrc.errors import WORLD_ENDING, LinkError, StackEnding
 from ros_hrc.link.protocol import ERR_SEAT_TAKEN, Ack, Error, Observation, Reset, Step
 from ros_hrc.link.protocol import Decision as DecisionMessage
-from ros_hrc.link.transport import MessageClient
+from ros_hrc.link.transport import CLOSE_GOING_AWAY, LinkClosed, MessageClient
 from ros_hrc.loop.effects import (Decision, MdpRefused, MdpReset, MdpStepDone, Outcome,
                                   SeatRefused, Snapshot)
 from ros_hrc.loop.runner import ExecutorPort, MdpPort, PlannerPort, WorldPort
-from ros_hrc.nodes.common import TriggerCaller
+from ros_hrc.nodes.common import ServiceUnavailable, TriggerCaller
 from ros_hrc.srv import GetWorldState
 from ros_hrc.streams import WORLD_EPISODE_PARAM
 
@@ -26,6 +33,18 @@ from ros_hrc.streams import WORLD_EPISODE_PARAM
 def no_wait() -> None:
     """The default ``ready``: nothing to wait for."""
     return None
+
+
+@contextmanager
+def world_call() -> Iterator[None]:
+    """Around a call of the world's services: a service error saying that the world is
+    shutting down becomes :class:`~ros_hrc.errors.StackEnding` (the end, not a fault)."""
+    try:
+        yield
+    except ServiceUnavailable as exc:
+        if WORLD_ENDING in str(exc):
+            raise StackEnding(f"the world ends: {exc}") from exc
+        raise
 
 
 class RosWorld(WorldPort):
@@ -37,12 +56,14 @@ class RosWorld(WorldPort):
 
     def act_human(self, service: str) -> Outcome:
         self.ready()
-        ok, message = self.call(f"/human/{service}")
+        with world_call():
+            ok, message = self.call(f"/human/{service}")
         return Outcome(ok, message)
 
     def snapshot(self) -> Snapshot:
         self.ready()
-        state = self.call.call("/hrc/world/state", GetWorldState).state
+        with world_call():
+            state = self.call.call("/hrc/world/state", GetWorldState).state
         return Snapshot(predicates={
             "is_ov": state.object_visible, "is_oir": state.object_in_reach,
             "is_a0": state.human_attempting_grasp, "is_ho": state.human_has_object,
@@ -55,7 +76,8 @@ class RosWorld(WorldPort):
             # The world reseeds its stream for this episode at the reset (only this node
             # resets the world, so the parameter is read by the reset it precedes).
             rospy.set_param(WORLD_EPISODE_PARAM, episode)
-        ok, message = self.call("/hrc/world/reset")
+        with world_call():
+            ok, message = self.call("/hrc/world/reset")
         return Outcome(ok, message)
 
 
@@ -68,7 +90,11 @@ class LinkPlanner(PlannerPort):
     epoch it was not reset into, and the coordinator then resets the loop. While the POMDP
     process is not connected (it died, or is starting again) both answer at once that it is
     not: a reset then says what it could not reset instead of waiting out a timeout, and is
-    retried. A decision whose frame is rejected (malformed, too large, of another epoch,
+    retried. A POMDP process that closed the link itself (going away: it was asked to stop)
+    is waited for instead (up to the call's timeout): either it comes back (a respawn; its
+    fresh planner then refuses the old epoch, and the loop resets) or the launch is stopping
+    and this node ends meanwhile, which is the end of the run, not a fault
+    (:class:`~ros_hrc.errors.StackEnding` once the link is closed). A decision whose frame is rejected (malformed, too large, of another epoch,
     without ``reply_to``) fails at once with the reason
     (:class:`~ros_hrc.link.transport.ReplyRejected`). ``ready()`` blocks until the start-up
     wait is over."""
@@ -80,17 +106,38 @@ class LinkPlanner(PlannerPort):
         self.reset_timeout = reset_timeout
         self.ready = ready
 
-    def _not_connected(self) -> str:
-        """Why nothing can be asked of the POMDP process now ("" when it is connected)."""
+    def _not_connected(self, timeout: float) -> str:
+        """Why nothing can be asked of the POMDP process now ("" when it is connected); one
+        that stopped on purpose is waited for up to ``timeout`` s first."""
         if self.client.connected:
             return ""
+        if self._stopped():
+            self._wait_for_return(timeout)
+            if self.client.connected:
+                return ""
         return (f"the POMDP process is not connected ({self.client.url}): it is down or "
                 "(re)starting")
+
+    def _stopped(self) -> bool:
+        """Whether the POMDP process's last connection ended by its own close, going away:
+        it was asked to stop (it did not crash)."""
+        last = self.client.last_close
+        return last is not None and last[0] == CLOSE_GOING_AWAY
+
+    def _wait_for_return(self, timeout: float) -> None:
+        """Wait up to ``timeout`` s for the POMDP process to be connected again; raises
+        StackEnding when this node closed the link meanwhile (it ends)."""
+        try:
+            self.client.connect(timeout)
+        except LinkClosed as exc:
+            raise StackEnding(f"this node ends: {exc}") from exc
+        except LinkError:
+            pass   # not back in time: said by the caller
 
     def decide(self, epoch: int, step: int, observation: str, bits: int, state: str,
                elapsed: Optional[float] = None) -> Decision:
         self.ready()
-        down = self._not_connected()
+        down = self._not_connected(self.decide_timeout)
         if down:
             raise LinkError(f"no decision: {down}")
         try:
@@ -98,7 +145,11 @@ class LinkPlanner(PlannerPort):
                 step=step, observation=observation, bits=bits, state=state,
                 elapsed=elapsed if elapsed is not None and 0.0 <= elapsed < math.inf else None,
                 epoch=epoch), self.decide_timeout)
+        except LinkClosed as exc:
+            raise StackEnding(f"this node ends: {exc}") from exc
         except LinkError as exc:
+            if self._stopped():   # it stopped during the request: back, or the end
+                self._wait_for_return(self.decide_timeout)
             raise LinkError(f"no decision from the POMDP process: {exc}") from exc
         if isinstance(reply, Error):
             raise LinkError(f"the POMDP process refused: {reply.message}")
@@ -108,13 +159,17 @@ class LinkPlanner(PlannerPort):
 
     def reset(self, epoch: int, episode: int) -> Outcome:
         self.ready()
-        down = self._not_connected()
+        down = self._not_connected(self.reset_timeout)
         if down:
             return Outcome(False, down)
         try:
             reply = self.client.request(Reset(reason="reset", episode=episode, epoch=epoch),
                                         self.reset_timeout)
+        except LinkClosed as exc:
+            raise StackEnding(f"this node ends: {exc}") from exc
         except LinkError as exc:
+            if self._stopped():   # it stopped during the request: back, or the end
+                self._wait_for_return(self.reset_timeout)
             return Outcome(False, f"POMDP process not reset: {exc}")
         if isinstance(reply, Ack):
             return Outcome(True, reply.result or "belief reset")
@@ -141,7 +196,8 @@ class RosExecutor(ExecutorPort):
         service = self.services[action]
         if service is None:
             return Outcome(True, "the robot stays idle and keeps observing")
-        ok, message = self.call(f"/robot/{service}")
+        with world_call():
+            ok, message = self.call(f"/robot/{service}")
         return Outcome(ok, message)
 
 

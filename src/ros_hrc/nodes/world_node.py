@@ -30,7 +30,9 @@ and the snapshot):
 Topics published:
   /hrc/world_state (ros_hrc/WorldState)  object pose, holder, whether it left the belt (the
                                          task's end: nobody took it before the belt's end),
-                                         both agents' actions, predicates,
+                                         both agents' actions (the robot's by the task's
+                                         names, as the step block shows them: rGrasp_obj,
+                                         not /robot/grasp), predicates,
                                          at ~publish_rate Hz of wall-clock time, while anyone
                                          subscribes
   /clock (rosgraph_msgs/Clock)           the world's simulated time, when /use_sim_time is true
@@ -57,11 +59,15 @@ Topics published:
 Subscribed (with ~gui or ~viz): /hrc/status (the loop's steps), for the caption.
 
 Closing the window (Esc) logs one line and asks the roslaunch that started the node to stop,
-as Ctrl-C does (the node ends with status 0); calls that come in meanwhile get a service error
-without a traceback.
+as Ctrl-C does (the node ends with status 0). From the moment the world ends (the window
+closed, or the node was asked to stop), every call, and every call still waiting for its action,
+is answered at once with a service error that says so, ``the world is shutting down: <why>``
+(:data:`ros_hrc.errors.WORLD_ENDING`, which hrc_human reads as the run's end, not as a fault),
+without a traceback; on the node's shutdown the threads that read the world (frames, states,
+camera) stop before PyBullet is disconnected, so none of them meets a dead physics server.
 
 Parameters (read once at start-up, nodes.common.read_config): the launch settings ~gui,
-~seed, ~belt_speed, ~away_time (auto: 0), ~real_time_factor, ~pause_when_idle (auto: when
+~task (whose names the robot's action goes by in /hrc/world_state), ~seed, ~belt_speed, ~away_time (auto: 0), ~real_time_factor, ~pause_when_idle (auto: when
 real_time_factor is 0), ~publish_rate, ~snapshot_dir (empty: $ROS_HOME/hrc_snapshots; file
 names carry the run's start time and a counter: never overwritten), ~viz (joint states and
 /tf, above), ~camera_rate (0: /hrc/camera/image not published) and /use_sim_time (publish
@@ -92,8 +98,8 @@ from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
 
-from ros_hrc.errors import HrcError, SimulationError
-from ros_hrc import settings
+from ros_hrc.errors import WORLD_ENDING, HrcError, SimulationError
+from ros_hrc import settings, tasks
 from ros_hrc.loop.display import StepCaption
 from ros_hrc.streams import WORLD_EPISODE_PARAM
 from ros_hrc.msg import Status, WorldState
@@ -117,6 +123,7 @@ class WorldNodeConfig:
     setting's default is the table's (:mod:`ros_hrc.settings`)."""
 
     gui: bool = settings.default("gui")
+    task: str = settings.default("task")
     seed: int = settings.default("seed")
     belt_speed: float = settings.default("belt_speed")
     #: Not given (world.launch alone, an older launch): no time, the default task's.
@@ -180,14 +187,56 @@ def snapshot_name(run: str, number: int, sim_time: float) -> str:
 # answers the caller with a service *error*: a fault never reads as "false" (a predicate that
 # does not hold, an action the world refused).
 
-def _quiet_when_closed(handler: Callable[[Any], Any]) -> Callable[[Any], Any]:
-    """A call that comes in after the window was closed (the launch is stopping) is a service
-    error without rospy's traceback in the terminal: the closing was said once already."""
+class WorldEnd:
+    """Whether the world ends with the run, and why ("" while it runs): the PyBullet window
+    was closed, or the node was asked to stop. Set once; read by every service handler."""
+
+    def __init__(self) -> None:
+        self._why = ""
+        self._lock = threading.Lock()
+
+    @property
+    def why(self) -> str:
+        """Why the world ends; "" while it runs."""
+        return self._why
+
+    def begin(self, why: str) -> None:
+        """The world ends, because ``why`` (the first reason given stays)."""
+        with self._lock:
+            if not self._why:
+                self._why = why
+
+    def error(self) -> rospy.ServiceException:
+        """The service error every call gets from now on: ``the world is shutting down: why``
+        (rospy answers a ServiceException without a traceback)."""
+        return rospy.ServiceException(f"{WORLD_ENDING}: {self._why}")
+
+
+#: Why the world ends, as :class:`WorldEnd` says it.
+WINDOW_CLOSED = "the PyBullet window was closed"
+NODE_STOPPING = "the node was asked to stop"
+
+
+def until_the_end(handler: Callable[[Any], Any], end: WorldEnd) -> Callable[[Any], Any]:
+    """``handler``, answering while the world runs; once it ends (``end``) every call, and
+    a call whose action the end cut short, gets ``end``'s service error: no answer made by a
+    world that is going is taken for the world's. A closed window met during a call is the
+    end too (the world's own listener may not have said so yet)."""
     def handle(request: Any) -> Any:
+        if end.why:
+            raise end.error()
         try:
-            return handler(request)
+            response = handler(request)
         except WindowClosed as error:
-            raise rospy.ServiceException(str(error)) from error
+            end.begin(WINDOW_CLOSED)
+            raise end.error() from error
+        except Exception as error:
+            if end.why:   # a world going away under the call: PyBullet's own errors too
+                raise end.error() from error
+            raise
+        if end.why:   # e.g. an action abandoned because the world was closed
+            raise end.error()
+        return response
     return handle
 
 
@@ -220,7 +269,7 @@ def action_handler(world: World, agent: str, action: str, timeout: float,
         if board is not None:
             board.action_finished(agent, action, outcome.success, outcome.message)
         return TriggerResponse(outcome.success, outcome.message)
-    return _quiet_when_closed(handle)
+    return handle
 
 
 class CaptionBoard:
@@ -287,7 +336,7 @@ def predicate_handler(world: World, predicate: str) -> Callable[[TriggerRequest]
     def handle(_request: TriggerRequest) -> TriggerResponse:
         reading = world.query(predicate)   # SimulationError: a service error, never "false"
         return TriggerResponse(reading.value, reading.message)
-    return _quiet_when_closed(handle)
+    return handle
 
 
 def snapshot_handler(world: World, directory: str) -> Callable[[TriggerRequest], TriggerResponse]:
@@ -304,8 +353,21 @@ def snapshot_handler(world: World, directory: str) -> Callable[[TriggerRequest],
     return handle
 
 
-def state_message(state: dict, stamp: rospy.Time) -> WorldState:
-    """The world's :meth:`~ros_hrc.world.World.state` as a ``ros_hrc/WorldState``."""
+def robot_action_names(task: tasks.Task) -> Dict[str, str]:
+    """What the world's robot is doing (its service's name, or ``idle``) -> the task's name
+    of that robot action, as the step block and /hrc/status name it (seed: ``grasp`` ->
+    ``rGrasp_obj``): the executor's mapping (``Task.robot_action_services``), read backwards."""
+    names = {service: action for action, service in task.robot_action_services.items()
+             if service is not None}
+    names["idle"] = task.robot_idle_action
+    return names
+
+
+def state_message(state: dict, stamp: rospy.Time,
+                  robot_actions: Optional[Dict[str, str]] = None) -> WorldState:
+    """The world's :meth:`~ros_hrc.world.World.state` as a ``ros_hrc/WorldState``; the robot's
+    action by its name in ``robot_actions`` (:func:`robot_action_names`; one the task has no
+    name for keeps the world's)."""
     msg = WorldState()
     msg.header.stamp = stamp
     msg.header.frame_id = "world"
@@ -316,7 +378,8 @@ def state_message(state: dict, stamp: rospy.Time) -> WorldState:
     msg.object_on_belt = state["object"]["on_belt"]
     msg.object_left_belt = state["object"]["left_belt"]
     msg.human_action = state["human"]["action"]
-    msg.robot_action = state["robot"]["action"]
+    msg.robot_action = (robot_actions or {}).get(state["robot"]["action"],
+                                                 state["robot"]["action"])
     msg.belt_speed = state["belt_speed"]
     predicates = state["predicates"]
     msg.object_visible = predicates["is_ov"]
@@ -336,8 +399,11 @@ class WorldNode:
         self.world: Optional[World] = None
         self._services: list = []
         self._stop = threading.Event()
+        self._threads: List[threading.Thread] = []   # the threads that read the world
         self._last_clock = 0.0
         self.window_closed = False
+        self.end = WorldEnd()
+        self.robot_actions = robot_action_names(tasks.get(config.task))
 
     def start(self) -> None:
         """Build the world, advertise everything, start stepping."""
@@ -371,7 +437,7 @@ class WorldNode:
         self._advertise("/hrc/world/reset", reseeding(self.world, action_handler(
             self.world, "world", "reset", c.action_timeout, board, loop)))
         self._services.append(rospy.Service("/hrc/world/state", GetWorldState,
-                                            _quiet_when_closed(self._state_now)))
+                                            until_the_end(self._state_now, self.end)))
         # The physics runs in its own thread paced by the wall clock: under /use_sim_time this
         # node is the clock, so nothing here may wait on rospy time.
         if c.viz:
@@ -382,9 +448,9 @@ class WorldNode:
             rospy.Subscriber("/hrc/status", Status, board.step_done, queue_size=10)
         if c.camera_rate > 0:
             self._image_pub = rospy.Publisher("/hrc/camera/image", Image, queue_size=1)
-            threading.Thread(target=self._publish_images, name="world-camera", daemon=True).start()
+            self._start_thread(self._publish_images, "world-camera")
         self.world.start(c.real_time_factor, c.pause_when_idle)
-        threading.Thread(target=self._publish_states, name="world-state", daemon=True).start()
+        self._start_thread(self._publish_states, "world-state")
         rospy.loginfo("hrc_world: %s; real-time factor %s%s; %d services up",
                       "; ".join(self.world.describe()), c.real_time_factor or "max",
                       ", publishing /clock" if c.use_sim_time else "", len(self._services))
@@ -395,7 +461,7 @@ class WorldNode:
             agent: rospy.Publisher(f"/{agent}/joint_states", JointState, queue_size=1)
             for agent in ("human", "robot")}
         self._tf = tf2_ros.TransformBroadcaster()
-        threading.Thread(target=self._publish_frames, name="world-frames", daemon=True).start()
+        self._start_thread(self._publish_frames, "world-frames")
 
     def _transform(self, stamp: rospy.Time, child: str, pose) -> TransformStamped:
         (x, y, z), (qx, qy, qz, qw) = pose
@@ -414,7 +480,9 @@ class WorldNode:
         while not self._stop.wait(period):
             try:
                 frames = self.world.frames()
-            except SimulationError as error:   # the world closed under us: shutting down
+            except Exception as error:
+                if not self._world_gone():
+                    raise
                 rospy.logdebug("hrc_world: no frames: %s", error)
                 return
             stamp = self._stamp(frames)
@@ -444,6 +512,7 @@ class WorldNode:
         # stop, and lets roslaunch end it. Run by hand (rosrun), it just ends. (Called on the
         # world's thread with its lock held: quick things only.)
         self.window_closed = True
+        self.end.begin(WINDOW_CLOSED)
         rospy.loginfo("hrc_world: the PyBullet window was closed: the launch stops")
         if not stop_parent_launch():
             rospy.signal_shutdown("the PyBullet window was closed")
@@ -455,7 +524,9 @@ class WorldNode:
                 continue   # rendering costs tens of ms: only for listeners
             try:
                 pixels = self.world.render()
-            except SimulationError as error:
+            except Exception as error:
+                if not self._world_gone():
+                    raise
                 rospy.logdebug("hrc_world: no image: %s", error)
                 return
             msg = Image()
@@ -467,14 +538,25 @@ class WorldNode:
             self._image_pub.publish(msg)
 
     def _advertise(self, name: str, handler: Callable[[TriggerRequest], TriggerResponse]) -> None:
-        self._services.append(rospy.Service(name, Trigger, handler))
+        self._services.append(rospy.Service(name, Trigger, until_the_end(handler, self.end)))
+
+    def _start_thread(self, target: Callable[[], None], name: str) -> None:
+        thread = threading.Thread(target=target, name=name, daemon=True)
+        self._threads.append(thread)
+        thread.start()
+
+    def _world_gone(self) -> bool:
+        """Whether the world ended (the node stops, or the window was closed): a failed read
+        of it is then the end of the thread that read it, not a fault."""
+        return bool(self.end.why) or self.world.window_closed
 
     def _stamp(self, state: dict) -> rospy.Time:
         return rospy.Time.from_sec(state["sim_time"]) if self.config.use_sim_time else rospy.Time.now()
 
     def _state_now(self, _request: GetWorldStateRequest) -> GetWorldStateResponse:
         state = self.world.state()   # a SimulationError reaches the caller as a service error
-        return GetWorldStateResponse(state=state_message(state, self._stamp(state)))
+        return GetWorldStateResponse(state=state_message(state, self._stamp(state),
+                                                         self.robot_actions))
 
     def _publish_clock(self, sim_time: float) -> None:
         now = time.monotonic()
@@ -489,18 +571,26 @@ class WorldNode:
                 continue   # a state costs six predicates under the world's lock: only for listeners
             try:
                 state = self.world.state()
-            except SimulationError as error:   # the world closed under us: shutting down
+            except Exception as error:
+                if not self._world_gone():
+                    raise
                 rospy.logdebug("hrc_world: no state: %s", error)
                 return
-            self._state_pub.publish(state_message(state, self._stamp(state)))
+            self._state_pub.publish(state_message(state, self._stamp(state), self.robot_actions))
 
     def shutdown(self) -> None:
-        """Stop publishing, release every waiting caller, close the world."""
+        """End the world in an order in which nothing meets a dead physics server: the
+        services answer that the world ends, the threads that read it stop (and are waited
+        for), then the world closes (the calls still waiting for an action are answered
+        that the world ends), and only then are the services taken down."""
+        self.end.begin(NODE_STOPPING)
         self._stop.set()
-        for service in self._services:
-            service.shutdown()
+        for thread in self._threads:
+            thread.join(timeout=5.0)
         if self.world is not None:
             self.world.close()
+        for service in self._services:
+            service.shutdown()
 
 
 def main() -> None:

@@ -395,8 +395,9 @@ class MdpProcess:
         reset."""
         agent = self.agent
         if reply.end_reason:
+            steps = f"{agent.step} step" + ("" if agent.step == 1 else "s")
             self.print(f"\n===== Episode {self.episode} over ({reply.end_reason}) after "
-                       f"{agent.step} steps: discounted / undiscounted = "
+                       f"{steps}: discounted / undiscounted = "
                        f"{agent.discounted:g} / {agent.undiscounted:g} =====")
         if reply.episode_over:
             self.print("The next episode starts with the next reset (with on_episode_end:=wait: "

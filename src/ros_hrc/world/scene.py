@@ -132,7 +132,12 @@ class World:
                 if self.client.client_id < 0:
                     raise SimulationError("the world is closed")
                 self._check_window()
-                yield
+                try:
+                    yield
+                except self.client.error:
+                    if self.config.gui:   # the window went during the call: say so
+                        self._check_window(settle=0.2)
+                    raise
         finally:
             with self._waiters_lock:
                 self._waiters -= 1

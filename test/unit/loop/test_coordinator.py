@@ -4,6 +4,7 @@ user of the loop would check: step order and reports, faults and recovery, reset
 bursts, failed ones), the MDP's seat, stale steps and episode ends."""
 import pytest
 
+from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.tasks import seed as task
 from ros_hrc.loop.coordinator import CoordinatorConfig
 from ros_hrc.loop.effects import (ActRobot, Decision, Fault, MdpRefused, MdpReset, MdpStepDone,
@@ -781,3 +782,74 @@ def test_every_code_of_a_refused_step_is_a_protocol_error_code():
     codes = {coordinator.STALE, coordinator.BUSY, coordinator.SEAT_TAKEN, coordinator.INVALID,
              coordinator.EPISODE_IS_OVER, coordinator.FAILED, coordinator.NOT_READY}
     assert codes <= ERROR_CODES
+
+
+# -- the run's end: the processes stopping together are not a fault ------------------------------
+
+def test_the_seated_client_stopping_mid_step_is_no_news_and_the_next_is_reset_as_always():
+    d, reset = ready_driver(peer="a")
+    old = d.play_step(until="robot").calls[-1]
+    d.c.mdp_disconnected("a", stopped=True)
+    out = d.take()
+    # Said only for the logs: no warning, no reset, no refusal to a peer that is gone.
+    assert [n.level for n in of(out, Note)] == ["debug"]
+    assert not calls(out) and not of(out, MdpRefused) and d.c.seat is None
+    out = d.answer(old, OK)                    # the step's late answer: dropped, unreported
+    assert not of(out, PublishStep) and not calls(out)
+    assert not of(d.log, PublishStep)
+    new = one(d.finish_reset(d.connect("b")), MdpReset)
+    assert new.peer == "b" and new.epoch == reset.epoch + 1
+    assert d.play_step(peer="b").report.step == 0
+
+
+def test_the_run_ending_mid_step_reports_nothing_and_resets_nothing():
+    d, reset = ready_driver()
+    old = d.play_step(until="robot").calls[-1]
+    d.c.run_ended("the world ends: the PyBullet window was closed")
+    out = d.take()
+    assert [n.level for n in of(out, Note)] == ["debug"] and not calls(out)
+    assert d.c.phase == "ended"
+    out = d.answer(old, Fault("service /robot/grasp failed"))   # the step's call fails too
+    assert out == []
+    out = d.reset()                                              # Enter, /hrc/reset
+    done = one(out, ResetDone)
+    assert not done.success and "the run ends" in done.message and not calls(out)
+    d.c.mdp_disconnected("mdp")                                  # the MDP leaves as it ends
+    assert d.take() == [] and not of(d.log, PublishStep)
+
+
+def test_the_run_ending_during_a_reset_answers_its_callers_and_stops_retrying():
+    d, reset = ready_driver()
+    out = d.reset(token="enter")
+    rw = one(out, ResetWorld, interrupt=False)
+    d.c.run_ended("the world ends")
+    out = d.take()
+    assert one(out, ResetDone).tokens == ("enter",) and not one(out, ResetDone).success
+    assert d.answer(rw, Fault("the world is shutting down")) == []
+    for timer in of(d.log, Timer):                               # nothing is retried
+        d.c.timer_fired(timer.id)
+    assert not calls(d.take())
+
+
+@pytest.mark.parametrize("policy, steps, said", [
+    ("wait", 4, "episode 1 over (step_limit) after 4 steps: Enter (or `rosservice call "
+                "/hrc/reset`) resets and starts the next, or on_episode_end:=reset to go on "
+                "by itself"),
+    ("wait", 1, "episode 1 over (step_limit) after 1 step: Enter"),
+    ("reset", 2, "episode 1 over (step_limit) after 2 steps: the next starts now"),
+    ("continue", 1, "episode 1 over (step_limit) after 1 step: stepping goes on"),
+])
+def test_the_end_of_an_episode_says_once_what_happens_next(policy, steps, said):
+    d, _ = ready_driver(CoordinatorConfig(max_steps=steps, on_episode_end=policy))
+    effects = []
+    for _ in range(steps + (1 if policy == "continue" else 0)):
+        effects += d.play_step().effects
+    overs = [n.text for n in of(effects, Note, level="info") if " over " in n.text]
+    assert len(overs) == 1 and overs[0].startswith(said), overs
+
+
+def test_the_last_episode_of_a_schedule_says_no_reset_starts_another():
+    d, _ = ready_driver(CoordinatorConfig(max_steps=1, episodes=EpisodeSchedule.parse("1")))
+    overs = [n.text for n in of(d.play_step().effects, Note, level="info")]
+    assert overs == ["episode 1 over (step_limit) after 1 step: the episodes asked for (1) "
+                     "are all played: no reset starts another"]

@@ -5,7 +5,7 @@ import threading
 
 import pytest
 
-from ros_hrc.errors import SimulationError
+from ros_hrc.errors import SimulationError, StackEnding
 from ros_hrc.tasks import seed as task
 from ros_hrc.loop.coordinator import CoordinatorConfig
 from loop_fakes import MDP_SCRIPT, FakePlanner, Loop
@@ -247,3 +247,19 @@ def test_fifty_resets_spread_over_a_tenth_of_a_second_are_one_reset(make_loop):
     assert len(loop.log.of("mdp_reset")) == resets_before + 1
     assert loop.coordinator.episode == episode_before + 1
     assert_epochs_never_mix(loop)
+
+
+@pytest.mark.parametrize("fake, method", [("world", "act"), ("world", "snapshot"),
+                                          ("executor", "act")])
+def test_the_world_shutting_down_ends_the_run_without_a_fault_or_a_reset(make_loop, fake,
+                                                                          method):
+    loop = make_loop(retry_delay=0.01)
+    loop.runner.mdp_connected("mdp")
+    reports_after(loop, FIRST, 3)
+    getattr(loop, fake).hooks.fail[method] = [StackEnding("the world ends: the window closed")]
+    assert loop.runner.wait_until(lambda: loop.runner.coordinator.phase == "ended", 10)
+    answer = loop.runner.reset("Enter pressed", 10)
+    assert not answer[0] and "the run ends" in answer[1]
+    assert not any(r.fault for r in loop.log.of("report"))
+    assert loop.log.of("refused") == [] and loop.last_reset().epoch == FIRST
+    assert [level for level, _ in loop.log.of("note") if level in ("error", "warn")] == []
