@@ -136,12 +136,16 @@ def samples():
     return out
 
 
-def test_no_body_hides_a_text_from_rviz_s_default_view(samples):
-    view = View(RVIZ_FILE)
+def step_markers():
+    """hrc_viz's markers for a step with a long caption, with the node's default layout."""
     config = VizNodeConfig()
-    markers = status_markers(a_step(), config.frame, config.bars_origin, config.bar_spacing,
-                             config.bar_height, config.text_position, caption=LONG_CAPTION,
-                             columns=config.caption_columns, holder_height=config.holder_height)
+    return status_markers(a_step(), config.frame, config.bars_origin, config.bar_spacing,
+                          config.bar_height, config.text_position, caption=LONG_CAPTION,
+                          columns=config.caption_columns, holder_height=config.holder_height)
+
+
+def test_no_body_hides_a_text_from_rviz_s_default_view(samples):
+    view, markers = View(RVIZ_FILE), step_markers()
     hidden = set()
     for action, boxes, object_position in samples:
         for name, marker in texts(markers):
@@ -153,11 +157,7 @@ def test_no_body_hides_a_text_from_rviz_s_default_view(samples):
 
 
 def test_every_text_is_in_the_view_and_on_no_other(samples):
-    view = View(RVIZ_FILE)
-    config = VizNodeConfig()
-    markers = status_markers(a_step(), config.frame, config.bars_origin, config.bar_spacing,
-                             config.bar_height, config.text_position, caption=LONG_CAPTION,
-                             columns=config.caption_columns, holder_height=config.holder_height)
+    view, markers = View(RVIZ_FILE), step_markers()
     caption = next(m for name, m in texts(markers) if name == "step")
     assert len(caption.text.split("\n")) > len(LONG_CAPTION.split("\n"))   # it was wrapped
     width, height = VIEW_SIZE

@@ -4,7 +4,6 @@ line and a non-zero exit status, without roslaunch's red RLException dumping the
 with nothing started and no file left behind. These run the real roslaunch, with a ROS_HOME
 of the test's own, against a master port nobody serves."""
 import os
-import socket
 import subprocess
 from pathlib import Path
 
@@ -12,22 +11,16 @@ import pytest
 
 from ros_hrc.commands.launch_arguments import (check_launch_command_line, declared_arguments,
                                                split_command_line)
-from ros_hrc.link.transport import free_port
+from test_launch_refuses import roslaunch as roslaunch_in
 
 ROOT = Path(__file__).resolve().parents[3]
 
 
 def roslaunch(tmp_path, *args, launch="hrc.launch", environ=None):
-    """(roslaunch's run, whether a master answered on its port afterwards)."""
-    port = free_port()
-    env = dict(os.environ if environ is None else environ,
-               ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOME=str(tmp_path / "ros_home"))
-    done = subprocess.run(["roslaunch", "-p", str(port), "ros_hrc", launch, *args],
-                          stdin=subprocess.DEVNULL, capture_output=True, text=True, env=env,
-                          timeout=120, cwd=tmp_path)
-    with socket.socket() as s:
-        master_up = s.connect_ex(("127.0.0.1", port)) == 0
-    return done, master_up
+    """test_launch_refuses's roslaunch, run in ``tmp_path`` with a ROS_HOME of its own there
+    (a refused session must leave no file in it)."""
+    return roslaunch_in(*args, launch=launch, cwd=tmp_path, environ=environ,
+                        ros_home=tmp_path / "ros_home")
 
 
 def refusal_line(done, master_up, tmp_path):

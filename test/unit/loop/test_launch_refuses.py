@@ -45,10 +45,13 @@ WORLD_CASES = [
 ]
 
 
-def roslaunch(*args, launch="hrc.launch", cwd=None, environ=None):
+def roslaunch(*args, launch="hrc.launch", cwd=None, environ=None, ros_home=None):
+    """(roslaunch's run, whether a master answered on its port afterwards)."""
     port = free_port()
     env = dict(os.environ if environ is None else environ,
                ROS_MASTER_URI=f"http://127.0.0.1:{port}")
+    if ros_home is not None:
+        env["ROS_HOME"] = str(ros_home)
     done = subprocess.run(["roslaunch", "-p", str(port), "ros_hrc", launch, *args],
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, env=env,
                           timeout=120, cwd=cwd)

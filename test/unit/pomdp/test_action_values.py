@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from solver_models import build_tiger
+from test_despot import play_tiger_with_a_trial_cap
 from ros_hrc.agents.robots import NoRobotConfig, NoRobotPlanner
 from ros_hrc.pomdp import offline
 from ros_hrc.pomdp.despot import TIE_TOLERANCE, DespotConfig, DespotPlanner
@@ -57,19 +58,9 @@ def test_despot_values_after_hearing_the_tiger_twice_on_the_left(tiger):
 
 
 def test_despot_values_are_the_same_for_the_same_seed_and_trial_cap(tiger):
-    def play(seed):
-        planner = DespotPlanner(tiger, DespotConfig(scenarios=100, time_per_step=30.0,
-                                                    max_trials=40), seed=seed)
-        planner.reset()
-        out = []
-        for heard in (0, 1, 0, 0):
-            action = planner.act()
-            out.append((action, dict(planner.last_stats.action_values)))
-            planner.update(action, heard)
-        return out
-    first = play(7)
-    assert first == play(7)
-    assert all(chose_the_best(a, values) for a, values in first)
+    first = play_tiger_with_a_trial_cap(tiger, 7)
+    assert first == play_tiger_with_a_trial_cap(tiger, 7)
+    assert all(chose_the_best(decision[0], decision[-1]) for decision in first)
 
 
 def test_despot_without_a_trial_values_only_its_default_action(tiger):

@@ -53,19 +53,23 @@ def test_despot_with_an_offline_default_policy_decides_like_the_optimum(tiger, t
         assert planner.act() == tiger_policy.action(np.array(b))
 
 
+def play_tiger_with_a_trial_cap(tiger, seed):
+    """Four decisions of DESPOT with a trial cap on the tiger, hearing left, right, left,
+    left: each one's (action, lower bound, upper bound, nodes, the root's action values)."""
+    planner = DespotPlanner(tiger, DespotConfig(scenarios=100, time_per_step=30.0,
+                                                max_trials=40), seed=seed)
+    planner.reset()
+    out = []
+    for o in (HEAR_LEFT, HEAR_RIGHT, HEAR_LEFT, HEAR_LEFT):
+        a = planner.act()
+        stats = planner.last_stats
+        out.append((a, stats.lower, stats.upper, stats.nodes, dict(stats.action_values)))
+        planner.update(a, o)
+    return out
+
+
 def test_despot_with_a_trial_cap_is_reproducible_from_its_seed(tiger):
-    def play(seed):
-        planner = DespotPlanner(tiger, DespotConfig(scenarios=100, time_per_step=30.0,
-                                                    max_trials=40), seed=seed)
-        planner.reset()
-        out = []
-        for o in (HEAR_LEFT, HEAR_RIGHT, HEAR_LEFT, HEAR_LEFT):
-            a = planner.act()
-            out.append((a, planner.last_stats.lower, planner.last_stats.upper,
-                        planner.last_stats.nodes))
-            planner.update(a, o)
-        return out
-    assert play(7) == play(7)
+    assert play_tiger_with_a_trial_cap(tiger, 7) == play_tiger_with_a_trial_cap(tiger, 7)
 
 
 def test_despot_survives_a_zero_probability_observation():
