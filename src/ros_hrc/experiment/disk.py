@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Dict, Iterable, Optional, Union
 
 from ros_hrc.errors import HrcError
+from ros_hrc.link.token import ros_home
 
 #: The errors of a write that found no room: the disk is full, or the user's quota is.
 FULL_DISK_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
@@ -56,11 +57,6 @@ def mount_point(path: Union[str, os.PathLike]) -> Path:
     while here != here.parent and here.parent.stat().st_dev == device:
         here = here.parent
     return here
-
-
-def ros_home() -> Path:
-    """``$ROS_HOME``, or ``~/.ros`` as ROS takes it when unset."""
-    return Path(os.environ.get("ROS_HOME") or os.path.expanduser("~/.ros"))
 
 
 def room_left(path: Union[str, os.PathLike]) -> Optional[str]:

@@ -68,12 +68,15 @@ class TokenError(LinkError):
     """The link token cannot be made, found or read; one line saying which file and why."""
 
 
-def token_dir(environ: Optional[Mapping[str, str]] = None) -> Path:
-    """Where launches keep their tokens: ``$ROS_HOME/ros_hrc/links`` (``~/.ros`` without
-    ``ROS_HOME``), the directory ROS already keeps per-user state in."""
+def ros_home(environ: Optional[Mapping[str, str]] = None) -> Path:
+    """The directory ROS keeps per-user state in: ``$ROS_HOME``, or ``~/.ros`` without it."""
     environ = os.environ if environ is None else environ
-    home = environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros")
-    return Path(home) / "ros_hrc" / "links"
+    return Path(environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros"))
+
+
+def token_dir(environ: Optional[Mapping[str, str]] = None) -> Path:
+    """Where launches keep their tokens: ``$ROS_HOME/ros_hrc/links`` (:func:`ros_home`)."""
+    return ros_home(environ) / "ros_hrc" / "links"
 
 
 def session_token_file(session: str, environ: Optional[Mapping[str, str]] = None) -> Path:
