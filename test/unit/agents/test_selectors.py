@@ -137,6 +137,28 @@ def test_bpr_rules_choose_by_hand(spec):
         "policy1"
 
 
+# Where the two rules part: one type, policy0 ~ N(0, 0.2), policy1 ~ N(-0.8, 0.6). Ū = 0,
+# U_max = max(0 + 0.6, -0.8 + 1.8) = 1.0, U⁺ = 0.5.
+#   EI: policy0 0.2 φ(0) = 0.0797885 (its tail past 1.0, 5 σ away, ~1e-8);
+#       policy1 0.6 φ(4/3) - 0.8 (1 - Φ(4/3)) = 0.0984060 - 0.0729688 = 0.0254372, less its tail
+#       past 1.0 (z = 3): 0.6 φ(3) - 1.8 (1 - Φ(3)) = 0.0026591 - 0.0024298 = 0.0002293
+#       -> 0.0252079: EI keeps the good sure policy0.
+#   PI: policy0 P(Z ≥ 2.5) = 0.0062097; policy1 P(Z ≥ 1.3 / 0.6 = 2.1667) = 0.0151300:
+#       PI, which asks only for reaching U⁺, takes the long shot policy1.
+MEAN_PART, STD_PART = [[0.0, -0.8]], [[0.2, 0.6]]
+
+
+def test_ei_and_pi_part_by_hand():
+    belief = np.array([1.0])
+    assert expected_improvement(belief, MEAN_PART, STD_PART, 0.0, 1.0) == pytest.approx(
+        [0.0797885, 0.0252079], abs=1e-6)
+    assert probability_of_improvement(belief, MEAN_PART, STD_PART, 0.5) == pytest.approx(
+        [0.0062097, 0.0151300], abs=1e-6)
+    model = model_of(MEAN_PART, STD_PART)
+    assert make_selector("bpr", model.policies, model, 0, 0.0).choose() == "policy0"
+    assert make_selector("bpr-pi", model.policies, model, 0, 0.0).choose() == "policy1"
+
+
 # Two types that want opposite policies, belief (0.9, 0.1): μ = [[1, 0], [0, 1]], σ = 0.1.
 # Ū = 0.9. EI of policy0 = 0.9 * (σ φ(-1) + 0.1 (1 - Φ(-1))) = 0.9 * (0.0241971 + 0.0841345)
 # = 0.0974985 (policy1's only on type1: 0.1 * 0.1083316 = 0.0108332; each less the ~4e-5
