@@ -5,6 +5,8 @@ the task definitions, below the loop and the processes that run them.
   ros_hrc.agents.human         the human's MDP agent: its state, actions and manual entry
   ros_hrc.agents.policy_table  a robot policy's choices over observation sequences, with beliefs
   ros_hrc.agents.library       a task's policy library (a manifest of robot policies to choose among)
+  ros_hrc.agents.selectors     the selectors that choose a library policy before each task (BPR, a bandit, ...)
+  ros_hrc.agents.selector_model  the selector's trained model: performance and signature models per (type, policy)
 
 Nothing is imported here, so each module stays cheap to import.
 """
