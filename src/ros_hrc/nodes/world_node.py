@@ -108,9 +108,9 @@ from ros_hrc.nodes.guard import is_guard
 from ros_hrc.nodes.viz_node import OBJECT_FLOOR_FRAME
 from ros_hrc.process_tree import is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
+from ros_hrc.world.config import task_world_config
 from ros_hrc.world.human import HumanConfig
-from ros_hrc.world import (HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World,
-                           WorldConfig)
+from ros_hrc.world import HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World
 
 #: /clock is published at most this often (wall clock): enough for any rospy.Rate, and cheap
 #: when the world runs much faster than real time.
@@ -408,8 +408,12 @@ class WorldNode:
     def start(self) -> None:
         """Build the world, advertise everything, start stepping."""
         c = self.config
-        self.world = World(WorldConfig(gui=c.gui, seed=c.seed, belt_speed=c.belt_speed,
-                                       human=HumanConfig(away_time=c.away_time)), c.model_dir)
+        # The task's own world facts (fabric's belt timer, tray and robot), if it has any.
+        facts = getattr(tasks.get(c.task), "world_facts", {})
+        self.world = World(task_world_config(facts, gui=c.gui, seed=c.seed,
+                                             belt_speed=c.belt_speed,
+                                             human=HumanConfig(away_time=c.away_time)),
+                           c.model_dir)
         self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=1) if c.use_sim_time else None
         self._state_pub = rospy.Publisher("/hrc/world_state", WorldState, queue_size=1)
         if self._clock_pub is not None:
