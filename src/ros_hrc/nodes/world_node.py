@@ -66,8 +66,14 @@ is answered at once with a service error that says so, ``the world is shutting d
 without a traceback; on the node's shutdown the threads that read the world (frames, states,
 camera) stop before PyBullet is disconnected, so none of them meets a dead physics server.
 
+The world is the task's: a task with world facts of its own (``task.world_facts``, fabric's:
+the belt still for 45 s of a task and then 7 s to a tray at its end, the robot's 4 s of
+planning, its grasp answered as it starts and counted once the object lies in the robot's
+tray; ros_hrc.world.config.task_world_config) gets them; fabric's belt_run sets the running
+belt's speed, so ~belt_speed is not used there.
+
 Parameters (read once at start-up, nodes.common.read_config): the launch settings ~gui,
-~task (whose names the robot's action goes by in /hrc/world_state), ~seed, ~belt_speed, ~away_time (auto: 0), ~real_time_factor, ~pause_when_idle (auto: when
+~task (whose names the robot's action goes by in /hrc/world_state, and whose world it is), ~seed, ~belt_speed, ~away_time (auto: 0), ~real_time_factor, ~pause_when_idle (auto: when
 real_time_factor is 0), ~publish_rate, ~snapshot_dir (empty: $ROS_HOME/hrc_snapshots; file
 names carry the run's start time and a counter: never overwritten), ~viz (joint states and
 /tf, above), ~camera_rate (0: /hrc/camera/image not published) and /use_sim_time (publish

@@ -129,7 +129,8 @@ class Robot(ArticulatedBody):
 
     def _plan_first(self) -> Motion:
         """Plan the motion (``plan_time``, the arm still, the head on the object) unless a
-        grasp_planning did; either way the plan is used up."""
+        grasp_planning did; either way the plan is used up (a grasp_planning that succeeds
+        makes a new one)."""
         planned, self.planned = self.planned, False
         if self.config.plan_time > 0 and not planned:
             self.command(self.look_at(self.object.position()))
@@ -308,13 +309,16 @@ class Robot(ArticulatedBody):
         back along the gripper from it) and hold there: no grasp. Where the object will be
         is :meth:`predict` ``plan_lead`` seconds ahead (the belt carries it; it stops at the
         belt's end); out of reach there, where it is now; out of reach both, the arm stretches
-        towards the predicted position and the plan fails with the distance."""
+        towards the predicted position and the plan fails with the distance. With
+        ``plan_time``, the motion is planned first (that long, unless it already is), and the
+        plan is kept for the next grasp or point."""
         self.activity = "grasp_planning"
         c = self.config
         if self.object.holder != NOBODY:
             return Outcome(False, f"cannot plan a grasp: the {self.object.holder} holds the object")
         if self.object.gone:
             return Outcome(False, f"cannot plan a grasp: {self.object.gone}")
+        yield from self._plan_first()
         lead = self.plan_lead
         predicted = np.asarray(self.predict(lead), float)
         target, where = predicted, f"where it will be in {lead:.1f} s"
