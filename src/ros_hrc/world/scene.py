@@ -9,7 +9,10 @@ step it (1) takes the requests that came in (a reset or a cancel interrupts at o
 action queues behind the agent's current one) and starts a queued action where the agent is
 free, (2) moves the belt, (3) steps the physics, (4) puts a held object in its holder's hand
 and the object's copy where the object is, (5) advances the human's and the robot's motions
-to their next command, which finishes a motion whose last step has just been taken.
+to their next command, which finishes a motion whose last step has just been taken, and (6)
+moves a carried object nearer the robot's tray and lets the belt's end take an object that
+reached it (a task's own world: ``WorldConfig.belt_start`` and the facts after it, from
+:func:`~.config.task_world_config`; the belt's speed in (2) follows ``belt_start`` too).
 Actions are therefore only ever executed by the loop, between two steps, and every
 PyBullet call happens under one lock: callers on other threads (ROS service handlers) submit a
 request and wait for its :class:`~.tickets.Ticket` (:mod:`.tickets`: the queues and who goes
