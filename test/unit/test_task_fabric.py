@@ -341,3 +341,64 @@ def test_the_robots_fifth_action_is_the_worlds_grasp_planning():
                                             "graspPlanning": "grasp_planning"}
     assert FABRIC.human_service_for("graspAttempt", "GlobalSuccess") == "grasp"
     assert FABRIC.human_service_for("graspAttempt", "FailedToGrasp") == "attempt_grasp"
+
+
+# -- its world (issue #30: success that can separate policies) ---------------------------------
+
+def test_fabrics_world_facts_are_the_authors_figures():
+    """docs/tasks_fabric_facts.md, "The task's world": TaskManager.cpp's timer, pr2.py's
+    planning and grasp; the seed's world has none of them."""
+    assert FABRIC.world_facts == {"object_start_x": 0.0, "belt_start": 45.0, "belt_run": 7.0,
+                                  "end_tray": True, "robot_plan_time": 4.0,
+                                  "robot_delivery_time": 4.2,
+                                  "async_actions": ("robot/grasp",)}
+    assert getattr(tasks.get("seed"), "world_facts", {}) == {}
+
+
+@pytest.fixture(scope="module")
+def fabric_world():
+    from ros_hrc.world import World
+    from ros_hrc.world.config import task_world_config
+    with World(task_world_config(FABRIC.world_facts, seed=2)) as world:
+        yield world
+
+
+def test_the_product_waits_between_them_45_s_then_reaches_the_tray_7_s_later(fabric_world):
+    world = fabric_world
+    world.reset()
+    assert world.query("is_oir").value and world.robot.can_reach()   # in reach of both
+    world.advance(44.5)
+    state = world.state()["object"]
+    assert state["position"][0] == pytest.approx(0.0, abs=1e-3) and not state["left_belt"]
+    assert world.query("is_oir").value and world.robot.can_reach()
+    world.advance(7.0)   # 51.5 s: running out
+    assert not world.state()["object"]["left_belt"]
+    assert not world.query("is_oir").value   # out of the human's reach already
+    world.advance(1.0)   # 52.5 s
+    assert world.state()["object"]["left_belt"]
+    bits = fabric.snapshot_bits(Snapshot(world.state()["predicates"], left_belt=True))
+    assert bits & FAILURE and not bits & SUCCESS
+    late = world.run("robot", "grasp")
+    assert not late.success and "left the belt" in late.message
+
+
+def test_the_robot_succeeds_only_once_the_product_lies_in_its_tray(fabric_world):
+    world = fabric_world
+    world.reset()
+    start = world.sim_time
+    grasped = world.run("robot", "grasp")   # answered as it starts, as the authors' robot is
+    assert grasped.success and grasped.duration == 0.0 and "under way" in grasped.message
+    world.finish_motions()                  # unplanned: 4 s of planning first
+    assert world.sim_time - start == pytest.approx(4.0 + 3.0, abs=0.05)
+
+    def seen():
+        state = world.state()
+        return fabric.snapshot_bits(Snapshot(state["predicates"],
+                                             holder=state["object"]["holder"],
+                                             left_belt=state["object"]["left_belt"]))
+
+    assert not seen() & SUCCESS   # carried to the tray: not taken yet
+    world.advance(4.2 - 0.8 - 0.1)   # the grasp's lift was the way's first 0.8 s
+    assert not seen() & SUCCESS
+    world.advance(0.2)
+    assert seen() & SUCCESS and world.state()["object"]["holder"] == "robot"

@@ -66,8 +66,14 @@ is answered at once with a service error that says so, ``the world is shutting d
 without a traceback; on the node's shutdown the threads that read the world (frames, states,
 camera) stop before PyBullet is disconnected, so none of them meets a dead physics server.
 
+The world is the task's: a task with world facts of its own (``task.world_facts``, fabric's:
+the belt still for 45 s of a task and then 7 s to a tray at its end, the robot's 4 s of
+planning, its grasp answered as it starts and counted once the object lies in the robot's
+tray; ros_hrc.world.config.task_world_config) gets them; fabric's belt_run sets the running
+belt's speed, so ~belt_speed is not used there.
+
 Parameters (read once at start-up, nodes.common.read_config): the launch settings ~gui,
-~task (whose names the robot's action goes by in /hrc/world_state), ~seed, ~belt_speed, ~away_time (auto: 0), ~real_time_factor, ~pause_when_idle (auto: when
+~task (whose names the robot's action goes by in /hrc/world_state, and whose world it is), ~seed, ~belt_speed, ~away_time (auto: 0), ~real_time_factor, ~pause_when_idle (auto: when
 real_time_factor is 0), ~publish_rate, ~snapshot_dir (empty: $ROS_HOME/hrc_snapshots; file
 names carry the run's start time and a counter: never overwritten), ~viz (joint states and
 /tf, above), ~camera_rate (0: /hrc/camera/image not published) and /use_sim_time (publish
@@ -108,9 +114,9 @@ from ros_hrc.nodes.guard import is_guard
 from ros_hrc.nodes.viz_node import OBJECT_FLOOR_FRAME
 from ros_hrc.process_tree import is_roslaunch, parent_of
 from ros_hrc.srv import GetWorldState, GetWorldStateRequest, GetWorldStateResponse
+from ros_hrc.world.config import task_world_config
 from ros_hrc.world.human import HumanConfig
-from ros_hrc.world import (HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World,
-                           WorldConfig)
+from ros_hrc.world import HUMAN_ACTIONS, PREDICATES, ROBOT_ACTIONS, WindowClosed, World
 
 #: /clock is published at most this often (wall clock): enough for any rospy.Rate, and cheap
 #: when the world runs much faster than real time.
@@ -408,8 +414,12 @@ class WorldNode:
     def start(self) -> None:
         """Build the world, advertise everything, start stepping."""
         c = self.config
-        self.world = World(WorldConfig(gui=c.gui, seed=c.seed, belt_speed=c.belt_speed,
-                                       human=HumanConfig(away_time=c.away_time)), c.model_dir)
+        # The task's own world facts (fabric's belt timer, tray and robot), if it has any.
+        facts = getattr(tasks.get(c.task), "world_facts", {})
+        self.world = World(task_world_config(facts, gui=c.gui, seed=c.seed,
+                                             belt_speed=c.belt_speed,
+                                             human=HumanConfig(away_time=c.away_time)),
+                           c.model_dir)
         self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=1) if c.use_sim_time else None
         self._state_pub = rospy.Publisher("/hrc/world_state", WorldState, queue_size=1)
         if self._clock_pub is not None:

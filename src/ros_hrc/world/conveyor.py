@@ -141,6 +141,11 @@ class Conveyor:
         its downstream face at the end stop (where it rests, its centre ``half`` upstream)."""
         return position[0] + half >= self.stop_x - _AT_END_STOP_M
 
+    def end_x(self, half: float) -> float:
+        """x of the centre of a box of half-size ``half`` as it reaches the belt's end
+        (:meth:`at_end` from there on)."""
+        return self.stop_x - _AT_END_STOP_M - half
+
     def is_on_belt(self, position: Sequence[float], tolerance: float = 0.08) -> bool:
         """True when ``position`` lies over the belt surface, within ``tolerance`` above it."""
         c = self.config

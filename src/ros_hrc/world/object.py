@@ -64,6 +64,9 @@ class WorkObject:
                                activationState=physics.ACTIVATION_STATE_DISABLE_SLEEPING)
         self.body_id = self._create(client, 0.0)   # never simulated: only placed
         self.holder = NOBODY
+        #: Why nobody can take the object any more ("" while it can be taken): the world sets
+        #: it when the object fell into the tray at the belt's end (``WorldConfig.end_tray``).
+        self.gone = ""
         # While held: the hand's pose, and the object's pose in the hand's frame.
         self._hand: Optional[Callable[[], Pose]] = None
         self._in_hand: Optional[Pose] = None
@@ -123,6 +126,7 @@ class WorkObject:
     def reset(self) -> None:
         """Release and put the object back at its start on the belt, at rest."""
         self.release()
+        self.gone = ""
         self._put(self._start, [0, 0, 0, 1])
 
     def _put(self, position: Sequence[float], orientation: Sequence[float]) -> None:

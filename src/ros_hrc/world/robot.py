@@ -8,6 +8,12 @@ after a reach that stops short (the arm stretched towards the object, then back)
 watcher sees the attempt; it never closes the gripper on nothing, unlike the human, who tries.
 Planning a grasp (FABRIC's fifth robot action, ``graspPlanning``) is the grasp's first half
 alone: the open gripper goes to the pre-grasp pose over where the object will be, and waits.
+
+Two facts of FABRIC's robot, off by default (the seed's robot): ``plan_time``, the motion
+planning a grasp or a point does first unless a graspPlanning has just done it; and
+``delivery_time``, the time the robot then needs to put the object in its own tray: until
+then the object is only carried (:attr:`Robot.carrying`), and a cancel puts it back on the
+belt where it started.
 """
 from __future__ import annotations
 
@@ -60,6 +66,12 @@ class RobotConfig:
     lift_time: float = 0.8                        # s
     lift_height: float = 0.20                     # m
     short_hold_time: float = 0.3                  # s a reach for an object out of reach is held
+    #: Motion planning before a grasp or a point, unless a grasp_planning planned it since the
+    #: robot's last grasp or point (0: none, the seed's robot; FABRIC's robot plans 4 s).
+    plan_time: float = 0.0                        # s
+    #: After a grasp, how long the robot carries the object to its own tray (0: holding it is
+    #: having taken it, the seed's robot). Meanwhile a cancel puts it back on the belt.
+    delivery_time: float = 0.0                    # s
 
 
 class Robot(ArticulatedBody):
@@ -89,6 +101,10 @@ class Robot(ArticulatedBody):
         self.gripper = float(np.linalg.norm(tool - wrist))
         self.activity = "idle"
         self.moving = False
+        #: A grasp_planning has planned the next grasp or point (plan_time is then not spent).
+        self.planned = False
+        #: Seconds of carrying left before a grasped object lies in the robot's tray.
+        self.delivery_left = 0.0
         self.teleport(_REST)
 
     @property
@@ -98,6 +114,27 @@ class Robot(ArticulatedBody):
         next starts from the pre-grasp pose over the object (the grasp plans on where the
         object is when it starts)."""
         return self.config.reach_time
+
+    @property
+    def carrying(self) -> bool:
+        """True while the robot holds the object on its way to its tray (``delivery_time``):
+        grasped, but not yet taken."""
+        return self.object.holder == "robot" and self.delivery_left > 0.0
+
+    def deliver(self, seconds: float) -> None:
+        """``seconds`` of simulated time went by: the carried object gets that much nearer
+        the robot's tray (it lies there once ``delivery_time`` is used up)."""
+        if self.carrying:
+            self.delivery_left = max(0.0, self.delivery_left - seconds)
+
+    def _plan_first(self) -> Motion:
+        """Plan the motion (``plan_time``, the arm still, the head on the object) unless a
+        grasp_planning did; either way the plan is used up (a grasp_planning that succeeds
+        makes a new one)."""
+        planned, self.planned = self.planned, False
+        if self.config.plan_time > 0 and not planned:
+            self.command(self.look_at(self.object.position()))
+            yield from self.pause(self.config.plan_time)
 
     @property
     def reach(self) -> float:
@@ -197,6 +234,7 @@ class Robot(ArticulatedBody):
         self.activity = "point_to_obj"
         if self.object.holder == "robot":
             return Outcome(False, "cannot point: the robot holds the object")
+        yield from self._plan_first()
         yield from self.track(lambda: self.point_pose(self.object.position()), self.config.reach_time)
         distance = self.shoulder_distance(self.object.position())
         return Outcome(True, f"pointing at the object, {distance:.2f} m from the right shoulder")
@@ -209,6 +247,11 @@ class Robot(ArticulatedBody):
             return Outcome(True, "already holds the object")
         if self.object.holder == "human":
             return Outcome(False, "cannot grasp: the human holds the object")
+        if self.object.gone:
+            return Outcome(False, f"cannot grasp: {self.object.gone}")
+        yield from self._plan_first()
+        if self.object.gone:   # the belt took it away while the robot planned
+            return Outcome(False, f"cannot grasp: {self.object.gone}")
         pitch = self.plan_grasp(self.object.position())
         if pitch is None:
             # A reach that stops short, and back: a watcher sees the robot try and fail (a
@@ -246,11 +289,15 @@ class Robot(ArticulatedBody):
         gap = float(np.linalg.norm(self.tool_position() - self.object.position()))
         if gap <= c.grasp_tolerance and self.object.holder == NOBODY:
             self.object.attach("robot", lambda: self.link_pose("r_gripper_palm_link"))
+            self.delivery_left = c.delivery_time
+            on_its_way = (f"; taking it to the robot's tray ({c.delivery_time:g} s)"
+                          if c.delivery_time > 0 else "")
             lifted = self._lift_pose(self.object.position(), pitch)
             if lifted is None:
-                return Outcome(True, "grasped the object (no room to lift it: holding it on the belt)")
+                return Outcome(True, "grasped the object (no room to lift it: holding it on the "
+                                     f"belt){on_its_way}")
             yield from self.move(lifted, c.lift_time)
-            return Outcome(True, "grasped the object and lifted it off the belt")
+            return Outcome(True, f"grasped the object and lifted it off the belt{on_its_way}")
         yield from self.move(_OPEN, 0.2)
         yield from self.move(_RIGHT_REST, 1.0)
         if self.object.holder == "human":
@@ -262,11 +309,16 @@ class Robot(ArticulatedBody):
         back along the gripper from it) and hold there: no grasp. Where the object will be
         is :meth:`predict` ``plan_lead`` seconds ahead (the belt carries it; it stops at the
         belt's end); out of reach there, where it is now; out of reach both, the arm stretches
-        towards the predicted position and the plan fails with the distance."""
+        towards the predicted position and the plan fails with the distance. With
+        ``plan_time``, the motion is planned first (that long, unless it already is), and the
+        plan is kept for the next grasp or point."""
         self.activity = "grasp_planning"
         c = self.config
         if self.object.holder != NOBODY:
             return Outcome(False, f"cannot plan a grasp: the {self.object.holder} holds the object")
+        if self.object.gone:
+            return Outcome(False, f"cannot plan a grasp: {self.object.gone}")
+        yield from self._plan_first()
         lead = self.plan_lead
         predicted = np.asarray(self.predict(lead), float)
         target, where = predicted, f"where it will be in {lead:.1f} s"
@@ -285,6 +337,7 @@ class Robot(ArticulatedBody):
         pregrasp = target - c.approach * self._gripper_direction(target, pitch)
         pose = self.solve_tool(pregrasp, pitch)   # plan_grasp checked it is reachable
         yield from self.move({**pose, **_OPEN, **self.look_at(target)}, c.reach_time)
+        self.planned = True
         return Outcome(True, f"gripper open {c.approach:.2f} m back from the object's place at "
                              f"x = {target[0]:+.2f} m ({where}), pitched "
                              f"{math.degrees(-pitch):.0f} deg down: ready to grasp")
@@ -301,8 +354,17 @@ class Robot(ArticulatedBody):
         return None
 
     def cancel(self, interrupted: Optional[str]) -> Outcome:
-        """Stop where it is and hold (keeps a held object), instantly."""
+        """Stop where it is and hold (keeps a held object), instantly. An object being carried
+        to the robot's tray goes back on the belt where it started, and the arm to rest
+        (FABRIC's cancel of a grasp under way)."""
         self.activity = "cancel_action"   # the joints stay where the last command put them
+        self.planned = False
+        if self.carrying:
+            self.delivery_left = 0.0
+            self.object.reset()
+            self.teleport(_REST)
+            return Outcome(True, "cancelled the grasp before the object was in the robot's "
+                                 "tray: the object is back on the belt where it started")
         if interrupted:
             return Outcome(True, f"cancelled {interrupted}; holding still")
         return Outcome(True, "nothing to cancel; holding still")
@@ -310,6 +372,8 @@ class Robot(ArticulatedBody):
     def reset(self) -> Outcome:
         """Back to the rest pose, instantly (the world takes care of a held object)."""
         self.activity = "idle"
+        self.planned = False
+        self.delivery_left = 0.0
         self.teleport(_REST)
         return Outcome(True, "robot back in its rest pose")
 

@@ -9,7 +9,10 @@ step it (1) takes the requests that came in (a reset or a cancel interrupts at o
 action queues behind the agent's current one) and starts a queued action where the agent is
 free, (2) moves the belt, (3) steps the physics, (4) puts a held object in its holder's hand
 and the object's copy where the object is, (5) advances the human's and the robot's motions
-to their next command, which finishes a motion whose last step has just been taken.
+to their next command, which finishes a motion whose last step has just been taken, and (6)
+moves a carried object nearer the robot's tray and lets the belt's end take an object that
+reached it (a task's own world: ``WorldConfig.belt_start`` and the facts after it, from
+:func:`~.config.task_world_config`; the belt's speed in (2) follows ``belt_start`` too).
 Actions are therefore only ever executed by the loop, between two steps, and every
 PyBullet call happens under one lock: callers on other threads (ROS service handlers) submit a
 request and wait for its :class:`~.tickets.Ticket` (:mod:`.tickets`: the queues and who goes
@@ -106,6 +109,10 @@ class World:
             stage = build_stage(self.client, self.physics, cfg, self.model_dir, self.control_period,
                                 self.rng, self._predicted_object, self._window if cfg.gui else None)
             self.floor_id, self.scenery, self.conveyor, self.object, self.human, self.robot = stage
+            # The task's clock (belt_start counts from it): the last reset that put the object
+            # back at its start.
+            self._task_start = 0.0
+            self._belt_speed = self._running_speed()
             self._actions = ActionQueues({"human": self.human, "robot": self.robot})
             if cfg.gui:
                 self._window.show(self.floor_id)
@@ -171,6 +178,7 @@ class World:
         for channel in self._actions.channels.values():
             if channel.motion is None:
                 self._advance(channel)   # start a queued action: its first command
+        self.conveyor.speed = self._belt_now()
         self.conveyor.before_step()
         self.physics.stepSimulation()
         self.object.after_step()
@@ -181,6 +189,32 @@ class World:
         for channel in self._actions.channels.values():
             if channel.motion is not None:
                 self._advance(channel)
+        self.robot.deliver(self.control_period)
+        if self.config.end_tray and not self.object.gone and self._at_belt_end():
+            self.object.gone = "the object has left the belt: it lies in the tray at the belt's end"
+
+    def _running_speed(self) -> float:
+        """The belt's speed once it runs: belt_speed, or with belt_run the speed that brings the
+        object from its start to the belt's end in belt_run seconds."""
+        cfg = self.config
+        if cfg.belt_run <= 0:
+            return cfg.belt_speed
+        distance = self.conveyor.end_x(cfg.work_object.size / 2) - self.object.start_position[0]
+        return max(0.0, distance) / cfg.belt_run
+
+    def _belt_now(self) -> float:
+        """The belt's speed at this step: still for belt_start seconds of the task, then running."""
+        if self.sim_time - self._task_start < self.config.belt_start:
+            return 0.0
+        return self._belt_speed
+
+    def _at_belt_end(self) -> bool:
+        """Nobody holds the object, and it is off the belt or at its end."""
+        position = self.object.position()
+        # (A plain bool: ROS messages refuse numpy's.)
+        return bool(self.object.holder == "none" and (
+            not self.conveyor.is_on_belt(position)
+            or self.conveyor.at_end(position, self.object.config.size / 2)))
 
     def _take_requests(self) -> None:
         """Queue the actions asked for since the last step; carry out resets and cancels at once."""
@@ -198,10 +232,12 @@ class World:
             self.object.reset()
             self.human.reset()
             self.robot.reset()
+            self._task_start = now
             return Outcome(True, "world reset: human, robot and object back at their start")
         if ticket.agent == "human":
             actions.interrupt("human", "reset", now)
             self.object.reset()  # the seed's /human/reset puts the object back too
+            self._task_start = now
             outcome = self.human.reset()
             return replace(outcome, message=outcome.message + "; object back at the start of the belt")
         if ticket.action == "reset":
@@ -220,6 +256,12 @@ class World:
                 channel.start_next(self.sim_time)
             try:
                 next(channel.motion)
+                if not channel.answered and channel.ticket.name in self.config.async_actions:
+                    # Answered as it starts (FABRIC's robot grasps on a thread of its own):
+                    # the caller goes on while the motion does.
+                    channel.answer_early(Outcome(True, f"{channel.ticket.action} under way (the "
+                                                       "call is answered as it starts; a cancel "
+                                                       "stops it)"), self.sim_time)
                 return
             except StopIteration as stop:
                 outcome = stop.value or Outcome(True, f"{channel.ticket.name} done")
@@ -234,7 +276,10 @@ class World:
                     self._check_window(settle=0.2)   # PyBullet answers some calls with None once it is gone
                 LOG.exception("%s raised", channel.ticket.name)
                 outcome = Outcome(False, f"{channel.ticket.name} failed with an internal error: {error!r}")
+            name, answered = channel.ticket.name, channel.answered
             channel.end(outcome, self.sim_time)
+            if answered:
+                LOG.info("%s (answered as it started) ended: %s", name, outcome.message)
 
     def _notify(self) -> None:
         for listener in self._listeners:
@@ -389,6 +434,17 @@ class World:
         """Advance ``seconds`` of simulated time on the calling thread."""
         self.step(max(0, int(round(seconds / self.control_period))))
 
+    def finish_motions(self) -> None:
+        """Step on the calling thread until no motion is under way, those answered as they
+        started (``WorldConfig.async_actions``) included."""
+        limit = int(_MAX_ACTION_TIME / self.control_period)
+        for _ in range(limit):
+            if not any(channel.motion is not None for channel in self._actions.channels.values()):
+                return
+            self.step()
+        raise SimulationError(f"motions still under way after {_MAX_ACTION_TIME:.0f} s of "
+                              "simulated time")
+
     def submit(self, agent: str, action: str, caller: str = "", driver: bool = False) -> Ticket:
         """Ask ``agent`` ("human", "robot" or "world") to carry out ``action``; returns at once.
 
@@ -460,7 +516,7 @@ class World:
     def set_belt_speed(self, speed: float) -> None:
         """Change the belt speed (m/s, downstream positive) from the next step on."""
         with self._locked():
-            self.conveyor.speed = float(speed)
+            self._belt_speed = self.conveyor.speed = float(speed)
 
     def predict_object(self, seconds: float) -> np.ndarray:
         """Where the object will be in ``seconds`` of simulated time if nobody touches it: the
@@ -482,14 +538,17 @@ class World:
             position, orientation = self.object.pose()
             on_belt = self.conveyor.is_on_belt(position)
             # Nobody took it before the belt's end (a real belt drops it there), or it fell off.
-            left_belt = self.object.holder == "none" and (
-                not on_belt or self.conveyor.at_end(position, self.object.config.size / 2))
+            left_belt = bool(self.object.gone) or self._at_belt_end()
+            # Who has taken it: a hand holds it; the robot's (delivery_time) once it lies in
+            # the robot's tray, not while the robot carries it there ("carrying").
+            carrying = self.robot.carrying
             return {
                 "sim_time": self.sim_time,
                 "step": self.step_count,
                 "belt_speed": self.conveyor.speed,
                 "object": {"position": list(position), "orientation": list(orientation),
-                           "holder": self.object.holder,
+                           "holder": "none" if carrying else self.object.holder,
+                           "carried_by": "robot" if carrying else "none",
                            "on_belt": on_belt, "left_belt": left_belt},
                 "human": {"action": self.human.activity, "moving": self.human.moving,
                           "at_station": self.human.at_station()},
@@ -541,6 +600,9 @@ class World:
     def describe(self) -> Sequence[str]:
         """One line per body: what the world holds (for logs)."""
         cfg = self.config
-        return [f"belt x {cfg.conveyor.start_x:+.2f}..{cfg.conveyor.end_x:+.2f} m at {self.conveyor.speed:.3f} m/s",
+        still = f", still for the first {cfg.belt_start:g} s of a task" if cfg.belt_start else ""
+        end = ", its end a tray (what falls in is gone)" if cfg.end_tray else ""
+        return [f"belt x {cfg.conveyor.start_x:+.2f}..{cfg.conveyor.end_x:+.2f} m at "
+                f"{self._belt_speed:.3f} m/s{still}{end}",
                 "object start ({:+.2f}, {:+.2f}, {:.3f}) m".format(*self.object.start_position),
                 f"human at {cfg.human.station}, robot at {cfg.robot.position}"]

@@ -92,6 +92,9 @@ class Channel:
         self.motion: Optional[Motion] = None
         self.ticket: Optional[Ticket] = None
         self.queue: Deque[Ticket] = deque()
+        #: The action under way was answered as it started (:meth:`answer_early`): its
+        #: motion goes on, but it no longer keeps the world's clock running.
+        self.answered = False
 
     def start_next(self, now: float) -> None:
         """Put the first queued action under way: its motion is made, not advanced yet."""
@@ -100,11 +103,20 @@ class Channel:
         self.motion = getattr(self.body, self.ticket.action)()
         self.body.moving = True
 
-    def end(self, outcome: Outcome, now: float) -> None:
-        """The action under way is over with ``outcome``: the agent is free."""
+    def answer_early(self, outcome: Outcome, now: float) -> None:
+        """Answer the action under way now, with ``outcome``; its motion goes on (a cancel or
+        a reset still stops it, another action waits for it)."""
         self.ticket.finish(outcome, now)
-        self.motion, self.ticket = None, None
+        self.answered = True
+
+    def end(self, outcome: Outcome, now: float) -> Outcome:
+        """The action under way is over with ``outcome``: the agent is free. Returns the
+        outcome (for an action answered early, its caller has had another)."""
+        if not self.answered:
+            self.ticket.finish(outcome, now)
+        self.motion, self.ticket, self.answered = None, None, False
         self.body.moving = False   # its joints stay where the last step put them
+        return outcome
 
     def cut_short(self, message: str, now: float) -> None:
         """Stop the action under way where it is; it fails with ``message``."""
@@ -207,9 +219,11 @@ class ActionQueues:
                 pending.append(channel.ticket)
             pending.extend(channel.queue)
             channel.queue.clear()
-            channel.motion, channel.ticket = None, None
+            channel.motion, channel.ticket, channel.answered = None, None, False
         return pending
 
     def busy(self) -> bool:
-        """True while a request waits or an agent has an action under way or queued."""
-        return bool(self.requests) or any(ch.motion is not None or ch.queue for ch in self.channels.values())
+        """True while a request waits or an agent has an action under way (not answered
+        early: :meth:`Channel.answer_early`) or queued."""
+        return bool(self.requests) or any((ch.motion is not None and not ch.answered) or ch.queue
+                                          for ch in self.channels.values())
