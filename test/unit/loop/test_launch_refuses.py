@@ -3,6 +3,7 @@ naming it, roslaunch exits non-zero at once (a refused start once took ~35 s to 
 no master and no node were started (hrc_check runs as the launch's first parameter). These run
 roslaunch itself, against a port no master listens on."""
 import os
+import signal
 import socket
 import subprocess
 
@@ -52,9 +53,19 @@ def roslaunch(*args, launch="hrc.launch", cwd=None, environ=None, ros_home=None)
                ROS_MASTER_URI=f"http://127.0.0.1:{port}")
     if ros_home is not None:
         env["ROS_HOME"] = str(ros_home)
-    done = subprocess.run(["roslaunch", "-p", str(port), "ros_hrc", launch, *args],
-                          stdin=subprocess.DEVNULL, capture_output=True, text=True, env=env,
-                          timeout=120, cwd=cwd)
+    # A session of its own: a launch that starts after all (a refusal that regressed) is
+    # stopped whole, its nodes with it, instead of leaving a stack on the machine's ports.
+    launch_process = subprocess.Popen(["roslaunch", "-p", str(port), "ros_hrc", launch, *args],
+                                      stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                      stderr=subprocess.PIPE, text=True, env=env, cwd=cwd,
+                                      start_new_session=True)
+    try:
+        out, err = launch_process.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(launch_process.pid, signal.SIGKILL)
+        out, err = launch_process.communicate()
+        pytest.fail(f"roslaunch {' '.join(args)} started instead of refusing: {out[-2000:]}")
+    done = subprocess.CompletedProcess(launch_process.args, launch_process.returncode, out, err)
     with socket.socket() as s:
         master_up = s.connect_ex(("127.0.0.1", port)) == 0
     return done, master_up
