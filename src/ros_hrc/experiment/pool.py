@@ -196,7 +196,8 @@ def run_grid(cells: List[CellSpec], store, jobs: int,
     bar's text."""
     worker = worker or functools.partial(run_local_cell, program=program)
     stopper = stopper or Stopper()
-    progress = Progress(store, sum(len(c.episodes) for c in cells), program, status)
+    progress = Progress(store, sum(len(c.episodes) for c in cells), program, status,
+                        unit="sequence" if cells[0].sequence else "episode")
     lock = progress.lock   # the store, the bar and the schedule, from every worker's thread
     Path(cells[0].log_dir).mkdir(parents=True, exist_ok=True)
     with progress:

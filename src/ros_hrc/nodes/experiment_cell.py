@@ -36,11 +36,14 @@ import rospy
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import score_episode, step_rows
 from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch, cell_name,
-                                      encode_episode, pick_ports, read_spec, stack_environment,
-                                      stack_log, start_stack, stop_launched, stop_stack)
+                                      encode_episode, encode_sequence, pick_ports, read_spec,
+                                      stack_environment, stack_log, start_stack, stop_launched,
+                                      stop_stack)
 from ros_hrc.experiment.rows import EpisodeRow
+from ros_hrc.experiment.sequence_rows import SequenceRow, sequence_row, task_episode, task_row
 from ros_hrc.models import load_robot_model, positional_mapping_line
-from ros_hrc.msg import Status
+from ros_hrc.msg import Status, TaskStatus
+from std_srvs.srv import Trigger
 from ros_hrc.nodes.common import init_node_when_master_is_up
 from ros_hrc.pomdp.model import Model
 
@@ -227,16 +230,130 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
         rospy.signal_shutdown("cell done")
 
 
+class TaskInbox:
+    """The tasks of a sequence cell from ``/hrc/task_status``, as the stack ends them, and
+    the stack's liveness from ``/hrc/status`` (any step)."""
+
+    def __init__(self) -> None:
+        self.cond = threading.Condition()
+        self.tasks: list = []           # (TaskStatus, monotonic arrival), oldest first
+        self.last_seen = time.monotonic()
+        self.first_step: Optional[float] = None    # when the stack's first step arrived
+        self.steps_seen = 0
+
+    def on_status(self, msg) -> None:
+        with self.cond:
+            self.last_seen = time.monotonic()
+            self.steps_seen += 1
+            if self.first_step is None:
+                self.first_step = self.last_seen - msg.step_ms / 1000.0
+            self.cond.notify_all()
+
+    def on_task(self, msg) -> None:
+        with self.cond:
+            self.last_seen = time.monotonic()
+            self.tasks.append((msg, self.last_seen))
+            self.cond.notify_all()
+
+    def next_task(self, timeout: float, check: Callable[[], None] = lambda: None) -> tuple:
+        """The oldest task status not taken yet and when it arrived; CellFailed after
+        ``timeout`` wall seconds without any step or task (``check()`` every second)."""
+        with self.cond:
+            while not self.tasks:
+                check()
+                if time.monotonic() - self.last_seen > timeout:
+                    raise CellFailed(f"no step for {timeout:.0f} s")
+                self.cond.wait(1.0)
+            return self.tasks.pop(0)
+
+    def steps_within(self, seconds: float) -> bool:
+        """Whether a step arrives within ``seconds`` from now."""
+        with self.cond:
+            seen = self.steps_seen
+            self.cond.wait_for(lambda: self.steps_seen != seen, seconds)
+            return self.steps_seen != seen
+
+
+#: Wall seconds a cell waits, after a sequence's last task, for the stack to go on by itself
+#: before it asks for the next sequence with /hrc/reset (the loop waits after a sequence).
+NEXT_SEQUENCE_WAIT = 1.0
+#: Wall seconds /hrc/reset gets (it answers once the reset is done).
+RESET_WAIT = 60.0
+
+
+def start_next_sequence(inbox: TaskInbox, name: str) -> None:
+    """After a sequence's last task the loop waits (docs/sequences.md): the next sequence
+    starts with ``/hrc/reset``, unless the stack went on by itself."""
+    if inbox.steps_within(NEXT_SEQUENCE_WAIT):
+        return
+    rospy.wait_for_service("/hrc/reset", RESET_WAIT)
+    answer = rospy.ServiceProxy("/hrc/reset", Trigger)()
+    if not answer.success:
+        raise CellFailed(f"{name}: /hrc/reset did not start the next sequence: "
+                         f"{answer.message}")
+
+
+def drive_sequences(spec: CellSpec, proc: subprocess.Popen,
+                    deliver: Callable[[SequenceRow, list], None], name: str,
+                    log_dir: Path) -> int:
+    """Record ``spec``'s sequences (``spec.episodes``: their numbers) from the stack ``proc``
+    (``hrc.launch tasks:=L``, already started): collect each task's ``/hrc/task_status``,
+    and ``deliver`` each sequence whole (its :class:`SequenceRow` and task rows). Task ``t``
+    of sequence ``s`` is the loop's episode ``s*L + t - 1``
+    (:func:`~ros_hrc.experiment.sequence_rows.task_episode`). Returns how many sequences
+    were delivered."""
+    watch = StackWatch(proc, stack_log(spec, log_dir), name)
+    wait_for_master(watch)
+    init_node_when_master_is_up("hrc_experiment_cell", wait=30.0)
+    inbox = TaskInbox()
+    rospy.Subscriber("/hrc/task_status", TaskStatus, inbox.on_task, queue_size=1000)
+    # The stack waits for a listener of /hrc/status before its first step: subscribed last.
+    rospy.Subscriber("/hrc/status", Status, inbox.on_status, queue_size=1000)
+    length = spec.sequence
+    try:
+        delivered = 0
+        previous_end: Optional[float] = None
+        for number, sequence in enumerate(spec.episodes):
+            watch.check()
+            if number:
+                start_next_sequence(inbox, name)
+            tasks = []
+            for index in range(1, length + 1):
+                due = task_episode(sequence, index, length)
+                while True:
+                    status, arrived = inbox.next_task(spec.episode_timeout, watch.check)
+                    if int(status.episode) == due:
+                        break
+                    if int(status.episode) > due:
+                        raise CellFailed(f"{name}: the stack played task episode "
+                                         f"{status.episode} where {due} was due")
+                if int(status.task_index) != index:
+                    raise CellFailed(f"{name}: episode {due} was task {status.task_index} "
+                                     f"of its sequence, not task {index}")
+                tasks.append(task_row(status, spec.human_model, spec.robot_policy, spec.seed,
+                                      sequence))
+            began = previous_end if previous_end is not None else (inbox.first_step or arrived)
+            previous_end = arrived
+            deliver(sequence_row(tasks, max(0.0, arrived - began)), tasks)
+            delivered += 1
+        return delivered
+    finally:
+        SIGNALS.disarm()
+        rospy.signal_shutdown("cell done")
+
+
 def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int:
     """Run the cell's episodes on a stack of its own; ``deliver(episode_row, step_rows)`` for
     each one as it ends. Returns how many episodes were delivered; raises CellFailed if the
     stack fails, ModelError if the robot model does not fit the task."""
     if not spec.episodes:
         return 0
-    model = load_robot_model(spec.robot_model, spec.task)
-    mapping = positional_mapping_line(model)
-    if mapping:   # stdout carries the episodes; stderr goes to the cell's worker log
-        print(f"{cell_name(spec)}: {mapping}", file=sys.stderr, flush=True)
+    model = None
+    if not spec.sequence:      # a sequence's robot models are its library's (the stack's)
+        model = load_robot_model(spec.robot_model, spec.task)
+        mapping = positional_mapping_line(model)
+        if mapping:   # stdout carries the episodes; stderr goes to the cell's worker log
+            print(f"{cell_name(spec)}: {mapping}", file=sys.stderr, flush=True)
     ports = pick_ports()
     log_dir = Path(spec.log_dir)
     # This process's own node talks to the cell's master too.
@@ -245,6 +362,8 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
     try:
         with SIGNALS.deferred():   # started means stopped in the finally, even on a signal
             proc = start_stack(spec, ports, log_dir)
+        if spec.sequence:
+            return drive_sequences(spec, proc, deliver, cell_name(spec), log_dir)
         return drive_cell(spec, model, proc, deliver, cell_name(spec), log_dir)
     finally:
         SIGNALS.disarm()
@@ -268,9 +387,11 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 2
     label = f"cell {spec.human_model}/{spec.robot_policy}/seed {spec.seed}"
 
-    def deliver(row, steps) -> None:
+    def deliver(row, parts) -> None:
+        line = encode_sequence(row, parts) if isinstance(row, SequenceRow) else \
+            encode_episode(row, parts)
         with SIGNALS.deferred():
-            print(encode_episode(row, steps), flush=True)
+            print(line, flush=True)
 
     SIGNALS.install()
     try:
