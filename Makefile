@@ -4,7 +4,7 @@ SHELL := /bin/bash
 , := ,
 ARGS ?=
 
-.PHONY: setup run test unit rostest bench experiment fit lint clean
+.PHONY: setup run test unit rostest bench experiment fit train-selector lint clean
 
 setup:
 	@bash tools/setup.sh
@@ -42,6 +42,14 @@ fit: setup
 	@source env.sh && rosrun ros_hrc hrc_fit --out models/robot/robot_fitted.pomdp $(ARGS) \
 	    && rosrun ros_hrc hrc_fit --prior robot_considerate \
 	       --out models/robot/robot_considerate_fitted.pomdp $(ARGS)
+
+# Train the selector's model from our own runs (docs/experiments.md, "hrc_train_selector"):
+# every (type, policy) pair of the task's library plays 50 tasks through the real stack on
+# the trainer's seed (4, not the study's 2), into results/train_selector_<task>, then
+# models/<task>/selector_model.json. ARGS="--task fabric" for FABRIC's (the default task is
+# the seed's); ARGS="--leave-out TYPE" writes a model without TYPE beside it.
+train-selector: setup
+	@source env.sh && rosrun ros_hrc hrc_train_selector $(ARGS)
 
 lint: setup
 	@source env.sh && catkin_lint --strict -W2 .ws/src/ros_hrc && PYTHONPATH=src:$$PYTHONPATH lint-imports --no-logo

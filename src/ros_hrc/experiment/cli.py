@@ -96,7 +96,8 @@ class GridParser(OneLineParser):
         return parsed, rest
 
 
-def _seeds(text: str) -> List[int]:
+def seeds_argument(text: str) -> List[int]:
+    """Seeds, comma-separated, each as hrc.launch's ``seed`` takes it."""
     seeds = []
     for part in names_argument(text):
         try:
@@ -152,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "summary names the best. The seed's budget is observations before it "
                         "helps; fabric's is simulated seconds without success (its "
                         "reactive_wait, the authors' 15)")
-    p.add_argument("--seeds", type=_seeds, default=_seeds(DEFAULT_SEEDS),
+    p.add_argument("--seeds", type=seeds_argument, default=seeds_argument(DEFAULT_SEEDS),
                    help=f"seeds, comma-separated ({DEFAULT_SEEDS})")
     p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=DEFAULT_EPISODES,
                    help=f"episodes per cell, 1 to {MAX_EPISODES} ({DEFAULT_EPISODES}: a "

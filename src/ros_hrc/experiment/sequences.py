@@ -26,6 +26,7 @@ import argparse
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Set, Tuple
 
+from ros_hrc.agents.selectors import NEEDS_MODEL, SELECTOR_NAMES
 from ros_hrc.experiment.grid import GridError, resolve_files, task_launch_args, task_of
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
 from ros_hrc.model_files import user_path
@@ -38,7 +39,7 @@ SCHEDULE_WORDS = (PER_TYPE, FABRIC)
 #: The selector that stands for every library policy (``fixed:<policy>`` each).
 FIXED = "fixed"
 #: Selectors whose choices rest on the trained selector model (the held-out rule applies).
-MODEL_SELECTORS = ("bpr", "bpr-pi", "bpr-fabric", "oracle")
+MODEL_SELECTORS = tuple(sorted(NEEDS_MODEL))
 #: The selector model's file name, beside the library's manifest (``models/fabric/`` and
 #: ``models/robot/``), where ``selector_model:=auto`` finds it.
 SELECTOR_MODEL_FILE = "selector_model.json"
@@ -46,18 +47,12 @@ SELECTOR_MODEL_FILE = "selector_model.json"
 MAX_SEQUENCE = 100000
 
 
-def known_selectors() -> Tuple[str, ...]:
-    """The robot process's selectors (``ros_hrc.agents.selectors.SELECTOR_NAMES``)."""
-    from ros_hrc.agents.selectors import SELECTOR_NAMES
-    return tuple(SELECTOR_NAMES)
-
-
 def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]:
     """``--selectors`` as the cells run them: ``fixed`` becomes ``fixed:<policy>`` for every
     library policy (in the library's order), ``fixed:<policy>`` is checked against the
     library, the others against the known selectors. GridError (one line naming the known
     ones) for an unknown name."""
-    known = known_selectors()
+    known = SELECTOR_NAMES
     out: List[str] = []
     for name in names:
         if name == FIXED:
