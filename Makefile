@@ -27,12 +27,17 @@ bench: setup
 # ARGS="--task fabric": the successor task's study instead (its ten human types; the human
 # alone, the reactive MDP robot with its wait swept over 5..30 simulated seconds, the
 # proactive POMDP robot), into results/experiment_fabric.
+# ARGS="--task fabric --sequence 30": the sequence study instead (issue #30: the selectors
+# over the task's library, 5 sequences per cell), into results/sequences_fabric
+# (results/sequences without --task fabric); docs/experiments.md, "Sequences".
 EXPERIMENT_POLICIES ?= pomdp,pomdp_fitted,pomdp_considerate,no_robot
 FABRIC_STUDY := $(or $(findstring --task fabric,$(ARGS)),$(findstring --task=fabric,$(ARGS)))
+SEQUENCE_STUDY := $(findstring --sequence,$(ARGS))
 experiment: setup
 	@source env.sh && rosrun ros_hrc hrc_experiment \
+	    $(if $(SEQUENCE_STUDY),--out results/sequences$(if $(FABRIC_STUDY),_fabric),\
 	    $(if $(FABRIC_STUDY),--out results/experiment_fabric --reactive-budgets 5$(,)10$(,)20$(,)30,\
-	         --out results/experiment --policies $(EXPERIMENT_POLICIES) --reactive-budgets 1..10) \
+	         --out results/experiment --policies $(EXPERIMENT_POLICIES) --reactive-budgets 1..10)) \
 	    $(ARGS)
 
 # Fit the robot models' T and O to the world on the zoo's fit set (docs/robot_model.md):

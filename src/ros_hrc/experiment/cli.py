@@ -188,6 +188,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: The selectors of a sequence study when --selectors is not given (the issue's study).
 DEFAULT_SELECTORS = "bpr,bandit,random,oracle,fixed"
+#: Sequences per cell when --episodes is not given with --sequence: the issue's "at least 5
+#: independent repetitions" (each sequence is L tasks, paired task by task across selectors).
+DEFAULT_SEQUENCES = 5
 #: Options that mean something only in a sequence study, and those only in an episode one.
 SEQUENCE_ONLY = ("selectors", "library", "schedule", "selector_model")
 EPISODE_ONLY = ("policies", "reactive_budgets")
@@ -199,7 +202,8 @@ def add_sequence_arguments(p: argparse.ArgumentParser) -> None:
                    help="run sequences of L tasks instead of episodes: a cell is (schedule, "
                         "selector, seed), its stack up for the whole sequence (tasks:=L), the "
                         "robot's selector choosing a library policy before each task; "
-                        "--episodes N is then N independent sequences per cell")
+                        f"--episodes N is then N independent sequences per cell "
+                        f"({DEFAULT_SEQUENCES})")
     p.add_argument("--selectors", type=names_argument, default=None,
                    help=f"with --sequence: selectors, comma-separated ({DEFAULT_SELECTORS}); "
                         "fixed stands for every library policy as fixed:<policy>")
@@ -229,6 +233,8 @@ def check_mode(args: argparse.Namespace, words: Sequence[str]) -> None:
     if stray:
         raise GridError(f"--{stray[0].replace('_', '-')} is for episodes; with --sequence the "
                         "robot's policies are the library's, chosen by --selectors")
+    if "episodes" not in given:
+        args.episodes = DEFAULT_SEQUENCES
     args.selectors = args.selectors or names_argument(DEFAULT_SELECTORS)
     args.library = args.library or "auto"
     args.schedule = args.schedule or [PER_TYPE]

@@ -362,8 +362,10 @@ def plot_learning_curves(curve: Sequence[Mapping[str, Any]], png_path: Union[str
             ax.grid(alpha=0.3)
     axes[0][0].set_title("success rate (95 % Wilson interval)", fontsize="medium")
     axes[0][1].set_title("utility per task (95 % t interval)", fontsize="medium")
+    from matplotlib.ticker import MaxNLocator
     for ax in axes[-1]:
         ax.set_xlabel("task in the sequence")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     handles, labels = axes[0][1].get_legend_handles_labels()
     seen = dict(zip(labels, handles))
     for r in range(1, len(schedules)):

@@ -7,7 +7,11 @@ process per cell (rospy allows one node per process, and each cell has a master 
 (:func:`ros_hrc.experiment.stack.start_stack`), in which the coordinator ends each episode
 and starts the next (``on_episode_end:=reset``), and :func:`drive_cell` collects each
 episode's ``/hrc/status`` messages, scores it and hands the row over. The process writes one line per
-episode on its standard output, ``EPISODE {json}``, as soon as the episode ends. While it
+episode on its standard output, ``EPISODE {json}``, as soon as the episode ends. A sequence
+cell (``spec.sequence``: ``hrc.launch tasks:=L``) is driven by :func:`drive_sequences`
+instead: it collects each task's ``/hrc/task_status`` and writes one line per whole
+sequence, ``SEQUENCE {json}`` (its row and its tasks' rows), starting each next sequence with
+``/hrc/reset`` (the loop waits after a sequence's last task). While it
 waits (for the master, for a step) it watches the stack
 (:class:`ros_hrc.experiment.stack.StackWatch`): a roslaunch that exits, or a link that cannot
 bind its port, fails the cell at once with the reason and the last lines of its log.

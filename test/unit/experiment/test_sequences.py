@@ -265,3 +265,34 @@ def test_the_summary_sets_every_selector_against_the_best_fixed_policy_and_the_o
         for prefix in ("vs_best_fixed", "vs_oracle"):
             if e[f"{prefix}_pairs"]:
                 assert e[f"{prefix}_utility_q"] >= e[f"{prefix}_utility_p"] - 1e-12
+
+
+def test_a_sequence_study_defaults_to_five_sequences_of_the_issues_selectors_per_type():
+    from ros_hrc.experiment.cli import build_parser, check_mode
+    words = ["--sequence", "30", "--task", "fabric"]
+    args = build_parser().parse_args(words)
+    check_mode(args, words)
+    assert (args.episodes, args.schedule, args.library, args.selector_model) == \
+        (5, ["per-type"], "auto", "auto")
+    assert args.selectors == ["bpr", "bandit", "random", "oracle", "fixed"]
+    words = ["--sequence", "30", "--episodes", "7", "--selectors", "random"]
+    args = build_parser().parse_args(words)
+    check_mode(args, words)
+    assert (args.episodes, args.selectors) == (7, ["random"])
+
+
+def test_the_learning_curve_plot_draws_the_adaptive_selectors_and_the_best_fixed(tmp_path):
+    from ros_hrc.experiment.plots import NothingToPlot, plot_learning_curves
+    rows = []
+    for seed in (0, 1, 2):
+        rows += tasks_of_sequence("bpr", seed, 0, [-0.3, 0.4, 0.8, 0.9])
+        rows += tasks_of_sequence("random", seed, 0, [0.1, -0.2, 0.3, 0.2])
+        rows += tasks_of_sequence("fixed:base", seed, 0, [0.5, 0.4, 0.6, 0.5])
+        rows += tasks_of_sequence("fixed:policy1", seed, 0, [-0.5, -0.4, -0.6, -0.5])
+    curve = learning_curve(rows)
+    path = plot_learning_curves(curve, tmp_path / "learning_curve.png",
+                                {"expert": best_fixed(rows)})
+    assert Path(path).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(NothingToPlot):
+        plot_learning_curves([e for e in curve if e["selector"] == "fixed:policy1"],
+                             tmp_path / "none.png", {"expert": "fixed:base"})
