@@ -62,6 +62,7 @@ from ros_hrc.experiment.stack import MAX_EPISODES, check_launch_settings
 from ros_hrc.experiment.statistics import summarize, write_summary
 from ros_hrc.experiment.store import ResultsStore
 from ros_hrc.experiment.sequences import (MAX_SEQUENCE, MODEL_SELECTORS, PER_TYPE,
+                                          SELECTOR_MODEL_FILE,
                                           check_trained_elsewhere, expand_selectors,
                                           load_study_library, resolve_schedules,
                                           plan_sequence_cells, selector_model_file)
@@ -262,9 +263,9 @@ def validate_sequences(args: argparse.Namespace) -> List[str]:
     users = [s for s in args.selectors if s in MODEL_SELECTORS]
     warnings: List[str] = []
     if users and args.selector_model_file is None:
-        raise GridError(f"--selectors {','.join(users)}: no selector model for "
-                        f"{library.manifest} (expected {args.selector_model_file or 'one'} "
-                        f"beside it); make train-selector writes it, or give --selector-model")
+        expected = Path(library.manifest).parent / SELECTOR_MODEL_FILE
+        raise GridError(f"--selectors {','.join(users)}: no selector model {expected}; make "
+                        "train-selector writes it, or give --selector-model")
     if args.selector_model_file is not None and users:
         from ros_hrc.agents.selector_model import load_selector_model
         try:

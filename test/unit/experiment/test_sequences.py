@@ -296,3 +296,67 @@ def test_the_learning_curve_plot_draws_the_adaptive_selectors_and_the_best_fixed
     with pytest.raises(NothingToPlot):
         plot_learning_curves([e for e in curve if e["selector"] == "fixed:policy1"],
                              tmp_path / "none.png", {"expert": "fixed:base"})
+
+
+def write_fixture_model(path, seeds):
+    """A selector model for fabric's library, from hand-made training tasks (a fixture: the
+    shipped model comes from hrc_train_selector)."""
+    from ros_hrc import tasks
+    from ros_hrc.agents.library import load_library
+    from ros_hrc.agents.selector_model import TrainingTask, from_tasks, write_selector_model
+    from ros_hrc.experiment.grid import task_humans
+    task = tasks.get("fabric")
+    policies = load_library("auto", task).names()
+    types = task_humans(task)
+    rows = [TrainingTask(t, p, 0.1 * i, (i % 64,)) for i, t in enumerate(types)
+            for p in policies for _ in range(2)]
+    write_selector_model(from_tasks(rows, task="fabric", policies=policies, types=types,
+                                    header={"how": "fixture", "from": "a test",
+                                            "seeds": seeds, "command": "pytest",
+                                            "date": "2026-11-27"}), path)
+
+
+def test_a_selector_model_is_not_evaluated_on_the_seeds_it_was_trained_on(tmp_path):
+    write_fixture_model(tmp_path / "model.json", seeds=[2, 7])
+    done = run_cli("--task", "fabric", "--sequence", "3", "--selectors", "bpr,random",
+                   "--selector-model", "model.json", "--seeds", "1,7", "--out",
+                   str(tmp_path / "results"), cwd=tmp_path)
+    assert done.returncode == 2
+    assert done.stderr == (f"hrc_experiment: --selectors bpr: their selector model "
+                           f"{tmp_path / 'model.json'} was trained on seeds 7, which this "
+                           "study would evaluate them on; choose other --seeds, or give "
+                           "--allow-in-sample to run them anyway\n")
+    assert not (tmp_path / "results").exists()
+
+
+def test_with_allow_in_sample_the_trained_seeds_run_with_a_warning_line():
+    from ros_hrc.experiment.sequences import check_trained_elsewhere
+    args = SimpleNamespace(selectors=["bpr", "fixed:base"], seeds=[2, 3],
+                           selector_model_file="/m/model.json", allow_in_sample=True)
+    assert check_trained_elsewhere(args, [3, 4]) == [
+        "warning: --selectors bpr: their selector model /m/model.json was trained on seeds 3, "
+        "which this study would evaluate them on (--allow-in-sample)"]
+    # Selectors that use no model are not held to it.
+    args.selectors = ["random", "fixed:base"]
+    args.allow_in_sample = False
+    assert check_trained_elsewhere(args, [2]) == []
+
+
+def test_a_selector_that_needs_a_model_without_one_names_make_train_selector(tmp_path):
+    done = run_cli("--task", "fabric", "--sequence", "3", "--selectors", "oracle",
+                   "--selector-model", "auto", "--library", str(tmp_path / "lib"),
+                   "--out", str(tmp_path / "results"), cwd=tmp_path)
+    assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
+    assert "--library" in done.stderr      # no library there: said first
+    manifest = Path(__file__).resolve().parents[3] / "models" / "fabric" / "library.toml"
+    (tmp_path / "lib").mkdir()
+    # The same library in a folder without a selector model (its models named absolutely).
+    (tmp_path / "lib" / "library.toml").write_text(
+        manifest.read_text().replace('model = "', f'model = "{manifest.parent}/'))
+    done = run_cli("--task", "fabric", "--sequence", "3", "--selectors", "oracle",
+                   "--library", str(tmp_path / "lib"), "--out", str(tmp_path / "results"),
+                   cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr == (f"hrc_experiment: --selectors oracle: no selector model "
+                           f"{tmp_path / 'lib' / 'selector_model.json'}; make train-selector "
+                           "writes it, or give --selector-model\n")
