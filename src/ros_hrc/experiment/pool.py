@@ -333,7 +333,8 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
         say_last(full_disk_line(program, stopper.disk_full, len(store.done()), out, command))
         return None, 1
     name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
-    print(f"\n{program}: stopped by {name}; {len(store.done())} episodes are kept in {out}. "
+    unit = getattr(store, "UNIT", "episodes")
+    print(f"\n{program}: stopped by {name}; {len(store.done())} {unit} are kept in {out}. "
           f"Resume with: {command}", file=sys.stderr, flush=True)
     return None, 128 + int(stopper.signum)  # type: ignore[arg-type]
 

@@ -186,6 +186,7 @@ class SequenceStore(ResultsStore):
     PART_TYPE = TaskRow
     ROWS_FILE = SEQUENCES_FILE
     PARTS_FILE = TASKS_FILE
+    UNIT = "sequences"
 
     def sequences(self) -> list:
         """Every recorded sequence, in the order they were added."""

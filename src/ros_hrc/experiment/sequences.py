@@ -139,11 +139,14 @@ def check_trained_elsewhere(args: argparse.Namespace, model_seeds: Sequence[int]
 
 def sequence_launch_args(args: argparse.Namespace, selector: str, schedule: str) -> List[str]:
     """The hrc.launch arguments that make a cell's stack play sequences: ``tasks:=L``, the
-    selector, the library, the selector model and the schedule (none for ``per-type``: the
-    launch's ``human_model`` plays every task)."""
+    selector, the library and the selector model (each ``auto`` unless given: the stack
+    finds the task's own), and the schedule (none for ``per-type``: the launch's
+    ``human_model`` plays every task)."""
+    # auto stays auto: each stack finds its task's own (on a cluster's node, its install's).
+    library = "auto" if args.library == "auto" else args.library_manifest
     words = task_launch_args(args) + [f"tasks:={args.sequence}", f"selector:={selector}",
-                                      f"library:={args.library_manifest}"]
-    if args.selector_model_file is not None:
+                                      f"library:={library}"]
+    if args.selector_model != "auto":
         words.append(f"selector_model:={args.selector_model_file}")
     if schedule != PER_TYPE:
         words.append(f"schedule:={schedule}")

@@ -87,6 +87,7 @@ class ResultsStore:
     PART_TYPE: Type[Row] = StepRow
     ROWS_FILE = EPISODES_FILE
     PARTS_FILE = STEPS_FILE
+    UNIT = "episodes"     # what a row is, in the run's messages
 
     def __init__(self, directory: Union[str, os.PathLike]) -> None:
         self.directory = os.fspath(directory)
