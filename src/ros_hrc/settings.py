@@ -610,7 +610,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
 def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: tasks.Task) -> None:
     """The sequence's settings (docs/sequences.md), checked together: a selector or a schedule
     only with ``tasks``, a selector of :data:`SELECTORS`, a schedule whose types are the
-    task's (a schedule file's path made absolute), ``task_timeout`` auto: the task's."""
+    task's (a schedule file's path made absolute), ``task_timeout`` auto: the task's;
+    ``tasks`` not given is 0 once resolved (no sequence)."""
     selector = out["selector"]
     kind, sep, policy = selector.partition(":")
     if kind not in SELECTORS or (sep and (kind != "fixed" or not policy.strip())):
@@ -637,6 +638,8 @@ def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: task
         out[name] = text if text == AUTO_WORD else str(user_path(text))
     if out["task_timeout"] is None:
         out["task_timeout"] = task.task_timeout
+    if out["tasks"] is None:
+        out["tasks"] = 0     # resolved: no sequence (the parameter server carries no None)
 
 
 def add_argument(parser, name: str, *flags: str, **kwargs: Any):

@@ -98,7 +98,7 @@ def test_the_sequence_settings_are_checked_together(tmp_path):
     config = settings.resolve({"tasks": "5", "task": "fabric", "selector": "bpr",
                                "schedule": "expert_tired_noncollaborative*3"})
     assert config["tasks"] == 5 and config["task_timeout"] == 80.0
-    assert settings.resolve({})["tasks"] is None
+    assert settings.resolve({})["tasks"] == 0      # no sequence
     refusals = {
         "tasks:=0: must be an integer from 1 to 2147483647": {"tasks": "0"},
         "tasks:=-2: must be an integer from 1 to 2147483647": {"tasks": "-2"},

@@ -255,7 +255,7 @@ def test_resolve_fills_every_default_in_table_order():
     config = settings.resolve({}, environ={})
     assert list(config) == list(SETTINGS)
     expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False, away_time=0.0,
-                    task_timeout=80.0)
+                    task_timeout=80.0, tasks=0)
     assert config == expected
 
 
