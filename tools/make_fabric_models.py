@@ -4,7 +4,8 @@
     python tools/make_fabric_models.py --out models/fabric
 
 rewrites ``human/*.pomdpx`` (the ten human types, 12-state MDPs) and ``robot/*.pomdpx`` (the
-base robot POMDP, four of its policy variants and the reactive robot MDP) under ``--out``.
+base robot POMDP, eleven of its twelve policy variants, and the reactive robot MDP) under
+``--out``. (The authors' policy2 is not in the repository index we read: models/README.md.)
 The output is deterministic: a rerun writes the same bytes (a test checks the shipped files).
 
 Where the figures come from: the GitHub repository ``cangorur/human_robot_collaboration``

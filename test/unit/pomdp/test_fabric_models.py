@@ -29,7 +29,9 @@ ROBOT_STATES = ["TaskHuman", "MayNotBeCapable", "MayBeTired", "NoFocus", "NeedsT
 ROBOT_ACTIONS = ["idle", "grasp", "cancel", "point", "graspPlanning"]
 ROBOT_OBSERVATIONS = ["O0", "O2", "O3", "O6", "O7", "O8", "O16", "O32", "O34", "O35", "O40",
                       "O64"]
-POLICIES = ["policy1", "policy3", "policy6", "policy9"]
+#: The authors' twelve policy variants of the base but policy2, which the repository index
+#: holds in no folder (models/README.md).
+POLICIES = [f"policy{n}" for n in (1, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)]
 REACTIVE_STATES = ["TaskHuman", "GlobalSuccess", "HumanNeedsHelp", "WarningReceived",
                    "TaskRobot", "GlobalFail"]
 
@@ -55,7 +57,7 @@ def reward(model, action, s, s2):
     return model.R[model.actions.index(action)][model.states.index(s), model.states.index(s2)]
 
 
-def test_the_shipped_files_are_the_ten_humans_the_base_four_policies_and_the_reactive_mdp():
+def test_the_shipped_files_are_the_ten_humans_the_base_eleven_policies_and_the_reactive_mdp():
     assert sorted(p.stem for p in (FABRIC / "human").glob("*.pomdpx")) == sorted(HUMAN_TYPES)
     assert sorted(p.stem for p in (FABRIC / "robot").glob("*.pomdpx")) == \
         sorted(["base", "reactive"] + POLICIES)
@@ -188,16 +190,42 @@ def test_each_policy_differs_from_the_base_where_the_authors_file_does():
     policy3 = [("idle", "MayNotBeCapable"), ("idle", "NoFocus"), ("idle", "WarningReceived"),
                ("grasp", "NeedsHelp"), ("cancel", "WarningReceived"),
                ("graspPlanning", "WarningReceived")]
-    assert changed["policy3"] == changed["policy6"] == changed["policy9"] == policy3
+    assert changed["policy3"] == changed["policy6"] == changed["policy9"] == \
+        changed["policy12"] == policy3
+    assert changed["policy5"] == changed["policy7"] == changed["policy11"] == changed["policy1"]
+    assert changed["policy4"] == changed["policy10"] == [
+        ("idle", "GlobalSuccess"), ("grasp", "MayNotBeCapable"), ("grasp", "NeedsHelp"),
+        ("point", "MayBeTired"), ("point", "GlobalSuccess"), ("graspPlanning", "MayBeTired")]
+    assert changed["policy8"] == [("grasp", "NeedsHelp")] + [
+        ("point", s) for s in ("MayNotBeCapable", "MayBeTired", "NoFocus", "NeedsToBeReminded",
+                               "NeedsHelp", "WarningReceived")] + [("graspPlanning", "NoFocus")]
     assert prob(robot("policy1"), "grasp", "NeedsHelp", "GlobalFail") == 0.3
     assert prob(robot("policy3"), "grasp", "NeedsHelp", "GlobalSuccess") == 0.82
     assert prob(robot("policy6"), "grasp", "NeedsHelp", "GlobalSuccess") == 0.64
     assert prob(robot("policy9"), "idle", "WarningReceived", "NoNeedHelp") == 0.9
-    for name, penalty in (("policy1", -1), ("policy3", -1), ("policy6", -1), ("policy9", -3)):
+    assert prob(robot("policy12"), "grasp", "NeedsHelp", "GlobalSuccess") == 0.64
+    assert prob(robot("policy5"), "grasp", "NeedsHelp", "GlobalSuccess") == 0.79
+    assert prob(robot("policy11"), "grasp", "NeedsHelp", "GlobalSuccess") == 0.79
+    assert prob(robot("policy7"), "grasp", "NeedsHelp", "GlobalFail") == 0.3
+    assert prob(robot("policy4"), "idle", "GlobalSuccess", "NeedsHelp") == 0.86
+    assert prob(robot("policy10"), "point", "MayBeTired", "NeedsHelp") == 0.9
+    assert prob(robot("policy8"), "point", "WarningReceived", "WarningReceived") == 0.34
+    assert prob(robot("policy8"), "graspPlanning", "NoFocus", "NoFocus") == 0.47
+    # The failure penalty after point and graspPlanning (the base's -3, or -1).
+    for name, point, planning in (("policy1", -1, -1), ("policy3", -1, -1), ("policy4", -1, -1),
+                                  ("policy5", -1, -1), ("policy6", -1, -1), ("policy7", -1, -3),
+                                  ("policy8", -3, -3), ("policy9", -3, -3), ("policy10", -3, -3),
+                                  ("policy11", -3, -1), ("policy12", -3, -3)):
         m = robot(name)
-        assert reward(m, "point", "TaskHuman", "GlobalFail") == penalty
-        assert reward(m, "graspPlanning", "TaskHuman", "GlobalFail") == penalty
+        assert reward(m, "point", "TaskHuman", "GlobalFail") == point, name
+        assert reward(m, "graspPlanning", "TaskHuman", "GlobalFail") == planning, name
         assert reward(m, "idle", "TaskHuman", "GlobalFail") == -3
+    # The rewards only policy8 and policy11 change (the authors leave some entries out).
+    assert reward(robot("policy8"), "grasp", "TaskHuman", "TaskHuman") == 0
+    assert reward(robot("policy8"), "point", "TaskHuman", "WarningReceived") == -3
+    assert reward(robot("policy11"), "cancel", "TaskHuman", "TaskHuman") == 0
+    assert reward(robot("policy11"), "idle", "TaskHuman", "WarningReceived") == -3.5
+    assert reward(robot("policy11"), "grasp", "TaskHuman", "WarningReceived") == -3.5
 
 
 def test_the_reactive_figures_and_its_optimal_policy():
