@@ -134,3 +134,10 @@ def test_the_utility_is_one_scale_for_every_policy():
 
 def test_a_task_play_of_a_file_model_is_labelled_by_its_stem():
     assert TaskPlay("/x/y/tired.pomdpx").true_type == "tired"
+
+
+def test_the_selector_settings_are_the_selectors_module_s():
+    from ros_hrc.agents.selectors import DEFAULT_FORGETTING, SELECTOR_NAMES
+
+    assert settings.SELECTORS == SELECTOR_NAMES
+    assert settings.default("bpr_forgetting") == DEFAULT_FORGETTING

@@ -28,7 +28,7 @@ DEFAULTS = {
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
     "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
-    "selector_model": "auto", "task_timeout": None, "bpr_forgetting": 0.0,
+    "selector_model": "auto", "task_timeout": None, "bpr_forgetting": 0.05,
 }
 
 
