@@ -148,7 +148,9 @@ class Setting:
             text = "a scenario name or a model file"
         else:
             text = self.requirement()[len("must be "):]
-        if self.default is None or self.kind == "model":
+        if self.launch_expression == "":
+            text += ", or empty"
+        elif self.default is None or self.kind == "model":
             text += f", or {AUTO_WORD}"
         elif self.kind == "file":
             text += f", or {NO_FILE_WORD}"
@@ -501,9 +503,11 @@ _TABLE: Tuple[Setting, ...] = (
            "many simulated seconds since its start ends with outcome timeout; auto: the "
            "task's (80 s, FABRIC's forced reset)", minimum=0, maximum=1e6,
            exclusive_minimum=True, unit="s"),
-        _s("bpr_forgetting", "float", 0.0, "how fast the BPR selectors' belief over the "
-           "human types forgets, so that a switched human is found again (docs/selectors.md)",
-           minimum=0, maximum=1),
+        # ros_hrc.agents.selectors.DEFAULT_FORGETTING (a test checks they agree)
+        _s("bpr_forgetting", "float", 0.05, "the BPR selectors' (bpr, bpr-pi) floor: after "
+           "each task this share of the belief over the human types is spread evenly over "
+           "them, so that a switched human is found again (0: the paper's plain Bayes rule; "
+           "docs/selectors.md, Forgetting)", minimum=0, maximum=0.99),
     ),
     *_group(
         "the terminal",
@@ -610,7 +614,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
 def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: tasks.Task) -> None:
     """The sequence's settings (docs/sequences.md), checked together: a selector or a schedule
     only with ``tasks``, a selector of :data:`SELECTORS`, a schedule whose types are the
-    task's (a schedule file's path made absolute), ``task_timeout`` auto: the task's."""
+    task's (a schedule file's path made absolute), ``task_timeout`` auto: the task's;
+    ``tasks`` not given is 0 once resolved (no sequence)."""
     selector = out["selector"]
     kind, sep, policy = selector.partition(":")
     if kind not in SELECTORS or (sep and (kind != "fixed" or not policy.strip())):
@@ -637,6 +642,8 @@ def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: task
         out[name] = text if text == AUTO_WORD else str(user_path(text))
     if out["task_timeout"] is None:
         out["task_timeout"] = task.task_timeout
+    if out["tasks"] is None:
+        out["tasks"] = 0     # resolved: no sequence (the parameter server carries no None)
 
 
 def add_argument(parser, name: str, *flags: str, **kwargs: Any):

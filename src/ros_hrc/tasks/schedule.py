@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional, Sequence, Tuple
 
-__all__ = ["ScheduleError", "Block", "TaskPlay", "Schedule", "parse_schedule",
+__all__ = ["ScheduleError", "Block", "TaskPlay", "Schedule", "parse_schedule", "nearest_type",
            "FABRIC_SCHEDULE_NAME", "FABRIC_HUMANS", "FABRIC_TASKS_PER_HUMAN"]
 
 #: The word that names FABRIC's own schedule.
@@ -82,7 +82,7 @@ class TaskPlay:
     @property
     def nearest_type(self) -> str:
         """The type it is closest to: the drift's end once its weight is past one half."""
-        return _stem(self.drift_to if self.drift_to and self.drift > 0.5 else self.human_model)
+        return nearest_type(self.true_type)
 
 
 @dataclass(frozen=True)
@@ -114,6 +114,19 @@ class Schedule:
         """The inline form of this schedule."""
         return ",".join(f"{b.human}{'>' + b.drift_to if b.drift_to else ''}*{b.tasks}"
                         for b in self.blocks)
+
+
+def nearest_type(true_type: str) -> str:
+    """The type a true type's label (:attr:`TaskPlay.true_type`) is closest to: ``TYPE``
+    itself; of ``TYPE>TYPE2@w`` the drift's end once ``w`` is past one half."""
+    start, arrow, rest = true_type.partition(">")
+    if not arrow:
+        return start
+    end, _, weight = rest.rpartition("@")
+    try:
+        return end if float(weight) > 0.5 else start
+    except ValueError:
+        return start
 
 
 def _stem(model: str) -> str:

@@ -12,17 +12,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["OUTCOMES", "WHO_SUCCEEDED", "TaskOutcome", "task_utility", "UTILITY_DEFINITION"]
+__all__ = ["OUTCOMES", "WHO_SUCCEEDED", "TaskOutcome", "task_utility"]
 
 #: How a task ends.
 OUTCOMES = ("success", "fail", "timeout")
 #: Who took the object ("" when no one did).
 WHO_SUCCEEDED = ("human", "robot", "")
-
-#: The utility's definition in one line (the selector model file keeps it, so that a model
-#: trained under another utility can be told apart).
-UTILITY_DEFINITION = ("1 for a success, minus 0.5 x min(duration / timeout, 1), minus 0.1 per "
-                      "warning, minus 0.5 per pre-emption")
 
 
 @dataclass(frozen=True)
@@ -57,7 +52,8 @@ class TaskOutcome:
 def task_utility(outcome: TaskOutcome) -> float:
     """The task's utility, the same scale for every policy (range about [-1.5, 1]): 1 for a
     success, minus half the share of the timeout it took, minus 0.1 a warning, minus 0.5 a
-    pre-emption (:data:`UTILITY_DEFINITION`; docs/sequences.md says why)."""
+    pre-emption (docs/sequences.md says why; the selector model file keeps this definition in
+    one line, ``ros_hrc.agents.selector_model.UTILITY_DEFINITION``)."""
     return ((1.0 if outcome.outcome == "success" else 0.0)
             - 0.5 * min(outcome.duration / outcome.timeout, 1.0)
             - 0.1 * outcome.warnings - 0.5 * outcome.preemptions)

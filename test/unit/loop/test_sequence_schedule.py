@@ -98,7 +98,7 @@ def test_the_sequence_settings_are_checked_together(tmp_path):
     config = settings.resolve({"tasks": "5", "task": "fabric", "selector": "bpr",
                                "schedule": "expert_tired_noncollaborative*3"})
     assert config["tasks"] == 5 and config["task_timeout"] == 80.0
-    assert settings.resolve({})["tasks"] is None
+    assert settings.resolve({})["tasks"] == 0      # no sequence
     refusals = {
         "tasks:=0: must be an integer from 1 to 2147483647": {"tasks": "0"},
         "tasks:=-2: must be an integer from 1 to 2147483647": {"tasks": "-2"},
@@ -134,3 +134,10 @@ def test_the_utility_is_one_scale_for_every_policy():
 
 def test_a_task_play_of_a_file_model_is_labelled_by_its_stem():
     assert TaskPlay("/x/y/tired.pomdpx").true_type == "tired"
+
+
+def test_the_selector_settings_are_the_selectors_module_s():
+    from ros_hrc.agents.selectors import DEFAULT_FORGETTING, SELECTOR_NAMES
+
+    assert settings.SELECTORS == SELECTOR_NAMES
+    assert settings.default("bpr_forgetting") == DEFAULT_FORGETTING

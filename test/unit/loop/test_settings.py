@@ -28,7 +28,7 @@ DEFAULTS = {
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
     "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
-    "selector_model": "auto", "task_timeout": None, "bpr_forgetting": 0.0,
+    "selector_model": "auto", "task_timeout": None, "bpr_forgetting": 0.05,
 }
 
 
@@ -255,7 +255,7 @@ def test_resolve_fills_every_default_in_table_order():
     config = settings.resolve({}, environ={})
     assert list(config) == list(SETTINGS)
     expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False, away_time=0.0,
-                    task_timeout=80.0)
+                    task_timeout=80.0, tasks=0)
     assert config == expected
 
 
