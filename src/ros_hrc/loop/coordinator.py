@@ -665,9 +665,11 @@ class Coordinator:
                                      f"({self.config.episodes.text()}) are all played"))
             return
         if self.config.tasks and self.tasks_done >= self.config.tasks:
+            why = f"no reset: the sequence's {self.config.tasks} tasks are all played"
             if token is not None:
-                self._emit(ResetDone((token,), False, "no reset: the sequence's "
-                                     f"{self.config.tasks} tasks are all played"))
+                self._emit(ResetDone((token,), False, why))
+            else:   # (Enter pressed: said, not ignored in silence)
+                self._note("info", f"{why} ({reason}); Ctrl-C ends the launch")
             return
         self._retry_timer = None
         self.epoch = self._next_epoch

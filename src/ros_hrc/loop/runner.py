@@ -101,7 +101,7 @@ class ReportPort:
     def step(self, report: StepReport) -> None:
         pass
 
-    def task(self, report: TaskStatusReport) -> None:
+    def task_ended(self, report: TaskStatusReport) -> None:
         """A task of a sequence ended: publish and print it."""
 
     def note(self, level: str, text: str) -> None:
@@ -224,7 +224,7 @@ class LoopRunner:
                 "step": (time.perf_counter() - self._step_started) * 1000.0, **self._timings}
             self._safely(self.reports.step, effect.report)
         elif isinstance(effect, PublishTask):
-            self._safely(self.reports.task, effect.report)
+            self._safely(self.reports.task_ended, effect.report)
         elif isinstance(effect, Note):
             self._safely(self.reports.note, effect.level, effect.text)
         elif isinstance(effect, MdpReset):

@@ -262,7 +262,7 @@ class Terminal(ReportPort):
         self.task = task
         self.task_publisher = task_publisher
 
-    def task(self, report: TaskStatusReport) -> None:
+    def task_ended(self, report: TaskStatusReport) -> None:
         """A task of the sequence ended: /hrc/task_status and one line."""
         status = task_status_message(report)
         if self.task_publisher is not None:

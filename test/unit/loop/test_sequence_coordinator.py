@@ -130,6 +130,9 @@ def test_after_the_last_task_the_sequence_is_over_and_no_reset_starts_another():
     assert "the sequence is over: its 2 tasks are played" in one(out, Note).text
     answered = one(d.reset(), ResetDone)
     assert not answered.success and "the sequence's 2 tasks are all played" in answered.message
+    d.c.reset_requested("Enter pressed")
+    assert "no reset: the sequence's 2 tasks are all played (Enter pressed)" in \
+        one(d.take(), Note).text
     assert d.c.tasks_done == 2
 
 
