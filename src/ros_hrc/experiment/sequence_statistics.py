@@ -238,12 +238,14 @@ def sequence_markdown(summary: Sequence[Mapping[str, Any]], confidence: float = 
           format_ci(e["preemptions"], e["preemptions_low"], e["preemptions_high"]),
           format_ci(e["duration"], e["duration_low"], e["duration_high"], 1)]
          for e in summary])
+    believing = [e for e in summary if e["blocks"]]
     identified = markdown_table(
         ["Schedule", "Selector", "Blocks", "Identified", "Median tasks to identify"],
         [[e["schedule"], e["selector"], str(e["blocks"]), str(e["identified"]),
           "n/a" if math.isnan(e["tasks_to_identify_median"])
           else f"{e['tasks_to_identify_median']:g}"]
-         for e in summary if e["blocks"]])
+         for e in believing]) if believing else \
+        "No selector of this study holds a belief over the human's type."
     compared = markdown_table(
         ["Schedule", "Selector", "Against", "Pairs", "Δ utility (median)", "p", "q",
          "Δ success", "p", "q"],

@@ -89,10 +89,12 @@ def status(**fields):
 
 
 def test_a_task_row_is_the_task_status_message_with_the_cells_names():
-    row = task_row(status(), "per-type-label", "bpr", 4, 1)
+    # A stack may report the human model's file: the rows name it by its stem.
+    row = task_row(status(human_model="/models/fabric/human/expert_tired.pomdpx"),
+                   "per-type-label", "bpr", 4, 1)
     assert row.key == ("per-type-label", "bpr", 4, 1)
-    assert (row.task_index, row.task_episode, row.policy, row.true_type) == \
-        (2, 6, "policy3", "expert_tired")
+    assert (row.task_index, row.task_episode, row.policy, row.true_type, row.human_model) == \
+        (2, 6, "policy3", "expert_tired", "expert_tired")
     assert (row.success, row.outcome, row.who_succeeded, row.utility) == \
         (1, "success", "robot", 0.63)
     assert row.belief_argmax == "expert_tired" and row.estimation_correct == 1
