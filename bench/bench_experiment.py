@@ -125,7 +125,7 @@ SEQUENCE_POLICY = "authors"
 
 def run_sequences(tasks: int, jobs: int) -> tuple:
     """The bench's grid as sequences of ``tasks`` tasks (one per human): (run.json's
-    figures, every task row), or None when it failed."""
+    figures, every sequence row), or None when it failed."""
     from ros_hrc.experiment.sequence_rows import SequenceStore
     with tempfile.TemporaryDirectory(prefix="bench_sequence_") as work:
         rc = hrc_experiment(["--sequence", str(tasks), "--episodes", "1",
@@ -136,7 +136,7 @@ def run_sequences(tasks: int, jobs: int) -> tuple:
             print(f"hrc_experiment --sequence failed ({rc})")
             return None
         run = json.loads((Path(work) / "run.json").read_text())
-        rows = SequenceStore(work).tasks()
+        rows = SequenceStore(work).sequences()
     return run, rows
 
 
@@ -148,16 +148,23 @@ def compare_sequences(args, out: Path) -> int:
     sequences = run_sequences(args.episodes, jobs)
     if episodes is None or sequences is None:
         return 1
-    (by_episode, _), (by_sequence, _) = episodes, sequences
+    (by_episode, episode_rows), (by_sequence, sequence_rows) = episodes, sequences
+    # The pace while a stack steps, start-up apart: the robot's episodes (not the human
+    # alone's, which plan nothing) against the sequences' tasks.
+    robot = [r.wall_seconds for r in episode_rows if r.robot_policy == "pomdp"]
+    per_episode = statistics.fmean(robot)
+    per_task = sum(r.wall_seconds for r in sequence_rows) / sum(r.tasks for r in sequence_rows)
     result = {
         "episodes_per_cell": args.episodes, "jobs": jobs, "humans": list(HUMANS),
         "episode_mode": {"policy": "pomdp", "episodes": by_episode["episodes"],
                          "wall_seconds": by_episode["wall_seconds"],
-                         "episodes_per_minute": by_episode["episodes_per_minute"]},
+                         "episodes_per_minute": by_episode["episodes_per_minute"],
+                         "robot_episode_wall_s": per_episode},
         "sequence_mode": {"selector": f"fixed:{SEQUENCE_POLICY}",
                           "tasks": by_sequence["tasks"],
                           "wall_seconds": by_sequence["wall_seconds"],
-                          "tasks_per_minute": by_sequence["tasks_per_minute"]},
+                          "tasks_per_minute": by_sequence["tasks_per_minute"],
+                          "task_wall_s": per_task},
     }
     print(f"  episode mode (pomdp, the human alone on each stream included): "
           f"{by_episode['episodes']} episodes in {by_episode['wall_seconds']:.1f} s: "
@@ -165,6 +172,8 @@ def compare_sequences(args, out: Path) -> int:
     print(f"  sequence mode (fixed:{SEQUENCE_POLICY}, {args.episodes} tasks per sequence): "
           f"{by_sequence['tasks']} tasks in {by_sequence['wall_seconds']:.1f} s: "
           f"{by_sequence['tasks_per_minute']:.1f} tasks/min")
+    print(f"  while a stack steps: {per_episode:.2f} s per robot episode, {per_task:.2f} s per "
+          "task of a sequence")
     write_result(out, result)
     return 0
 
