@@ -135,8 +135,9 @@ class Setting:
         :func:`resolve` gives the task's; ``none`` for no file; ``true``/``false``)."""
         if self.launch_expression is not None:
             return self.launch_expression
-        if self.default is None or self.kind == "model":
-            return AUTO_WORD
+        if self.default is None or self.kind == "model" or (self.kind == "str"
+                                                             and self.default == ""):
+            return AUTO_WORD     # (an empty default would be a required argument to roslaunch)
         if self.kind == "file" and self.default == "":
             return NO_FILE_WORD
         return _shown(self.default)
@@ -148,9 +149,7 @@ class Setting:
             text = "a scenario name or a model file"
         else:
             text = self.requirement()[len("must be "):]
-        if self.launch_expression == "":
-            text += ", or empty"
-        elif self.default is None or self.kind == "model":
+        if self.default is None or self.kind == "model":
             text += f", or {AUTO_WORD}"
         elif self.kind == "file":
             text += f", or {NO_FILE_WORD}"
@@ -208,7 +207,9 @@ class Setting:
         if self.maximum is not None and number > self.maximum:
             raise self._refuse(value)
 
-    def _parse_int(self, value: Any) -> int:
+    def _parse_int(self, value: Any) -> Optional[int]:
+        if isinstance(value, str) and value.strip().lower() == AUTO_WORD and self.default is None:
+            return None      # automatic: resolve() derives it
         if isinstance(value, bool) or not isinstance(value, (int, str)):
             raise self._refuse(value, unparsable=True)
         if isinstance(value, str):
@@ -266,6 +267,8 @@ class Setting:
     def _parse_str(self, value: Any) -> str:
         if not isinstance(value, str):
             raise self._refuse(value, unparsable=True)
+        if value.strip() == AUTO_WORD and self.default == "":
+            return self.default      # the launch file's word for "none given"
         return value.strip()
 
     def _parse_model(self, value: Any) -> str:
@@ -481,11 +484,10 @@ _TABLE: Tuple[Setting, ...] = (
         "sequences: tasks, the policy library and its selector (docs/sequences.md)",
         _s("tasks", "int", None, "play a sequence of this many tasks with one robot whose "
            "selector keeps what it learnt (the world reset between tasks, each ending by "
-           "success, failure or timeout; /hrc/task_status per task); empty (the default): no "
-           "sequence, episodes as on_episode_end says", minimum=1, maximum=INT32_MAX,
-           launch_expression=""),
-        _s("schedule", "str", "", "which human plays which task of the sequence: empty: "
-           "human_model every task; TYPE*K,TYPE2*K2,... (K tasks each, in order, repeated; "
+           "success, failure or timeout; /hrc/task_status per task); auto (or empty): no "
+           "sequence, episodes as on_episode_end says", minimum=1, maximum=INT32_MAX),
+        _s("schedule", "str", "", "which human plays which task of the sequence: auto (or "
+           "empty): human_model every task; TYPE*K,TYPE2*K2,... (K tasks each, in order, repeated; "
            "TYPE>TYPE2*K drifts from TYPE to TYPE2 over the block); fabric (FABRIC's 10 humans "
            "x 30 tasks); or a .toml file of [[block]] tables (human, tasks, drift_to)"),
         _s("selector", "str", "fixed", "how the robot chooses its policy before each task: "
