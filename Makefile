@@ -4,7 +4,7 @@ SHELL := /bin/bash
 , := ,
 ARGS ?=
 
-.PHONY: setup run test unit rostest bench experiment fit lint clean
+.PHONY: setup run test unit rostest bench experiment fit train-selector lint clean
 
 setup:
 	@bash tools/setup.sh
@@ -27,12 +27,17 @@ bench: setup
 # ARGS="--task fabric": the successor task's study instead (its ten human types; the human
 # alone, the reactive MDP robot with its wait swept over 5..30 simulated seconds, the
 # proactive POMDP robot), into results/experiment_fabric.
+# ARGS="--task fabric --sequence 30": the sequence study instead (issue #30: the selectors
+# over the task's library, 5 sequences per cell), into results/sequences_fabric
+# (results/sequences without --task fabric); docs/experiments.md, "Sequences".
 EXPERIMENT_POLICIES ?= pomdp,pomdp_fitted,pomdp_considerate,no_robot
 FABRIC_STUDY := $(or $(findstring --task fabric,$(ARGS)),$(findstring --task=fabric,$(ARGS)))
+SEQUENCE_STUDY := $(findstring --sequence,$(ARGS))
 experiment: setup
 	@source env.sh && rosrun ros_hrc hrc_experiment \
+	    $(if $(SEQUENCE_STUDY),--out results/sequences$(if $(FABRIC_STUDY),_fabric),\
 	    $(if $(FABRIC_STUDY),--out results/experiment_fabric --reactive-budgets 5$(,)10$(,)20$(,)30,\
-	         --out results/experiment --policies $(EXPERIMENT_POLICIES) --reactive-budgets 1..10) \
+	         --out results/experiment --policies $(EXPERIMENT_POLICIES) --reactive-budgets 1..10)) \
 	    $(ARGS)
 
 # Fit the robot models' T and O to the world on the zoo's fit set (docs/robot_model.md):
@@ -42,6 +47,14 @@ fit: setup
 	@source env.sh && rosrun ros_hrc hrc_fit --out models/robot/robot_fitted.pomdp $(ARGS) \
 	    && rosrun ros_hrc hrc_fit --prior robot_considerate \
 	       --out models/robot/robot_considerate_fitted.pomdp $(ARGS)
+
+# Train the selector's model from our own runs (docs/experiments.md, "hrc_train_selector"):
+# every (type, policy) pair of the task's library plays 50 tasks through the real stack on
+# the trainer's seed (4, not the study's 2), into results/train_selector_<task>, then
+# models/<task>/selector_model.json. ARGS="--task fabric" for FABRIC's (the default task is
+# the seed's); ARGS="--leave-out TYPE" writes a model without TYPE beside it.
+train-selector: setup
+	@source env.sh && rosrun ros_hrc hrc_train_selector $(ARGS)
 
 lint: setup
 	@source env.sh && catkin_lint --strict -W2 .ws/src/ros_hrc && PYTHONPATH=src:$$PYTHONPATH lint-imports --no-logo

@@ -22,6 +22,15 @@ the stacks side by side, over the cells; joining the cluster, a one-off, apart);
 bench/results/experiment_cluster.json.
 
     python bench/bench_experiment.py --cluster local [--jobs 2] [--episodes 20]
+
+`--sequence` runs the same small grid twice, as episodes (`--policies pomdp`, the human alone
+on each stream run too, as always) and as sequences (`--sequence N --episodes 1 --selectors
+fixed:<the library's policy of the same robot model>`: each human's N tasks on one stack that
+stays up between them), and prints the sequence mode's tasks per minute beside the episode
+mode's episodes per minute; writes bench/results/experiment_sequence.json. A sequence keeps
+its stack up between tasks, so it should be at least as fast (issue #30).
+
+    python bench/bench_experiment.py --sequence [--jobs 2] [--episodes 20]
 """
 from __future__ import annotations
 
@@ -43,13 +52,13 @@ POLICIES = ("pomdp", "reactive")
 
 
 def run_grid(episodes: int, jobs: int, extra=()) -> tuple:
-    """The bench's grid through hrc_experiment: (run.json's figures, every episode row), or
-    None when it failed."""
+    """The bench's grid through hrc_experiment, its policies in ``extra`` (``--policies``):
+    (run.json's figures, every episode row), or None when it failed."""
     with tempfile.TemporaryDirectory(prefix="bench_experiment_") as work:
-        # The policies named: the grid stays the one the recorded figures were measured on;
-        # no_robot is not named, so its episodes are the counterfactual pairs (in work/alone).
+        # The policies are always named: the grid stays the one the recorded figures were
+        # measured on; no_robot is not named, so its episodes are the counterfactual pairs
+        # (in work/alone).
         rc = hrc_experiment(["--human-models", ",".join(HUMANS), "--seeds", "0",
-                             "--policies", ",".join(POLICIES),
                              "--episodes", str(episodes), "--step-limit", "10",
                              "--jobs", str(jobs), "--out", work, "--no-plots", *extra])
         if rc != 0:
@@ -69,11 +78,16 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=None,
                         help="result file (bench/results/experiment.json, with --cluster "
                              "experiment_cluster.json)")
+    parser.add_argument("--sequence", action="store_true",
+                        help="compare the sequence mode's tasks per minute with the episode "
+                             "mode's episodes per minute on the same grid")
     args = parser.parse_args(argv)
     results = Path(__file__).resolve().parent / "results"
+    if args.sequence:
+        return compare_sequences(args, args.out or results / "experiment_sequence.json")
     if args.cluster is not None:
         return compare_cluster(args, args.out or results / "experiment_cluster.json")
-    done = run_grid(args.episodes, args.jobs)
+    done = run_grid(args.episodes, args.jobs, ["--policies", ",".join(POLICIES)])
     if done is None:
         return 1
     run, rows = done
@@ -104,11 +118,72 @@ def main(argv=None) -> int:
     return 0
 
 
+#: The library policy that is the episode grid's ``pomdp`` (the seed authors' robot model,
+#: planned with DESPOT): the sequence mode runs it as ``fixed:<it>``.
+SEQUENCE_POLICY = "authors"
+
+
+def run_sequences(tasks: int, jobs: int) -> tuple:
+    """The bench's grid as sequences of ``tasks`` tasks (one per human): (run.json's
+    figures, every sequence row), or None when it failed."""
+    from ros_hrc.experiment.sequence_rows import SequenceStore
+    with tempfile.TemporaryDirectory(prefix="bench_sequence_") as work:
+        rc = hrc_experiment(["--sequence", str(tasks), "--episodes", "1",
+                             "--human-models", ",".join(HUMANS), "--seeds", "0",
+                             "--selectors", f"fixed:{SEQUENCE_POLICY}", "--step-limit", "10",
+                             "--jobs", str(jobs), "--out", work, "--no-plots"])
+        if rc != 0:
+            print(f"hrc_experiment --sequence failed ({rc})")
+            return None
+        run = json.loads((Path(work) / "run.json").read_text())
+        rows = SequenceStore(work).sequences()
+    return run, rows
+
+
+def compare_sequences(args, out: Path) -> int:
+    """The grid as episodes (``pomdp``), then as sequences of as many tasks: episodes per
+    minute against tasks per minute, stack start-up and shut-down included in both."""
+    jobs = args.jobs or os.cpu_count() or 1
+    episodes = run_grid(args.episodes, jobs, ["--policies", "pomdp"])
+    sequences = run_sequences(args.episodes, jobs)
+    if episodes is None or sequences is None:
+        return 1
+    (by_episode, episode_rows), (by_sequence, sequence_rows) = episodes, sequences
+    # The pace while a stack steps, start-up apart: the robot's episodes (not the human
+    # alone's, which plan nothing) against the sequences' tasks.
+    robot = [r.wall_seconds for r in episode_rows if r.robot_policy == "pomdp"]
+    per_episode = statistics.fmean(robot)
+    per_task = sum(r.wall_seconds for r in sequence_rows) / sum(r.tasks for r in sequence_rows)
+    result = {
+        "episodes_per_cell": args.episodes, "jobs": jobs, "humans": list(HUMANS),
+        "episode_mode": {"policy": "pomdp", "episodes": by_episode["episodes"],
+                         "wall_seconds": by_episode["wall_seconds"],
+                         "episodes_per_minute": by_episode["episodes_per_minute"],
+                         "robot_episode_wall_s": per_episode},
+        "sequence_mode": {"selector": f"fixed:{SEQUENCE_POLICY}",
+                          "tasks": by_sequence["tasks"],
+                          "wall_seconds": by_sequence["wall_seconds"],
+                          "tasks_per_minute": by_sequence["tasks_per_minute"],
+                          "task_wall_s": per_task},
+    }
+    print(f"  episode mode (pomdp, the human alone on each stream included): "
+          f"{by_episode['episodes']} episodes in {by_episode['wall_seconds']:.1f} s: "
+          f"{by_episode['episodes_per_minute']:.1f} episodes/min")
+    print(f"  sequence mode (fixed:{SEQUENCE_POLICY}, {args.episodes} tasks per sequence): "
+          f"{by_sequence['tasks']} tasks in {by_sequence['wall_seconds']:.1f} s: "
+          f"{by_sequence['tasks_per_minute']:.1f} tasks/min")
+    print(f"  while a stack steps: {per_episode:.2f} s per robot episode, {per_task:.2f} s per "
+          "task of a sequence")
+    write_result(out, result)
+    return 0
+
+
 def compare_cluster(args, out: Path) -> int:
     """The grid on the local pool, then on the cluster with as many cells in flight."""
     jobs = args.jobs or os.cpu_count() or 1
-    local = run_grid(args.episodes, jobs)
-    remote = run_grid(args.episodes, jobs, ["--cluster", args.cluster])
+    local = run_grid(args.episodes, jobs, ["--policies", ",".join(POLICIES)])
+    remote = run_grid(args.episodes, jobs, ["--policies", ",".join(POLICIES),
+                                            "--cluster", args.cluster])
     if local is None or remote is None:
         return 1
     (pool, _), (cluster, _) = local, remote

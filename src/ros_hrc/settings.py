@@ -40,6 +40,7 @@ from typing import Any, Dict, Mapping, Optional, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.tasks import fabric_reactive
+from ros_hrc.tasks.schedule import ScheduleError, parse_schedule
 from ros_hrc.errors import HrcError
 from ros_hrc.streams import LIVE, EpisodeSchedule
 from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, user_path
@@ -134,8 +135,9 @@ class Setting:
         :func:`resolve` gives the task's; ``none`` for no file; ``true``/``false``)."""
         if self.launch_expression is not None:
             return self.launch_expression
-        if self.default is None or self.kind == "model":
-            return AUTO_WORD
+        if self.default is None or self.kind == "model" or (self.kind == "str"
+                                                             and self.default == ""):
+            return AUTO_WORD     # (an empty default would be a required argument to roslaunch)
         if self.kind == "file" and self.default == "":
             return NO_FILE_WORD
         return _shown(self.default)
@@ -205,7 +207,9 @@ class Setting:
         if self.maximum is not None and number > self.maximum:
             raise self._refuse(value)
 
-    def _parse_int(self, value: Any) -> int:
+    def _parse_int(self, value: Any) -> Optional[int]:
+        if isinstance(value, str) and value.strip().lower() == AUTO_WORD and self.default is None:
+            return None      # automatic: resolve() derives it
         if isinstance(value, bool) or not isinstance(value, (int, str)):
             raise self._refuse(value, unparsable=True)
         if isinstance(value, str):
@@ -263,6 +267,8 @@ class Setting:
     def _parse_str(self, value: Any) -> str:
         if not isinstance(value, str):
             raise self._refuse(value, unparsable=True)
+        if value.strip() == AUTO_WORD and self.default == "":
+            return self.default      # the launch file's word for "none given"
         return value.strip()
 
     def _parse_model(self, value: Any) -> str:
@@ -475,6 +481,37 @@ _TABLE: Tuple[Setting, ...] = (
            minimum=0, maximum=1e6, unit="s"),
     ),
     *_group(
+        "sequences: tasks, the policy library and its selector (docs/sequences.md)",
+        _s("tasks", "int", None, "play a sequence of this many tasks with one robot whose "
+           "selector keeps what it learnt (the world reset between tasks, each ending by "
+           "success, failure or timeout; /hrc/task_status per task); auto (or empty): no "
+           "sequence, episodes as on_episode_end says", minimum=1, maximum=INT32_MAX),
+        _s("schedule", "str", "", "which human plays which task of the sequence: auto (or "
+           "empty): human_model every task; TYPE*K,TYPE2*K2,... (K tasks each, in order, repeated; "
+           "TYPE>TYPE2*K drifts from TYPE to TYPE2 over the block); fabric (FABRIC's 10 humans "
+           "x 30 tasks); or a .toml file of [[block]] tables (human, tasks, drift_to)"),
+        _s("selector", "str", "fixed", "how the robot chooses its policy before each task: "
+           "fixed (robot_model and planner, as without a sequence), fixed:POLICY (one policy "
+           "of the library), random, bpr (BPR-EI), bpr-pi (BPR-PI), bpr-fabric (FABRIC's "
+           "BPR), bandit or oracle (told the true type); docs/selectors.md"),
+        _s("library", "str", AUTO_WORD, "the policy library the selector chooses from: a "
+           "manifest (library.toml) or a folder holding one; auto: the task's "
+           "(models/fabric/library.toml, models/robot/library.toml)"),
+        _s("selector_model", "str", AUTO_WORD, "the selector's model (make train-selector "
+           "writes it): a JSON file; auto: the task's (models/fabric/selector_model.json, "
+           "models/robot/selector_model.json) if it exists; the BPR selectors and the oracle "
+           "need one"),
+        _s("task_timeout", "float", None, "a task of a sequence still running after this "
+           "many simulated seconds since its start ends with outcome timeout; auto: the "
+           "task's (80 s, FABRIC's forced reset)", minimum=0, maximum=1e6,
+           exclusive_minimum=True, unit="s"),
+        # ros_hrc.agents.selectors.DEFAULT_FORGETTING (a test checks they agree)
+        _s("bpr_forgetting", "float", 0.05, "the BPR selectors' (bpr, bpr-pi) floor: after "
+           "each task this share of the belief over the human types is spread evenly over "
+           "them, so that a switched human is found again (0: the paper's plain Bayes rule; "
+           "docs/selectors.md, Forgetting)", minimum=0, maximum=0.99),
+    ),
+    *_group(
         "the terminal",
         _s("read_stdin", "bool", True, "Enter on the roslaunch terminal resets everything"),
         _s("verbose", "bool", False, "also print the solver processes' own lines (despot_pomdp's "
@@ -488,6 +525,11 @@ _TABLE: Tuple[Setting, ...] = (
 #: Every launch argument (hrc.launch's, and world.launch's publish_rate), by name, in the
 #: table's order: hrc.launch's.
 SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
+
+#: The selectors of ``selector:=`` (``fixed`` also as ``fixed:POLICY``); the robot process
+#: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
+SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
+                              "oracle")
 
 #: The websocket ports, which must differ.
 PORTS: Tuple[str, ...] = ("pomdp_port", "human_port")
@@ -558,6 +600,7 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
                            "0 (no time budget) needs max_trials > 0 to bound the decision")
     if out["away_time"] is None:
         out["away_time"] = task.away_time
+    _resolve_sequence(out, values, task)
     if out["rviz"]:
         out["viz"] = True    # RViz shows what viz publishes
     if out["pause_when_idle"] is None:
@@ -568,6 +611,41 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
         env = os.environ if environ is None else environ
         out["mdp_xterm"] = out["mode"] == "manual" and bool(env.get("DISPLAY", ""))
     return out
+
+
+def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: tasks.Task) -> None:
+    """The sequence's settings (docs/sequences.md), checked together: a selector or a schedule
+    only with ``tasks``, a selector of :data:`SELECTORS`, a schedule whose types are the
+    task's (a schedule file's path made absolute), ``task_timeout`` auto: the task's;
+    ``tasks`` not given is 0 once resolved (no sequence)."""
+    selector = out["selector"]
+    kind, sep, policy = selector.partition(":")
+    if kind not in SELECTORS or (sep and (kind != "fixed" or not policy.strip())):
+        raise SettingError("selector", values.get("selector"),
+                           f"must be one of {', '.join(SELECTORS)}, or fixed:POLICY (a policy "
+                           "of the library)")
+    if out["tasks"] is None:
+        for name, word in (("selector", "fixed"), ("schedule", "")):
+            if out[name] != word:
+                raise SettingError(name, values.get(name),
+                                   "only with a sequence: a selector chooses between the tasks "
+                                   "of a sequence and a schedule says who plays them; give "
+                                   "tasks:=N")
+    schedule = out["schedule"]
+    if schedule and (schedule.endswith(".toml") or "/" in schedule):
+        schedule = out["schedule"] = str(user_path(schedule))
+    try:
+        parse_schedule(schedule, model_names(task.model_dirs["human"]), out["human_model"],
+                       task.name)
+    except ScheduleError as exc:
+        raise SettingError("schedule", values.get("schedule"), str(exc)) from None
+    for name in ("library", "selector_model"):
+        text = out[name] or AUTO_WORD
+        out[name] = text if text == AUTO_WORD else str(user_path(text))
+    if out["task_timeout"] is None:
+        out["task_timeout"] = task.task_timeout
+    if out["tasks"] is None:
+        out["tasks"] = 0     # resolved: no sequence (the parameter server carries no None)
 
 
 def add_argument(parser, name: str, *flags: str, **kwargs: Any):

@@ -96,7 +96,8 @@ WEIGHTS: Dict[str, float] = {
 
 #: The message types of the protocol.
 MESSAGE_TYPES: Tuple[str, ...] = ("hello", "step", "observation", "decision", "action", "reset",
-                                  "next_state", "ack", "error", "reaction")
+                                  "next_state", "ack", "error", "reaction", "task_end",
+                                  "task_report")
 
 _HUMAN_ACTIONS = ("graspAttempt", "lookAround", "idle", "walkAway", "warnRobot")
 _HUMAN_STATES = ("task_assigned", "success", "failed_to_grasp", "no_attention", "evaluating",
@@ -447,6 +448,32 @@ class FrameGenerator:
                 o.append(("reason", r.choice(("fuzz", "enter pressed", "/hrc/reset called"))))
             if r.random() < 0.6:
                 o.append(("episode", self._small_int()))
+            if r.random() < 0.3:
+                o += [("task_index", 1 + self._small_int()),
+                      ("true_type", r.choice(("tired", "expert>tired@0.25"))),
+                      ("human_model", r.choice(("tired", "/models/human/tired.pomdpx")))]
+                if r.random() < 0.5:
+                    o += [("drift_to", "expert"), ("drift", r.choice((0.0, 0.5, 1.0)))]
+        elif t == "task_end":
+            o += [("task_index", 1 + self._small_int()),
+                  ("outcome", r.choice(("success", "fail", "timeout"))),
+                  ("warnings", r.randrange(4)), ("preemptions", r.randrange(2)),
+                  ("steps", self._small_int()), ("duration", round(r.random() * 80, 3)),
+                  ("utility", round(r.random() * 2.5 - 1.5, 3))]
+            if r.random() < 0.6:
+                o.append(("who_succeeded", r.choice(("human", "robot"))))
+        elif t == "task_report":
+            o += [("selector", r.choice(("bpr", "random", "fixed:policy3"))),
+                  ("policy", r.choice(("base", "policy3", "reactive")))]
+            if r.random() < 0.5:
+                o.append(("robot_model", "/models/fabric/robot/base.pomdpx"))
+            if r.random() < 0.5:
+                o += [("type_names", ["tired", "expert", "walker"][:3]),
+                      ("type_belief", self._belief_list(3))]
+            if r.random() < 0.5:
+                o.append(("signature", [r.randrange(64) for _ in range(r.randrange(6))]))
+            if r.random() < 0.4:
+                o.append(("total_disc_reward", round(r.random() * 20 - 5, 3)))
         elif t == "next_state":
             o.append(("state", r.choice((None, 0, 3, 7))))
         elif t == "reaction":
@@ -739,7 +766,13 @@ class FrameGenerator:
             "action": [("action", "rFly"), ("action", ""), ("decision_ms", -0.001),
                        ("step", 2 ** 32)],
             "reset": [("episode", -1), ("episode", 2 ** 32), ("reason", ""),
-                      ("reason", "r" * 1025)],
+                      ("reason", "r" * 1025), ("task_index", 0), ("human_model", ""),
+                      ("drift", 1.5)],
+            "task_end": [("task_index", 0), ("steps", -1), ("duration", -1.0),
+                         ("utility", 1e309), ("outcome", ""), ("warnings", 2 ** 32)],
+            "task_report": [("policy", ""), ("selector", "s" * 129), ("signature", [64]),
+                            ("signature", [-1]), ("type_belief", [0.5, 0.6]),
+                            ("total_disc_reward", 1e309)],
             "next_state": [("state", 256), ("state", 255), ("state", -1), ("state", 8)],
             "reaction": [("step", -1), ("state", ""), ("state_index", 256), ("rule", "r" * 129),
                          ("reward", 1e309)],

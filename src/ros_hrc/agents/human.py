@@ -15,6 +15,12 @@ task's rules, or to a typed state. Every draw is from the model's row as the tas
 shape it (:meth:`~ros_hrc.tasks.definition.ReactionRules.row`), renormalised over the states
 they allow (a rejected draw drawn again), from the agent's own random stream.
 
+**The human of a sequence's task** (:meth:`HumanAgent.play`): a sequence's schedule may give
+each task another human model, or one drifting to a second: the agent then plays the task
+with T, R and the action values mixed row by row, ``(1 - w)`` of the first model's and ``w``
+of the second's (both models of one task, so their states and actions are the same). Each
+model's values are computed once.
+
 No ROS and no websocket here: the process in :mod:`ros_hrc.processes.despot_mdp` drives it.
 """
 from __future__ import annotations
@@ -77,17 +83,42 @@ class HumanAgent:
 
     def __init__(self, model: Model, config: Optional[HumanAgentConfig] = None,
                  reaction: Optional[ReactionRules] = None) -> None:
-        if not model.fully_observable:
-            raise ValueError(f"{model.source or model.name}: the human model must be an MDP "
-                             "(all state variables fullyObs=\"true\")")
-        self.model = model
         self.config = config or HumanAgentConfig()
         #: The task's reaction rules (None: he does not hear the robot, as the seed's human).
         self.reaction = reaction
-        self.solution = value_iteration(model)
-        self._dense_T = model.dense_T
-        self._rewards = [r.toarray() for r in model.R]
+        self._tables: Dict[int, Tuple[Model, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.play(model)
         self.reset()
+
+    def _tables_of(self, model: Model) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Q, T, R) of ``model`` as dense arrays (A x S, A x S x S, A x S x S), computed once."""
+        cached = self._tables.get(id(model))
+        if cached is None or cached[0] is not model:
+            cached = (model, value_iteration(model).Q, model.dense_T,
+                      np.stack([r.toarray() for r in model.R]))
+            self._tables[id(model)] = cached
+        return cached[1:]
+
+    def play(self, model: Model, drift_to: Optional[Model] = None, drift: float = 0.0) -> None:
+        """From the next :meth:`reset` on, be the human of ``model``; with ``drift_to``, a human
+        between the two: every row of T and R, and the action values, ``(1 - drift)`` of
+        ``model``'s and ``drift`` of ``drift_to``'s (the two must have the same states and
+        actions)."""
+        if not model.fully_observable:
+            raise ValueError(f"{model.source or model.name}: the human model must be an MDP "
+                             "(all state variables fullyObs=\"true\")")
+        if not 0.0 <= drift <= 1.0:
+            raise ValueError(f"drift must be from 0 to 1, not {drift}")
+        q, t, r = self._tables_of(model)
+        if drift_to is not None and drift > 0.0:
+            if drift_to.states != model.states or drift_to.actions != model.actions:
+                raise ValueError(f"{drift_to.source or drift_to.name}: cannot drift to it from "
+                                 f"{model.source or model.name}: their states or actions differ")
+            q2, t2, r2 = self._tables_of(drift_to)
+            q, t, r = ((1.0 - drift) * q + drift * q2, (1.0 - drift) * t + drift * t2,
+                       (1.0 - drift) * r + drift * r2)
+        self.model = model
+        self._q, self._dense_T, self._rewards = q, t, r
 
     # -- episode -------------------------------------------------------------------
     def reset(self, seed: Optional[int] = None) -> None:
@@ -114,7 +145,7 @@ class HumanAgent:
     # -- acting ----------------------------------------------------------------------
     def choose_action(self) -> int:
         """The action for the current belief (expected Q over the belief)."""
-        q = self.solution.Q @ self.belief   # Q is (A, S)
+        q = self._q @ self.belief   # Q is (A, S)
         if self.config.choice == "optimal":
             return int(np.argmax(q))
         if self.config.choice == "random":

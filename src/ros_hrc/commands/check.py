@@ -21,6 +21,13 @@ before the YAML. Not on stdout: roslaunch reads stdout as the value of ``/hrc/co
 never shows it, while it passes the command's stderr through to the terminal, so the line is
 seen when the launch starts; a YAML comment would be parsed away unseen.
 
+A sequence (``tasks:=N``, docs/sequences.md) is checked whole before anything starts: its
+schedule (every type the task's, a schedule file readable and well formed: the file and the
+line), and with a selector other than ``fixed`` the policy library (each policy's robot model
+the task's) and the selector model (of this task and this library; one a selector needs:
+refused without, naming ``make train-selector``), as the robot process will load them
+(:mod:`ros_hrc.processes.selection`).
+
 ``gui:=true`` and ``rviz:=true`` need a display: without DISPLAY, or when no X server answers
 there, the launch is refused (the window or RViz would die and the stack run on unseen).
 
@@ -137,6 +144,17 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
             raise CheckError(f"policy_file:={typed('policy_file')}: {text}") from None
 
 
+def check_sequence(config: Mapping[str, object]) -> None:
+    """A sequence's library and selector model, loaded as the robot process will load them
+    (nothing for ``selector:=fixed``: the launch's one robot, checked with the models)."""
+    from ros_hrc import tasks
+    from ros_hrc.processes.selection import load_selection, uses_library
+
+    if uses_library(str(config["selector"])):
+        load_selection(str(config["selector"]), str(config["library"]),
+                       str(config["selector_model"]), tasks.get(str(config["task"])))
+
+
 def ports_to_bind(config: Mapping[str, object]) -> List[str]:
     """The port settings whose servers the launch starts: human_port (hrc_human) always,
     pomdp_port only with start_pomdp (without it, the POMDP process started by hand may
@@ -223,6 +241,7 @@ def check(words: Sequence[str], port_check: bool = True,
     given = parse_words(words)
     config = settings.resolve(given)
     check_models(config, notes, given)
+    check_sequence(config)
     check_display(config)
     if port_check:
         check_ports(config)

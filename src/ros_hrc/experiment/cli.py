@@ -39,7 +39,7 @@ import os
 import shlex
 import sys
 from pathlib import Path
-from typing import List, Optional
+from typing import List, Optional, Sequence
 
 from ros_hrc import tasks
 from ros_hrc.command_line import own_arguments
@@ -61,6 +61,12 @@ from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder, open_res
 from ros_hrc.experiment.stack import MAX_EPISODES, check_launch_settings
 from ros_hrc.experiment.statistics import summarize, write_summary
 from ros_hrc.experiment.store import ResultsStore
+from ros_hrc.experiment.sequences import (MAX_SEQUENCE, MODEL_SELECTORS, PER_TYPE,
+                                          SELECTOR_MODEL_FILE,
+                                          check_trained_elsewhere, expand_selectors,
+                                          load_study_library, resolve_schedules,
+                                          plan_sequence_cells, selector_model_file)
+from ros_hrc.experiment.sequence_study import run_sequences
 from ros_hrc import settings
 from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model,
                                  positional_mapping_line)
@@ -91,7 +97,8 @@ class GridParser(OneLineParser):
         return parsed, rest
 
 
-def _seeds(text: str) -> List[int]:
+def seeds_argument(text: str) -> List[int]:
+    """Seeds, comma-separated, each as hrc.launch's ``seed`` takes it."""
     seeds = []
     for part in names_argument(text):
         try:
@@ -147,7 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "summary names the best. The seed's budget is observations before it "
                         "helps; fabric's is simulated seconds without success (its "
                         "reactive_wait, the authors' 15)")
-    p.add_argument("--seeds", type=_seeds, default=_seeds(DEFAULT_SEEDS),
+    p.add_argument("--seeds", type=seeds_argument, default=seeds_argument(DEFAULT_SEEDS),
                    help=f"seeds, comma-separated ({DEFAULT_SEEDS})")
     p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=DEFAULT_EPISODES,
                    help=f"episodes per cell, 1 to {MAX_EPISODES} ({DEFAULT_EPISODES}: a "
@@ -176,7 +183,100 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bag", action=argparse.BooleanOptionalAction, default=False,
                    help="also record /hrc/status as a rosbag (default: no)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    add_sequence_arguments(p)
     return p
+
+
+#: The selectors of a sequence study when --selectors is not given (the issue's study).
+DEFAULT_SELECTORS = "bpr,bandit,random,oracle,fixed"
+#: Sequences per cell when --episodes is not given with --sequence: the issue's "at least 5
+#: independent repetitions" (each sequence is L tasks, paired task by task across selectors).
+DEFAULT_SEQUENCES = 5
+#: Options that mean something only in a sequence study, and those only in an episode one.
+SEQUENCE_ONLY = ("selectors", "library", "schedule", "selector_model")
+EPISODE_ONLY = ("policies", "reactive_budgets")
+
+
+def add_sequence_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of a sequence study (``--sequence L``; docs/experiments.md, "Sequences")."""
+    p.add_argument("--sequence", type=at_least(1, MAX_SEQUENCE), default=None, metavar="L",
+                   help="run sequences of L tasks instead of episodes: a cell is (schedule, "
+                        "selector, seed), its stack up for the whole sequence (tasks:=L), the "
+                        "robot's selector choosing a library policy before each task; "
+                        f"--episodes N is then N independent sequences per cell "
+                        f"({DEFAULT_SEQUENCES})")
+    p.add_argument("--selectors", type=names_argument, default=None,
+                   help=f"with --sequence: selectors, comma-separated ({DEFAULT_SELECTORS}); "
+                        "fixed stands for every library policy as fixed:<policy>")
+    p.add_argument("--library", default=None,
+                   help="with --sequence: the policy library, a manifest or a folder holding "
+                        "library.toml (auto: the task's)")
+    p.add_argument("--schedule", type=names_argument, default=None,
+                   help=f"with --sequence: who plays the tasks, comma-separated: {PER_TYPE} "
+                        "(one cell per --human-models type, the default), fabric (FABRIC's "
+                        "10 types x 30 tasks; --sequence 300 plays it whole) or a schedule file")
+    p.add_argument("--selector-model", default=None,
+                   help="with --sequence: the selector model of the BPRs and the oracle (auto: "
+                        "selector_model.json beside the library's manifest; make "
+                        "train-selector writes it)")
+
+
+def check_mode(args: argparse.Namespace, words: Sequence[str]) -> None:
+    """Options of the other mode are refused (one line); a sequence study's defaults set."""
+    given = {w.split("=", 1)[0][2:].replace("-", "_") for w in words if w.startswith("--")}
+    if args.sequence is None:
+        stray = [n for n in SEQUENCE_ONLY if n in given]
+        if stray:
+            raise GridError(f"--{stray[0].replace('_', '-')} needs --sequence L (a selector "
+                            "chooses between the tasks of a sequence)")
+        return
+    stray = [n for n in EPISODE_ONLY if n in given]
+    if stray:
+        raise GridError(f"--{stray[0].replace('_', '-')} is for episodes; with --sequence the "
+                        "robot's policies are the library's, chosen by --selectors")
+    if "episodes" not in given:
+        args.episodes = DEFAULT_SEQUENCES
+    args.selectors = args.selectors or names_argument(DEFAULT_SELECTORS)
+    args.library = args.library or "auto"
+    args.schedule = args.schedule or [PER_TYPE]
+    args.selector_model = args.selector_model or "auto"
+
+
+def validate_sequences(args: argparse.Namespace) -> List[str]:
+    """Check a sequence study before any stack starts: the human models against the task,
+    the library (loaded and checked, ``--library``), the selectors (``fixed`` expanded), the
+    schedules, the selector model (a selector that needs one without one names
+    ``make train-selector``; one of another task or library refused by its loader; one
+    trained on the study's seeds refused: :func:`check_trained_elsewhere`), every cell's
+    launch settings. HrcError with one line; returns warning lines."""
+    resolve_files(args)
+    for human in dict.fromkeys(args.human_models):
+        try:
+            load_human_model(args.human_files[human], task_of(args))
+        except ModelNotFound as exc:
+            raise GridError(f"--human-models: {exc}") from None
+    library = load_study_library(args)
+    args.library_manifest = str(library.manifest)
+    args.selectors = expand_selectors(args.selectors, library.names())
+    resolve_schedules(args)
+    args.selector_model_file = selector_model_file(args, library)
+    users = [s for s in args.selectors if s in MODEL_SELECTORS]
+    warnings: List[str] = []
+    if users and args.selector_model_file is None:
+        expected = Path(library.manifest).parent / SELECTOR_MODEL_FILE
+        raise GridError(f"--selectors {','.join(users)}: no selector model {expected}; make "
+                        "train-selector writes it, or give --selector-model")
+    if args.selector_model_file is not None and users:
+        from ros_hrc.agents.selector_model import load_selector_model
+        try:
+            model = load_selector_model(args.selector_model_file, task_of(args).name,
+                                        library.names())
+        except HrcError as exc:
+            raise GridError(f"--selector-model: {exc}") from None
+        warnings += check_trained_elsewhere(args, model.header.get("seeds", ()))
+    for spec in plan_sequence_cells(args, set())[:1]:
+        check_launch_settings(spec)
+    return warnings
 
 
 def validate_grid(args: argparse.Namespace) -> None:
@@ -257,7 +357,12 @@ def main(argv: Optional[list] = None) -> int:
     words = own_arguments(argv)
     try:
         args = build_parser().parse_args(words)
-        validate_grid(args)
+        check_mode(args, words)
+        if args.sequence is None:
+            validate_grid(args)
+        else:
+            for line in validate_sequences(args):
+                print(f"{NAME}: {line}", file=sys.stderr, flush=True)
         if args.cluster is not None:
             check_cluster(args.cluster)
     except HrcError as exc:
@@ -273,6 +378,8 @@ def main(argv: Optional[list] = None) -> int:
         return _error(exc)
     with lock:
         try:
+            if args.sequence is not None:
+                return run_sequences(args, out, words, NAME)
             return _run_locked(args, out, words)
         except OSError as exc:      # a results file cannot be written: a full disk, ...
             _error(file_error_line(exc))

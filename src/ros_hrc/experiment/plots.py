@@ -320,3 +320,58 @@ def plot_belief(step_rows: Iterable[StepRow], png_path: Union[str, os.PathLike],
     ax.set_title(f"Belief that the human needs help\n{human_model}, seed {seed}, "
                  f"episode {number}")
     return _save(fig, png_path)
+
+
+def plot_learning_curves(curve: Sequence[Mapping[str, Any]], png_path: Union[str, os.PathLike],
+                         best_fixed: Optional[Mapping[str, str]] = None) -> str:
+    """A sequence study's learning curves: per schedule (a row of panels), the success rate
+    and the mean utility per task index of each selector (a line, its 95 % interval a band:
+    Wilson for success, Student's t for utility), over the sequences
+    (:func:`ros_hrc.experiment.sequence_statistics.learning_curve`). Of the ``fixed:<policy>``
+    selectors only the schedule's best in hindsight (``best_fixed``) is drawn, dashed, so
+    the adaptive ones stand out against it. Returns the PNG's path."""
+    best_fixed = best_fixed or {}
+    shown = [e for e in curve if not e["selector"].startswith("fixed:")
+             or best_fixed.get(e["schedule"]) == e["selector"]]
+    if not shown:
+        raise NothingToPlot("plot_learning_curves: no task recorded, nothing to plot")
+    schedules = _ordered(e["schedule"] for e in shown)
+    selectors = _ordered(e["selector"] for e in shown)
+    colours = _policy_colours(selectors)
+    fig = _new_figure(10.0, 2.6 * len(schedules) + 0.9)
+    axes = fig.subplots(len(schedules), 2, squeeze=False, sharex=True)
+    for row, schedule in enumerate(schedules):
+        for selector in selectors:
+            points = sorted((e for e in shown if (e["schedule"], e["selector"])
+                             == (schedule, selector)), key=lambda e: e["task_index"])
+            if not points:
+                continue
+            xs = [e["task_index"] for e in points]
+            fixed = selector.startswith("fixed:")
+            for col, name in enumerate(("success", "utility")):
+                ax = axes[row][col]
+                ax.plot(xs, [e[name] for e in points], color=colours[selector],
+                        linestyle="--" if fixed else "-", linewidth=1.2,
+                        label=f"{selector} (best fixed)" if fixed else selector)
+                ax.fill_between(xs, [e[f"{name}_low"] for e in points],
+                                [e[f"{name}_high"] for e in points], color=colours[selector],
+                                alpha=0.15, linewidth=0)
+        axes[row][0].set_ylabel(_wrapped(schedule), fontsize="small")
+        axes[row][0].set_ylim(-0.02, 1.02)
+        for ax in axes[row]:
+            ax.grid(alpha=0.3)
+    axes[0][0].set_title("success rate (95 % Wilson interval)", fontsize="medium")
+    axes[0][1].set_title("utility per task (95 % t interval)", fontsize="medium")
+    from matplotlib.ticker import MaxNLocator
+    for ax in axes[-1]:
+        ax.set_xlabel("task in the sequence")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    handles, labels = axes[0][1].get_legend_handles_labels()
+    seen = dict(zip(labels, handles))
+    for r in range(1, len(schedules)):
+        h, l = axes[r][1].get_legend_handles_labels()
+        seen.update((label, handle) for label, handle in zip(l, h) if label not in seen)
+    fig.legend(list(seen.values()), list(seen.keys()), loc="outside lower center",
+               ncol=min(len(seen), 5), fontsize="small")
+    fig.suptitle("Learning curves: each selector over the tasks of a sequence")
+    return _save(fig, png_path)

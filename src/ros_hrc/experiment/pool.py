@@ -196,7 +196,8 @@ def run_grid(cells: List[CellSpec], store, jobs: int,
     bar's text."""
     worker = worker or functools.partial(run_local_cell, program=program)
     stopper = stopper or Stopper()
-    progress = Progress(store, sum(len(c.episodes) for c in cells), program, status)
+    progress = Progress(store, sum(len(c.episodes) for c in cells), program, status,
+                        unit="sequence" if cells[0].sequence else "episode")
     lock = progress.lock   # the store, the bar and the schedule, from every worker's thread
     Path(cells[0].log_dir).mkdir(parents=True, exist_ok=True)
     with progress:
@@ -332,7 +333,8 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
         say_last(full_disk_line(program, stopper.disk_full, len(store.done()), out, command))
         return None, 1
     name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
-    print(f"\n{program}: stopped by {name}; {len(store.done())} episodes are kept in {out}. "
+    unit = getattr(store, "UNIT", "episodes")
+    print(f"\n{program}: stopped by {name}; {len(store.done())} {unit} are kept in {out}. "
           f"Resume with: {command}", file=sys.stderr, flush=True)
     return None, 128 + int(stopper.signum)  # type: ignore[arg-type]
 

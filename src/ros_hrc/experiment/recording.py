@@ -135,11 +135,12 @@ class Progress:
     whatever else the run's threads share. Used as a ``with`` block: the bar's lifetime."""
 
     def __init__(self, store, total: int, program: str,
-                 status: Callable[[], str] = lambda: "") -> None:
+                 status: Callable[[], str] = lambda: "", unit: str = "episode") -> None:
         self.store = store
         self.total = total
         self.program = program
         self.status = status
+        self.unit = unit
         self.lock = threading.Lock()
         self.started = time.monotonic()
         self.episodes = 0
@@ -149,7 +150,7 @@ class Progress:
 
     def __enter__(self) -> "Progress":
         from tqdm import tqdm
-        self._bar = tqdm(total=self.total, unit="episode", desc=self.program,
+        self._bar = tqdm(total=self.total, unit=self.unit, desc=self.program,
                          dynamic_ncols=True, mininterval=0.5 if sys.stderr.isatty() else 10.0)
         return self
 
@@ -162,8 +163,7 @@ class Progress:
             self.store.add(row, steps)
             self.episodes += 1
             self.simulated_seconds += row.sim_seconds
-            self._bar.set_postfix_str(f"{self.status()}{row.human_model}/{row.robot_policy} "
-                                      f"seed {row.seed}: {row.end_reason} in {row.steps} steps")
+            self._bar.set_postfix_str(f"{self.status()}{row.progress_text()}")
             self._bar.update(1)
 
     def cell_failed(self, name: str, reason: Exception) -> None:

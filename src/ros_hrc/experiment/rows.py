@@ -202,6 +202,11 @@ class EpisodeRow(Row):
     def __hash__(self) -> int:
         return hash(tuple(self.as_dict().values()))
 
+    def progress_text(self) -> str:
+        """What the progress bar says of it."""
+        return (f"{self.human_model}/{self.robot_policy} seed {self.seed}: {self.end_reason} "
+                f"in {self.steps} steps")
+
     def __post_init__(self) -> None:
         if self.time_to_success is None:
             time = self.sim_seconds if self.success == 1 else math.nan

@@ -33,6 +33,7 @@ from typing import (Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequ
 
 from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
 from ros_hrc.experiment.rows import EpisodeRow, StepRow
+from ros_hrc.experiment.sequence_rows import SequenceRow, TaskRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
 from ros_hrc import settings
 from ros_hrc.streams import EpisodeSchedule
@@ -149,6 +150,10 @@ class CellSpec:
     episode_timeout: float = 600.0      # wall seconds without a step before giving up
     record_bag: bool = False            # rosbag of /hrc/status next to the logs
     human_model_file: str = ""          # the human model's absolute file ("": human_model)
+    # Tasks per sequence (``tasks:=``); 0: no sequences, the cell records episodes. With
+    # sequences, ``human_model`` is the schedule's label, ``robot_policy`` the selector and
+    # ``episodes`` the sequence numbers still to record (ros_hrc.experiment.sequences).
+    sequence: int = 0
 
     def __post_init__(self) -> None:
         self.episodes = EpisodeRanges.of(self.episodes)
@@ -203,20 +208,27 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     (a cell has no time option), so a cell gives the same rows on any machine and
     under any load. The coordinator plays exactly the spec's episodes, by their numbers
     (``episodes:=``), each on its own streams (:mod:`ros_hrc.streams`).
+    With sequences (``spec.sequence``), the robot's selector and library come in
+    ``spec.extra_args`` and the stack plays the tasks of the spec's sequences
+    (:func:`sequence_task_episodes`).
     ``spec.extra_args`` (``name:=value``) come last and win."""
-    try:
-        policy = robot_policy(spec.robot_policy)
-    except KeyError:
-        raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
-                         f"{', '.join(ROBOT_POLICIES)}, reactive@N") from None
+    if spec.sequence:
+        planner = settings.default("planner")     # the selector's policies plan instead
+        episodes = sequence_task_episodes(spec)
+    else:
+        try:
+            planner = robot_policy(spec.robot_policy).planner
+        except KeyError:
+            raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
+                             f"{', '.join(ROBOT_POLICIES)}, reactive@N") from None
+        episodes = EpisodeRanges.of(spec.episodes)
     values = {
         "human_model": spec.human_model_file or spec.human_model, "robot_model": spec.robot_model,
-        "planner": policy.planner, "seed": spec.seed,
+        "planner": planner, "seed": spec.seed,
         "mode": "auto", "gui": False, "viz": False, "use_sim_time": False, "real_time_factor": 0,
         "step_delay": 0, "max_steps": spec.step_limit, "on_episode_end": "reset",
         "end_on_goal": False, "read_stdin": False,
-        "episodes": EpisodeSchedule(EpisodeRanges.of(spec.episodes).spans).text()
-        if spec.episodes else "live",
+        "episodes": EpisodeSchedule(episodes.spans).text() if episodes else "live",
         # The cell subscribes once the master is up; an episode played before that (the
         # short ones last a tenth of a second) would be missed and the cell would fail.
         "wait_for_listener": True,
@@ -233,6 +245,14 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
             raise ValueError(f"extra launch argument {word!r}: expected name:=value")
         out[name] = value
     return out
+
+
+def sequence_task_episodes(spec: CellSpec) -> EpisodeRanges:
+    """The loop's episodes of a sequence cell's tasks: sequence s's task t is episode
+    ``s * L + t - 1`` (:func:`ros_hrc.experiment.sequence_rows.task_episode`)."""
+    length = spec.sequence
+    return EpisodeRanges(tuple((a * length, b * length)
+                               for a, b in EpisodeRanges.of(spec.episodes).spans))
 
 
 def launch_arguments(spec: CellSpec, ports: Mapping[str, int]) -> List[str]:
@@ -435,8 +455,22 @@ def encode_episode(row: EpisodeRow, steps: list) -> str:
                                       "steps": [s.as_dict() for s in steps]})
 
 
+#: Prefix of a sequence cell's stdout line carrying a whole sequence (its tasks).
+SEQUENCE_LINE = "SEQUENCE "
+
+
+def encode_sequence(row: SequenceRow, tasks: Sequence[TaskRow]) -> str:
+    return SEQUENCE_LINE + json.dumps({"sequence": row.as_dict(),
+                                       "tasks": [t.as_dict() for t in tasks]})
+
+
 def decode_episode(line: str):
-    """(EpisodeRow, [StepRow]) from a worker's line, or None for any other line."""
+    """(EpisodeRow, [StepRow]) from a worker's episode line, (SequenceRow, [TaskRow]) from a
+    sequence cell's line, or None for any other line."""
+    if line.startswith(SEQUENCE_LINE):
+        data = json.loads(line[len(SEQUENCE_LINE):])
+        return (SequenceRow.from_dict(data["sequence"]),
+                [TaskRow.from_dict(t) for t in data["tasks"]])
     if not line.startswith(EPISODE_LINE):
         return None
     data = json.loads(line[len(EPISODE_LINE):])

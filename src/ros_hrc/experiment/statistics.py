@@ -310,15 +310,18 @@ def summarize(rows: Iterable[Union[EpisodeRow, Mapping[str, Any]]],
     return summary
 
 
-def adjust_for_many_tests(summary: Sequence[Dict[str, Any]]) -> None:
+def adjust_for_many_tests(summary: Sequence[Dict[str, Any]],
+                          prefixes: Sequence[str] = ("vs_reactive", "vs_alone"),
+                          tests: Sequence[str] = TESTS) -> None:
     """Set each comparison's q-values (``*_q``): its p-values adjusted for the number of tests
     a summary makes, by Benjamini and Hochberg's false discovery rate
     (``scipy.stats.false_discovery_control``). A family is one test against one baseline
     (e.g. McNemar's test of success against the best reactive budget) over every row of the
     summary, per human and pooled; a q-value below 0.05 keeps the expected share of false
-    discoveries among such claims below 5 %. Rows without the test get NaN."""
-    for prefix in ("vs_reactive", "vs_alone"):
-        for test in TESTS:
+    discoveries among such claims below 5 %. Rows without the test get NaN. ``prefixes`` and
+    ``tests`` name the families (``<prefix>_<test>_p``; a sequence study's are its own)."""
+    for prefix in prefixes:
+        for test in tests:
             tested = [e for e in summary if math.isfinite(e.get(f"{prefix}_{test}_p", math.nan))]
             for e in summary:
                 e[f"{prefix}_{test}_q"] = math.nan
@@ -360,7 +363,9 @@ def _markdown_cell(text: str) -> str:
     return text.replace("|", "\\|")  # a pipe in a name would split the cell
 
 
-def _table(headers: Sequence[str], rows: Iterable[Sequence[str]], text_columns: int = 2) -> str:
+def markdown_table(headers: Sequence[str], rows: Iterable[Sequence[str]],
+                   text_columns: int = 2) -> str:
+    """A Markdown table: the first ``text_columns`` columns left-aligned, the others right."""
     lines = ["| " + " | ".join(headers) + " |",
              "|" + "|".join(["---"] * text_columns + ["--:"] * (len(headers) - text_columns))
              + "|"]
@@ -377,7 +382,7 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
     best reactive budget, the other measures, and what each column means."""
     levels = {entry["confidence"] for entry in summary} or {0.95}
     level = "/".join(f"{100 * c:g} %" for c in sorted(levels))
-    outcomes = _table(
+    outcomes = markdown_table(
         ["Human model", "Robot policy", "n", f"Success [{level} CI]", "Alone",
          "Rescued", "Pre-empted", f"Pre-empted rate [{level} CI]", "Hindered",
          "Both succeed", "Both fail", "Time to success (s, median)",
@@ -410,7 +415,7 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
                  str(e[f"{prefix}_time_pairs"]),
                  _number(e[f"{prefix}_time_median_diff"], signed=True),
                  format_p(e[f"{prefix}_time_p"]), format_p(e[f"{prefix}_time_q"])])
-    compared = _table(["Human model", "Robot policy", "Against", "Pairs", "Δ success",
+    compared = markdown_table(["Human model", "Robot policy", "Against", "Pairs", "Δ success",
                        "p (McNemar)", "q", "Δ pre-empted", "p (McNemar)", "q",
                        "Δ own success", "p (McNemar)", "q", "Pairs both succeed", "Δ time to success (s, median)", "p (Wilcoxon)",
                        "q"], comparisons, 3)
@@ -426,9 +431,9 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
             best_rows.append([_markdown_cell(str(human)), _markdown_cell(name),
                               format_ci(e["success_rate"], e["success_low"], e["success_high"]),
                               str(e["pre_empted"]), _number(e["time_to_success_median"])])
-    best_table = _table(["Human model", "Best reactive", "Success", "Pre-empted",
+    best_table = markdown_table(["Human model", "Best reactive", "Success", "Pre-empted",
                          "Time to success (s, median)"], best_rows)
-    others = _table(
+    others = markdown_table(
         ["Human model", "Robot policy", "Steps", "Sim time (s)", "Discounted reward",
          "Warnings", "Warnings after help", "Rescued after a point",
          "Zero-probability observations", "Decision time (ms)"],

@@ -21,8 +21,7 @@ import os
 import warnings
 from typing import Iterable, List, Optional, Sequence, Set, Tuple, Type, TypeVar, Union
 
-from ros_hrc.experiment.rows import (EPISODE_COLUMNS, STEP_COLUMNS, EpisodeKey, EpisodeRow, Row,
-                                     StepRow)
+from ros_hrc.experiment.rows import EpisodeKey, EpisodeRow, Row, StepRow
 
 EPISODES_FILE = "episodes.csv"
 STEPS_FILE = "steps.csv"
@@ -77,26 +76,38 @@ class ResultsStore:
 
     Opening checks both files (header, every row) and raises ValueError ``"<file>:<line>: ..."``
     on the first problem; it repairs only what a kill can leave behind (see the module doc).
+
+    The same store holds any unit that is written as its parts, then one row that commits
+    them: a subclass names the two row types and files (:class:`ROW_TYPE` in
+    :data:`ROWS_FILE` commits :class:`PART_TYPE` rows in :data:`PARTS_FILE`; a sequence
+    commits its tasks, :mod:`ros_hrc.experiment.sequence_rows`).
     """
+
+    ROW_TYPE: Type[Row] = EpisodeRow
+    PART_TYPE: Type[Row] = StepRow
+    ROWS_FILE = EPISODES_FILE
+    PARTS_FILE = STEPS_FILE
+    UNIT = "episodes"     # what a row is, in the run's messages
 
     def __init__(self, directory: Union[str, os.PathLike]) -> None:
         self.directory = os.fspath(directory)
         os.makedirs(self.directory, exist_ok=True)
-        self.episodes_path = os.path.join(self.directory, EPISODES_FILE)
-        self.steps_path = os.path.join(self.directory, STEPS_FILE)
+        self.episodes_path = os.path.join(self.directory, self.ROWS_FILE)
+        self.steps_path = os.path.join(self.directory, self.PARTS_FILE)
         # Everything is checked before anything is changed: a bad file (binary, another
         # header, a bad row) is refused with both files as they were.
         plans = [self._inspect(path) for path in (self.episodes_path, self.steps_path)]
         (_, episodes_text), (_, steps_text) = plans
-        episodes = self._parse(self.episodes_path, episodes_text, EpisodeRow)
-        steps = self._parse(self.steps_path, steps_text, StepRow)
+        episodes = self._parse(self.episodes_path, episodes_text, self.ROW_TYPE)
+        steps = self._parse(self.steps_path, steps_text, self.PART_TYPE)
         self._done: Set[EpisodeKey] = set()
         for line, row in episodes:
             if row.key in self._done:
                 raise ValueError(f"{self.episodes_path}:{line}: episode {row.key} recorded twice")
             self._done.add(row.key)
-        for (path, columns), (keep, text) in zip(((self.episodes_path, EPISODE_COLUMNS),
-                                                  (self.steps_path, STEP_COLUMNS)), plans):
+        for (path, columns), (keep, text) in zip(
+                ((self.episodes_path, self.ROW_TYPE.COLUMNS),
+                 (self.steps_path, self.PART_TYPE.COLUMNS)), plans):
             self._repair(path, columns, keep, text)
         self._drop_orphan_steps(steps)
 
@@ -196,7 +207,7 @@ class ResultsStore:
         # Rewrite beside the file and swap it in, so a kill now leaves the old or the new one.
         tmp = self.steps_path + ".tmp"
         with open(tmp, "w", encoding="utf-8", newline="") as f:
-            f.write(csv_lines(STEP_COLUMNS, kept, header=True))
+            f.write(csv_lines(self.PART_TYPE.COLUMNS, kept, header=True))
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, self.steps_path)
@@ -215,19 +226,21 @@ class ResultsStore:
         of it is on disk. Raises ValueError for an episode already recorded or a step row of
         another episode; on an I/O error the files are cut back to where they were.
         """
-        if not isinstance(episode_row, EpisodeRow):
-            raise TypeError(f"expected an EpisodeRow, got {type(episode_row).__name__}")
+        if not isinstance(episode_row, self.ROW_TYPE):
+            raise TypeError(f"expected an {self.ROW_TYPE.__name__}, got "
+                            f"{type(episode_row).__name__}")
         key = episode_row.key
         if key in self._done:
             raise ValueError(f"episode {key} is already recorded in {self.episodes_path}")
         step_rows = list(step_rows)
         for i, row in enumerate(step_rows):
-            if not isinstance(row, StepRow):
-                raise TypeError(f"step row {i}: expected a StepRow, got {type(row).__name__}")
+            if not isinstance(row, self.PART_TYPE):
+                raise TypeError(f"step row {i}: expected a {self.PART_TYPE.__name__}, got "
+                                f"{type(row).__name__}")
             if row.key != key:
                 raise ValueError(f"step row {i} belongs to episode {row.key}, not {key}")
-        self._append(self.steps_path, STEP_COLUMNS, step_rows)
-        self._append(self.episodes_path, EPISODE_COLUMNS, [episode_row])
+        self._append(self.steps_path, self.PART_TYPE.COLUMNS, step_rows)
+        self._append(self.episodes_path, self.ROW_TYPE.COLUMNS, [episode_row])
         self._done.add(key)
 
     @staticmethod
@@ -249,11 +262,11 @@ class ResultsStore:
 
     def episodes(self) -> List[EpisodeRow]:
         """Every recorded episode, in the order they were added."""
-        return [row for _, row in self._read(self.episodes_path, EpisodeRow)]
+        return [row for _, row in self._read(self.episodes_path, self.ROW_TYPE)]
 
     def steps(self) -> List[StepRow]:
         """Every recorded step, in the order they were added."""
-        return [row for _, row in self._read(self.steps_path, StepRow)]
+        return [row for _, row in self._read(self.steps_path, self.PART_TYPE)]
 
 
 

@@ -17,7 +17,15 @@ Types and their fields (``?`` marks an optional field, left out of the JSON when
                                                            "carry out this action" (no link
                                                            takes it since the robot node was
                                                            folded into hrc_human: refused)
-    reset        reason?, episode?                         start again from step 0
+    reset        reason?, episode?, task_index?, true_type?, human_model?, drift_to?, drift?
+                                                           start again from step 0 (a task of a
+                                                           sequence: which one, who plays it)
+    task_end     task_index, outcome, who_succeeded?, warnings, preemptions, steps, duration,
+                 utility                                   coordinator -> POMDP: a task of a
+                                                           sequence ended, how
+    task_report  selector, policy, robot_model?, type_names?, type_belief?, signature?,
+                 total_disc_reward?                        POMDP -> coordinator: answers
+                                                           task_end
     next_state   state (int, or null: let the model choose)  human node -> MDP (9090)
     ack          step, of?, action?, success?, result?, episode?, episode_over?, end_reason?
                                                            "done"; may carry what was done
@@ -35,9 +43,9 @@ from __future__ import annotations
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, ClassVar, Dict, Mapping, Optional, Sequence, Tuple, Type
 
-from ros_hrc.link.validation import (AUTH_HEX_CHARS, MAX_BITS, MAX_ENVELOPE_INT, MAX_STATE_INDEX,
-                                     MAX_UINT32, MAX_VERSION, NONCE_HEX_RANGE, Checker,
-                                     check_extra, kind_of)
+from ros_hrc.link.validation import (AUTH_HEX_CHARS, MAX_BITS, MAX_ENVELOPE_INT,
+                                     MAX_SIGNATURE_CODE, MAX_STATE_INDEX, MAX_UINT32,
+                                     MAX_VERSION, NONCE_HEX_RANGE, Checker, check_extra, kind_of)
 
 PROTOCOL_VERSION = 2
 #: The envelope fields every message type has, in wire order.
@@ -304,17 +312,113 @@ class Action(Message):
 @dataclass(frozen=True)
 class Reset(Message):
     """Start again: world, beliefs and step counter go back to step 0. ``reason`` is for logs;
-    ``episode`` is the number of the episode that starts."""
+    ``episode`` is the number of the episode that starts.
+
+    In a sequence (``tasks:=N``) the episode is a task, and the reset says which and who
+    plays it: ``task_index`` (from 1; to the POMDP process a new index is a new task, for
+    which its selector chooses a policy), ``true_type`` (the schedule's label of the human,
+    for the oracle and the reports), and to the MDP ``human_model`` (the model that plays
+    it), ``drift_to`` with ``drift`` (the model it drifts to and that model's weight, 0..1).
+    A peer that knows none of them (an older one) resets as before."""
 
     TYPE: ClassVar[str] = "reset"
     reason: Optional[str] = None
     episode: Optional[int] = None
+    task_index: Optional[int] = None
+    true_type: Optional[str] = None
+    human_model: Optional[str] = None
+    drift_to: Optional[str] = None
+    drift: Optional[float] = None
 
     def _validate(self, check: Checker) -> None:
         if self.reason is not None:
             self._set("reason", check.prose("reason", self.reason))
         if self.episode is not None:
             self._set("episode", check.integer("episode", self.episode, maximum=MAX_UINT32))
+        if self.task_index is not None:
+            self._set("task_index", check.integer("task_index", self.task_index, minimum=1,
+                                                  maximum=MAX_UINT32))
+        for name in ("true_type", "human_model", "drift_to"):
+            if getattr(self, name) is not None:   # a model may be a path: prose's length
+                self._set(name, check.prose(name, getattr(self, name)))
+        if self.drift is not None:
+            if self.drift_to is None:
+                raise check.fail("drift", "is given without drift_to")
+            self._set("drift", check.probability("drift", self.drift))
+
+
+@dataclass(frozen=True)
+class TaskEnd(Message):
+    """Coordinator -> POMDP process: task ``task_index`` of a sequence ended. How: its
+    ``outcome`` (``success``, ``fail``, ``timeout``), ``who_succeeded`` (``human``,
+    ``robot``; absent: no one), the human's ``warnings``, the robot's ``preemptions``, its
+    ``steps``, its ``duration`` (simulated s) and its ``utility`` (docs/sequences.md).
+    Answered with a :class:`TaskReport` (or an :class:`Error`)."""
+
+    TYPE: ClassVar[str] = "task_end"
+    task_index: int
+    outcome: str
+    warnings: int
+    preemptions: int
+    steps: int
+    duration: float
+    utility: float
+    who_succeeded: Optional[str] = None
+
+    def _validate(self, check: Checker) -> None:
+        self._set("task_index", check.integer("task_index", self.task_index, minimum=1,
+                                              maximum=MAX_UINT32))
+        self._set("outcome", check.text("outcome", self.outcome))
+        for name in ("warnings", "preemptions", "steps"):
+            self._set(name, check.integer(name, getattr(self, name), maximum=MAX_UINT32))
+        self._set("duration", check.number("duration", self.duration, minimum=0.0))
+        self._set("utility", check.number("utility", self.utility))
+        if self.who_succeeded is not None:
+            self._set("who_succeeded", check.text("who_succeeded", self.who_succeeded))
+
+
+@dataclass(frozen=True)
+class TaskReport(Message):
+    """POMDP process -> coordinator, the answer to a :class:`TaskEnd`: the robot's
+    ``selector`` and the ``policy`` it chose for the task. Optional: that policy's
+    ``robot_model`` (its file; absent for a policy without one), the selector's
+    ``type_names`` with its ``type_belief`` after the task (both or neither; a selector
+    without a type belief sends neither), the task's ``signature`` (one code 0..63 per
+    step: the human observables the robot saw) and ``total_disc_reward`` (the policy's own
+    discounted reward over the task's true states: FABRIC's figure, not the utility)."""
+
+    TYPE: ClassVar[str] = "task_report"
+    selector: str
+    policy: str
+    robot_model: Optional[str] = None
+    type_names: Optional[Sequence[str]] = None
+    type_belief: Optional[Sequence[float]] = None
+    signature: Optional[Sequence[int]] = None
+    total_disc_reward: Optional[float] = None
+
+    def _validate(self, check: Checker) -> None:
+        self._set("selector", check.text("selector", self.selector))
+        self._set("policy", check.text("policy", self.policy))
+        if self.robot_model is not None:
+            self._set("robot_model", check.prose("robot_model", self.robot_model))
+        if self.type_names is not None or self.type_belief is not None:
+            if self.type_names is None or self.type_belief is None:
+                given, missing = (("type_names", "type_belief") if self.type_belief is None
+                                  else ("type_belief", "type_names"))
+                raise check.fail(given, f"is given without {missing}")
+            belief = check.belief_list("type_belief", self.type_belief)
+            names = check.names("type_names", self.type_names)
+            if len(names) != len(belief):
+                raise check.fail("type_names", f"has {len(names)} names for {len(belief)} "
+                                               "probabilities")
+            self._set("type_names", names)
+            self._set("type_belief", belief)
+        if self.signature is not None:
+            self._set("signature", check.codes("signature", self.signature,
+                                               MAX_SIGNATURE_CODE))
+        if self.total_disc_reward is not None:
+            self._set("total_disc_reward", check.number("total_disc_reward",
+                                                        self.total_disc_reward))
 
 
 @dataclass(frozen=True)
@@ -393,7 +497,7 @@ class Error(Message):
 #: Wire name -> message class.
 MESSAGE_TYPES: Dict[str, Type[Message]] = {
     cls.TYPE: cls for cls in (Hello, Step, Reaction, Observation, Decision, Action, Reset,
-                              NextState, Ack, Error)
+                              NextState, Ack, Error, TaskEnd, TaskReport)
 }
 #: The types that answer a request (what :func:`~ros_hrc.link.replies.is_reply_to` can match).
-REPLY_TYPES: Tuple[Type[Message], ...] = (Ack, Error, Decision)
+REPLY_TYPES: Tuple[Type[Message], ...] = (Ack, Error, Decision, TaskReport)

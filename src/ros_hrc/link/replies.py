@@ -15,7 +15,8 @@ from typing import Any, Callable, Dict, Optional, Tuple, Type, TypeVar
 
 from ros_hrc.errors import ProtocolError
 from ros_hrc.link.codec import MAX_ERROR_CHARS, encode
-from ros_hrc.link.messages import REPLY_TYPES, Ack, Decision, Error, Message, Observation
+from ros_hrc.link.messages import (REPLY_TYPES, Ack, Decision, Error, Message, Observation,
+                                   TaskEnd, TaskReport)
 from ros_hrc.link.refusals import ERR_FAILED, ERR_INVALID, ERR_UNKNOWN_TYPE, MessageError
 from ros_hrc.link.validation import (CONTROL_CHARACTERS, MAX_ENVELOPE_INT, MAX_UINT32,
                                      PREVIEW_CHARS, is_count)
@@ -25,11 +26,11 @@ def is_reply_to(reply: Message, request: Message) -> bool:
     """Whether ``reply`` answers ``request``.
 
     When the request has an ``id``: iff ``reply.reply_to == request.id`` and the reply is an
-    ``ack``, ``error`` or ``decision``. Without an id (a peer that does not stamp one), a
+    ``ack``, ``error``, ``decision`` or ``task_report``. Without an id (a peer that does not stamp one), a
     reply with a ``reply_to`` answers something else; otherwise the version 1 rules hold: an
     ``ack`` of its step (and type, when the ack names one; a request without a step, such as
     ``reset``, needs an ack naming its type), a ``decision`` of its step answering an
-    ``observation``, or an ``error`` naming its step or, lacking a step, its type."""
+    ``observation``, a ``task_report`` answering a ``task_end``, or an ``error`` naming its step or, lacking a step, its type."""
     if not isinstance(reply, REPLY_TYPES):
         return False
     if request.id is not None:
@@ -43,6 +44,8 @@ def is_reply_to(reply: Message, request: Message) -> bool:
         return reply.step == step and reply.of in (None, request.type)
     if isinstance(reply, Decision):
         return isinstance(request, Observation) and reply.step == step
+    if isinstance(reply, TaskReport):
+        return isinstance(request, TaskEnd)
     if reply.in_reply_to is not None and reply.in_reply_to != request.type:
         return False
     if reply.step is not None:

@@ -38,6 +38,8 @@ MAX_ENVELOPE_INT = 2 ** 53 - 1
 MAX_UINT32 = 2 ** 32 - 1
 #: Largest ``state_index`` and ``next_state.state``: a ``uint8`` of ``/hrc/status``.
 MAX_STATE_INDEX = 255
+#: The largest signature code of a task report: one step's six human observables, a bit each.
+MAX_SIGNATURE_CODE = 63
 #: Largest protocol ``version`` a hello may name.
 MAX_VERSION = 2 ** 31 - 1
 #: Longest name (``who``, an action, a state, an observation, ``of``, ``code``, ``rule``, ...),
@@ -218,6 +220,13 @@ class Checker:
         if len(set(items)) != len(items):
             raise self.fail(name, "must not repeat a name")
         return items
+
+    def codes(self, name: str, value: Any, maximum: int) -> Tuple[int, ...]:
+        """An array of integers from 0 to ``maximum`` (e.g. a task's signature codes)."""
+        if not isinstance(value, (list, tuple)):
+            raise self.fail(name, f"must be an array of integers, {self._got(value)}")
+        return tuple(self.integer(f"{name}[{i}]", v, maximum=maximum)
+                     for i, v in enumerate(value))
 
     def belief_names(self, belief: Optional[Tuple[float, ...]], value: Any) -> Tuple[str, ...]:
         """``belief_states``: names for the probabilities of ``belief``, same length."""

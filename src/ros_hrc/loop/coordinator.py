@@ -56,6 +56,20 @@ state, the observation noise) is the configuration's :class:`~ros_hrc.tasks.defi
 from the stream of (``seed``, episode, "observation") (:mod:`ros_hrc.streams`),
 restarted at each episode's start, so an episode's noise is its own whatever ran before it.
 
+**A sequence of tasks** (``CoordinatorConfig.tasks`` N > 0; docs/sequences.md). Each task
+is an episode, played by the human the schedule names (``CoordinatorConfig.schedule``; the
+``human_model`` every task without one); its reset tells the planner the task's number and
+true type and the MDP its human model (and drift). A task ends as an episode does, or when
+``task_timeout`` simulated seconds have passed since its start (``task_timeout``); then the
+coordinator measures its :class:`~ros_hrc.tasks.utility.TaskOutcome` (the human's warnings,
+the robot's pre-emption: it took the object while the human's true state, as the robot
+decided, was not one that needs help), asks the robot process for its part
+(:class:`EndTask`, answered with its selector's report), publishes the task
+(:class:`PublishTask`) and resets into the next task by itself, whatever
+``on_episode_end`` says. After the N-th task it says the sequence is over and waits; no reset
+starts another. A task cut short (a failed step, a reset asked for) is played again, under
+the same number.
+
 **Failures.** A call that fails (a fault: the service or process is gone, or answered
 nonsense) fails its step visibly (the report's ``fault``), and the loop recovers by a reset,
 retried every ``retry_delay`` seconds until it succeeds (a respawned process comes back). A
@@ -69,14 +83,17 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc.loop.effects import (BUSY, DECISION_IN_REPORT, EPISODE_IS_OVER, FAILED, INVALID,
                                   NOT_READY, SEAT_TAKEN, STALE, ActHuman, ActRobot, Call,
-                                  Decide, Effect, Fault, MdpRefused, MdpReset, MdpStepDone,
-                                  Note, ObserveWorld, Outcome, PublishStep, ReactionRequest,
-                                  ResetDone, ResetPlanner, ResetWorld, SeatRefused, Snapshot,
-                                  StepReport, StepRequest, Timer)
+                                  Decide, Effect, EndTask, Fault, MdpRefused, MdpReset,
+                                  MdpStepDone, Note, ObserveWorld, Outcome, PublishStep,
+                                  PublishTask, ReactionRequest, ResetDone, ResetPlanner,
+                                  ResetWorld, SeatRefused, Snapshot, StepReport, StepRequest,
+                                  TaskAnswer, TaskStatusReport, Timer)
 from ros_hrc import settings
 from ros_hrc.streams import EpisodeSchedule, generator
 from ros_hrc.tasks.definition import Task
+from ros_hrc.tasks.schedule import Schedule, TaskPlay
 from ros_hrc.tasks.seed import SEED
+from ros_hrc.tasks.utility import TaskOutcome, task_utility
 
 
 #: Episode policies after an episode ends (the ``on_episode_end`` setting).
@@ -119,7 +136,10 @@ class CoordinatorConfig:
     ``task``: the collaboration task (the seed's by default); ``goal_state`` None is the
     task's goal. ``seed``: the run's seed, whose (seed, episode) stream the task's
     observation noise draws from. ``human_model``: the human model's name or path, for the
-    task's labels of the robot's true state (fabric: a tired human's)."""
+    task's labels of the robot's true state (fabric: a tired human's). ``tasks``: play a
+    sequence of this many tasks (0: none; see the module docstring), ``schedule`` says who
+    plays each (None: ``human_model`` every task), ``task_timeout``: simulated seconds after
+    which a task of the sequence ends with outcome timeout."""
 
     max_steps: int = settings.default("max_steps")
     end_on_goal: bool = settings.default("end_on_goal")
@@ -135,10 +155,17 @@ class CoordinatorConfig:
     task: Task = SEED
     seed: int = settings.default("seed")
     human_model: str = ""
+    tasks: int = 0
+    schedule: Optional[Schedule] = None
+    task_timeout: Optional[float] = None
 
     def __post_init__(self) -> None:
         if self.goal_state is None:
             object.__setattr__(self, "goal_state", self.task.goal_state)
+        if self.task_timeout is None:
+            object.__setattr__(self, "task_timeout", self.task.task_timeout)
+        if self.tasks < 0 or not self.task_timeout > 0:
+            raise ValueError("tasks >= 0 and task_timeout > 0 are required")
         if self.on_episode_end not in EPISODE_END_POLICIES:
             raise ValueError(f"on_episode_end must be one of {', '.join(EPISODE_END_POLICIES)}, "
                              f"not {self.on_episode_end!r}")
@@ -158,6 +185,7 @@ class _StepContext:
     stage: str = "human"   # human -> observe -> decide -> robot -> outcome (-> react)
     played_out: bool = False   # (react) no episode of the schedule is left after this one
     react_timer: Optional[int] = None
+    decided_on: str = ""       # the robot's true state when it decided (pre-emptions)
 
 
 class Coordinator:
@@ -199,6 +227,13 @@ class Coordinator:
         self._wait_timers: Dict[int, Tuple[int, float]] = {}   # timer -> (call id, waited s)
         self._react_waits: Tuple[Optional[int], float] = (None, 0.0)   # (timer, waited s)
         self.dropped = 0                # results of an older epoch, dropped
+        # a sequence of tasks (config.tasks > 0)
+        self.tasks_done = 0             # tasks of the sequence that ended
+        self.task_index = 0             # the task under way (0: none yet)
+        self.play: Optional[TaskPlay] = None   # who plays it
+        self._task_warnings = 0
+        self._task_preempted = False
+        self._task_ending: Optional[Tuple[int, TaskStatusReport]] = None   # (call id, report)
 
     # -- output -------------------------------------------------------------------------------
     def effects(self) -> List[Effect]:
@@ -385,6 +420,11 @@ class Coordinator:
         call = self._outstanding.pop(call_id, None)
         if call is None or self.phase == ENDED:
             return   # unknown or answered twice, or the run ended: nothing to do
+        if isinstance(call, EndTask):
+            # The task ended for good: reported even when a reset came meanwhile.
+            self._task_reported(call, result)
+            self._continue_reset()
+            return
         if call.epoch != self.epoch:
             self.dropped += 1
             self._continue_reset()   # a reset may be waiting for this call
@@ -423,6 +463,7 @@ class Coordinator:
                     report.robot_state = self.tracker.update(report.human_state,
                                                              report.human_action)
                 ctx.stage = "decide"
+                ctx.decided_on = report.robot_state
                 self._call(Decide, call.step, observation=report.robot_observation, bits=raw,
                            state=report.robot_state,
                            elapsed=max(0.0, float(result.sim_time) - self._episode_start_time))
@@ -459,6 +500,10 @@ class Coordinator:
         reason = "" if self._episode_ended else self._end_reason(report)
         report.episode_over = bool(reason)
         report.end_reason = reason
+        if report.human_action == self.task.human_warning_action:
+            self._task_warnings += 1
+        if report.object_holder == "robot" and ctx.decided_on not in self.task.needs_help_states:
+            self._task_preempted = True   # it took the object from a human who needed no help
         reacts = self.task.reacts
         if not reacts:
             self._step = None
@@ -470,7 +515,8 @@ class Coordinator:
         played_out = bool(reason) and self._next_episode() is None
         # The MDP's episode_over means "stop: a reset comes next"; with on_episode_end
         # continue the end is reported (end_reason) and stepping goes on.
-        stops = bool(reason) and (self.config.on_episode_end != "continue" or played_out)
+        stops = bool(reason) and (self.config.on_episode_end != "continue" or played_out
+                                  or self.config.tasks > 0)
         self._emit(MdpStepDone(ctx.peer, ctx.request.reply, self.epoch, report.step,
                                report.robot_action, report.robot_acted, report.robot_result,
                                self.episode, stops, reason))
@@ -486,6 +532,8 @@ class Coordinator:
         self.phase = READY
         if not reason:
             return
+        if self.config.tasks:
+            return self._end_task(report, reason)
         policy = self.config.on_episode_end
         self._note("info", episode_over_line(self.episode, reason, report.step + 1, policy,
                                              self.config.episodes if played_out else None))
@@ -505,6 +553,9 @@ class Coordinator:
             return "object_left_belt"
         if self.config.end_on_goal and report.human_state == self.config.goal_state:
             return "human_goal"
+        if self.config.tasks and (float(report.sim_time) - self._episode_start_time
+                                  >= self.config.task_timeout):
+            return "task_timeout"
         if self.config.max_steps and report.step + 1 >= self.config.max_steps:
             return "step_limit"
         return ""
@@ -613,6 +664,13 @@ class Coordinator:
                 self._emit(ResetDone((token,), False, "no reset: the episodes asked for "
                                      f"({self.config.episodes.text()}) are all played"))
             return
+        if self.config.tasks and self.tasks_done >= self.config.tasks:
+            why = f"no reset: the sequence's {self.config.tasks} tasks are all played"
+            if token is not None:
+                self._emit(ResetDone((token,), False, why))
+            else:   # (Enter pressed: said, not ignored in silence)
+                self._note("info", f"{why} ({reason}); Ctrl-C ends the launch")
+            return
         self._retry_timer = None
         self.epoch = self._next_epoch
         self._next_epoch += 1
@@ -647,8 +705,13 @@ class Coordinator:
         self.expected_step = 0
         # The episode's number is taken when a reset succeeds: failed attempts take none.
         episode = self._next_episode()
+        task_index = true_type = None
+        if self.config.tasks:
+            self._begin_task()
+            task_index, true_type = self.task_index, self.play.true_type
         world = self._call(ResetWorld, None, episode=episode)
-        planner = self._call(ResetPlanner, None, episode=episode)
+        planner = self._call(ResetPlanner, None, episode=episode, task_index=task_index or 0,
+                             true_type=true_type or "")
         self._reset_calls = {world.id: "world", planner.id: "robot planner"}
 
     def _reset_call_done(self, call: Call, result: Any) -> None:
@@ -700,12 +763,86 @@ class Coordinator:
             self._join_reason, self._reset_asked = self._reset_asked, ""
             self._join_timer = next(self._ids)
             self._emit(Timer(self._join_timer, self.config.reset_join_window))
+        task = ""
+        if self.config.tasks:
+            task = f", task {self.task_index}/{self.config.tasks} ({self.play.true_type})"
+            self._task_warnings, self._task_preempted = 0, False
         self._note("info", f"RESET ({self._reset_reason}): episode {self.episode}, "
-                           f"epoch {self.epoch}")
+                           f"epoch {self.epoch}{task}")
         if self.seat is not None:
-            self._emit(MdpReset(self.seat, self.epoch, self.episode, self._reset_reason))
+            play = self.play if self.config.tasks else None
+            self._emit(MdpReset(self.seat, self.epoch, self.episode, self._reset_reason,
+                                **({} if play is None else dict(
+                                    task_index=self.task_index, true_type=play.true_type,
+                                    human_model=play.human_model, drift_to=play.drift_to,
+                                    drift=play.drift))))
         if tokens:
             self._emit(ResetDone(tokens, True, text))
+
+    # -- a sequence of tasks -----------------------------------------------------------------
+    def _begin_task(self) -> None:
+        """The reset under way starts the next task of the sequence (a task cut short: the
+        same one again): who plays it, and his labeller of the robot's true state."""
+        self.task_index = self.tasks_done + 1
+        schedule = self.config.schedule
+        play = schedule.play(self.task_index) if schedule is not None else \
+            TaskPlay(self.config.human_model)
+        if self.play is None or play.nearest_type != self.play.nearest_type:
+            self.tracker = self.task.new_tracker(play.nearest_type)
+            self.tracker.reset()
+        self.play = play
+
+    def _end_task(self, report: StepReport, reason: str) -> None:
+        """Task ``task_index`` ended at the step ``report`` (``reason``: the loop's end
+        reason): its outcome measured, the robot process asked for its part."""
+        holder = report.object_holder if report.object_holder in ("human", "robot") else ""
+        if reason in ("success", "human_goal"):
+            outcome, who = "success", holder or "human"
+        elif reason == "object_left_belt":
+            outcome, who = "fail", ""
+        else:   # task_timeout, step_limit
+            outcome, who = "timeout", ""
+        duration = max(0.0, float(report.sim_time) - self._episode_start_time)
+        measured = TaskOutcome(outcome, who, self._task_warnings, int(self._task_preempted),
+                               duration, self.config.task_timeout)
+        utility = task_utility(measured)
+        self.tasks_done += 1
+        self.phase = EPISODE_OVER      # the MDP was told: it waits for the next reset
+        status = TaskStatusReport(
+            task_index=self.task_index, tasks=self.config.tasks, episode=self.episode,
+            epoch=self.epoch, human_model=self.play.human_model,
+            true_type=self.play.true_type, outcome=outcome, who_succeeded=who,
+            warnings=measured.warnings, preemptions=measured.preemptions,
+            steps=report.step + 1, duration=duration, utility=utility, end_reason=reason)
+        call = self._call(EndTask, None, task_index=self.task_index, outcome=measured,
+                          steps=status.steps, utility=utility)
+        self._task_ending = (call.id, status)
+
+    def _task_reported(self, call: EndTask, result: Any) -> None:
+        """The robot process answered a task's end: the task is published, then the next
+        one starts (unless a reset came meanwhile, or it was the last)."""
+        pending, self._task_ending = self._task_ending, None
+        if pending is None or pending[0] != call.id:
+            return
+        status = pending[1]
+        if isinstance(result, TaskAnswer):
+            for name in ("selector", "policy", "robot_model", "type_names", "type_belief",
+                         "signature", "total_disc_reward"):
+                setattr(status, name, getattr(result, name))
+            if status.type_belief:
+                best = max(range(len(status.type_belief)), key=status.type_belief.__getitem__)
+                status.estimation_correct = status.type_names[best] == self.play.nearest_type
+        else:
+            why = result.message if isinstance(result, Fault) else repr(result)
+            status.robot_problem = f"the robot process sent no task report: {why}"
+            self._note("warn", f"task {status.task_index}: {status.robot_problem}")
+        self._emit(PublishTask(status))
+        if self.phase != EPISODE_OVER or call.epoch != self.epoch:
+            return     # a reset came meanwhile: it starts the next task
+        if self.tasks_done < self.config.tasks:
+            self._begin_reset(f"task {status.task_index} over ({status.outcome})", None)
+        else:
+            self._note("info", sequence_over_line(self.config.tasks))
 
     def _reset_failed(self, why: str) -> None:
         self.phase = BROKEN
@@ -741,6 +878,12 @@ def episode_over_line(episode: int, reason: str, steps: int, policy: str,
     if policy == "reset":
         return f"{over}: the next starts now (on_episode_end:=reset)"
     return f"{over}: stepping goes on (on_episode_end:=continue)"
+
+
+def sequence_over_line(tasks: int) -> str:
+    """What the terminal says once the sequence's last task ended."""
+    return (f"the sequence is over: its {counted(tasks, 'task')} are played (/hrc/task_status "
+            "has one message each); no reset starts another: Ctrl-C ends the launch")
 
 
 def _what(call: Call) -> str:

@@ -255,3 +255,28 @@ class StepCaption:
 
 def _words(action: str) -> str:
     return _ACTION_WORDS.get(action, action.replace("_", " "))
+
+
+#: How many of the selector's types the task's line names (the most likely first).
+TASK_LINE_TYPES = 3
+
+
+def task_line(status) -> str:
+    """The terminal's one line for a finished task of a sequence (anything with the fields of
+    ``ros_hrc/TaskStatus``), e.g. ``task 3/5 (expert_tired_noncollaborative): success (robot)
+    in 12 steps, 21.4 s, utility 0.77; policy policy3; belief: expert_tired_noncollaborative
+    0.71, ...``."""
+    who = f" ({status.who_succeeded})" if status.who_succeeded else ""
+    steps = f"{status.steps} step" + ("" if status.steps == 1 else "s")
+    line = (f"task {status.task_index}/{status.tasks} ({status.true_type}): {status.outcome}"
+            f"{who} in {steps}, {status.duration:.1f} s, utility {status.utility:.2f}")
+    if status.warnings or status.preemptions:
+        line += f", {status.warnings} warning(s), {status.preemptions} pre-emption(s)"
+    if status.policy:
+        line += f"; policy {status.policy}"
+    ranked = sorted(zip(status.type_names, status.type_belief), key=lambda item: -item[1])
+    if ranked:
+        shown = ", ".join(f"{name} {p:.2f}" for name, p in ranked[:TASK_LINE_TYPES])
+        more = " ..." if len(ranked) > TASK_LINE_TYPES else ""
+        line += f"; belief: {shown}{more}"
+    return line

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, fields, make_dataclass
 from typing import Any, Dict, List, Mapping, Optional, Tuple, Type
 
 from ros_hrc.link import protocol
+from ros_hrc.tasks.utility import TaskOutcome
 
 
 # -- what comes back from the interfaces --------------------------------------------------------
@@ -91,6 +92,13 @@ Decision = _answer_of(protocol.Decision, "Decision", """The robot planner's answ
     observation (the answer to :class:`Decide`): the fields of the protocol's ``decision``
     (:class:`ros_hrc.link.protocol.Decision`, the one declaration of a decision) but its
     step. ``Decision.of(message)`` takes a received one.""")
+
+
+TaskAnswer = _answer_of(protocol.TaskReport, "TaskAnswer", """The robot process's answer to a
+    task's end (the answer to :class:`EndTask`): the fields of the protocol's ``task_report``
+    (:class:`ros_hrc.link.protocol.TaskReport`): its selector, the policy it chose, that
+    policy's robot model, its type belief, the task's signature and the policy's own
+    discounted reward. ``TaskAnswer.of(message)`` takes a received one.""")
 
 
 @dataclass(frozen=True)
@@ -177,17 +185,38 @@ class ResetWorld(Call):
 
 @dataclass(frozen=True)
 class ResetPlanner(Call):
-    """Put the robot's belief back to its initial belief, in epoch ``epoch``."""
+    """Put the robot's belief back to its initial belief, in epoch ``epoch``. In a sequence:
+    ``task_index`` (from 1; 0: no sequence) starts that task, whose human the schedule
+    labels ``true_type``."""
     episode: int = 0
+    task_index: int = 0
+    true_type: str = ""
+
+
+@dataclass(frozen=True)
+class EndTask(Call):
+    """Tell the robot process that task ``task_index`` of the sequence ended, how
+    (``outcome``), after ``steps`` steps, with its ``utility`` (answer: :class:`TaskAnswer`)."""
+    task_index: int
+    outcome: TaskOutcome
+    steps: int
+    utility: float
 
 
 @dataclass(frozen=True)
 class MdpReset:
-    """Tell the seated MDP: a new episode starts, epoch ``epoch``, from step 0."""
+    """Tell the seated MDP: a new episode starts, epoch ``epoch``, from step 0. In a sequence
+    it is task ``task_index`` (0: no sequence), played by ``human_model`` (drifting to
+    ``drift_to`` with weight ``drift``), labelled ``true_type``."""
     peer: Any
     epoch: int
     episode: int
     reason: str
+    task_index: int = 0
+    true_type: str = ""
+    human_model: str = ""
+    drift_to: str = ""
+    drift: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -302,6 +331,44 @@ DECISION_IN_REPORT: Mapping[str, str] = {
 #: The parts of a step whose wall time a report carries: the whole step (from the MDP's
 #: request to the report), then each call in order.
 STEP_TIMINGS = ("step", "human", "observe", "decide", "robot", "outcome")
+
+
+@dataclass
+class TaskStatusReport:
+    """One task of a sequence, as ``/hrc/task_status`` (``ros_hrc/TaskStatus``) carries it:
+    the coordinator's part (which task, who played it, how it ended) and the robot process's
+    (the selector, the policy, its belief, the signature), empty when the robot process sent
+    none (an older one). Field names are the message's."""
+    task_index: int
+    tasks: int
+    episode: int
+    epoch: int
+    human_model: str
+    true_type: str
+    outcome: str
+    who_succeeded: str
+    warnings: int
+    preemptions: int
+    steps: int
+    duration: float
+    utility: float
+    end_reason: str
+    selector: str = ""
+    policy: str = ""
+    robot_model: str = ""
+    type_names: Tuple[str, ...] = ()
+    type_belief: Tuple[float, ...] = ()
+    estimation_correct: bool = False
+    total_disc_reward: float = 0.0
+    signature: Tuple[int, ...] = ()
+    #: Why the robot's part is empty ("" when it answered).
+    robot_problem: str = ""
+
+
+@dataclass(frozen=True)
+class PublishTask:
+    """Publish and print one finished task of a sequence."""
+    report: TaskStatusReport
 
 
 @dataclass(frozen=True)

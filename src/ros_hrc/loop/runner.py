@@ -29,11 +29,11 @@ from typing import Any, Callable, Optional, Tuple
 
 from ros_hrc.errors import HrcError, StackEnding
 from ros_hrc.loop.coordinator import Coordinator
-from ros_hrc.loop.effects import (ActHuman, ActRobot, Call, Decide, Decision, Fault, MdpRefused,
-                                  MdpReset, MdpStepDone, Note, ObserveWorld, Outcome, PublishStep,
-                                  ReactionRequest, ResetDone, ResetPlanner, ResetWorld,
-                                  SeatRefused, Snapshot, STEP_TIMINGS, StepReport, StepRequest,
-                                  Timer)
+from ros_hrc.loop.effects import (ActHuman, ActRobot, Call, Decide, Decision, EndTask, Fault,
+                                  MdpRefused, MdpReset, MdpStepDone, Note, ObserveWorld, Outcome,
+                                  PublishStep, PublishTask, ReactionRequest, ResetDone,
+                                  ResetPlanner, ResetWorld, SeatRefused, Snapshot, STEP_TIMINGS,
+                                  StepReport, StepRequest, TaskAnswer, TaskStatusReport, Timer)
 
 _log = logging.getLogger("ros_hrc.loop")
 
@@ -61,8 +61,15 @@ class PlannerPort:
         """``elapsed``: simulated seconds since the episode's start (None: unknown)."""
         raise NotImplementedError
 
-    def reset(self, epoch: int, episode: int) -> Outcome:
+    def reset(self, epoch: int, episode: int, task_index: Optional[int] = None,
+              true_type: Optional[str] = None) -> Outcome:
+        """Into ``epoch`` for ``episode``; in a sequence, it starts task ``task_index``
+        (its human labelled ``true_type``)."""
         raise NotImplementedError
+
+    def end_task(self, epoch: int, call: EndTask) -> TaskAnswer:
+        """A task of the sequence ended (``call``: how): the robot process's report."""
+        raise NotImplementedError("this planner knows no sequence of tasks")
 
 
 class ExecutorPort:
@@ -93,6 +100,9 @@ class ReportPort:
 
     def step(self, report: StepReport) -> None:
         pass
+
+    def task_ended(self, report: TaskStatusReport) -> None:
+        """A task of a sequence ended: publish and print it."""
 
     def note(self, level: str, text: str) -> None:
         """A line of the loop's, at ``level``: error, warn, info, or debug (for the logs)."""
@@ -213,6 +223,8 @@ class LoopRunner:
             effect.report.timings_ms = {
                 "step": (time.perf_counter() - self._step_started) * 1000.0, **self._timings}
             self._safely(self.reports.step, effect.report)
+        elif isinstance(effect, PublishTask):
+            self._safely(self.reports.task_ended, effect.report)
         elif isinstance(effect, Note):
             self._safely(self.reports.note, effect.level, effect.text)
         elif isinstance(effect, MdpReset):
@@ -277,7 +289,12 @@ class LoopRunner:
             return self.planner.decide(call.epoch, call.step, call.observation, call.bits,
                                        call.state, elapsed=call.elapsed)
         if isinstance(call, ResetPlanner):
+            if call.task_index:
+                return self.planner.reset(call.epoch, call.episode, task_index=call.task_index,
+                                          true_type=call.true_type)
             return self.planner.reset(call.epoch, call.episode)
+        if isinstance(call, EndTask):
+            return self.planner.end_task(call.epoch, call)
         if isinstance(call, ActRobot):
             return self.executor.act(call.epoch, call.step, call.action)
         raise TypeError(f"unknown call {type(call).__name__}")

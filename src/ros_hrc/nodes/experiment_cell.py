@@ -7,7 +7,11 @@ process per cell (rospy allows one node per process, and each cell has a master 
 (:func:`ros_hrc.experiment.stack.start_stack`), in which the coordinator ends each episode
 and starts the next (``on_episode_end:=reset``), and :func:`drive_cell` collects each
 episode's ``/hrc/status`` messages, scores it and hands the row over. The process writes one line per
-episode on its standard output, ``EPISODE {json}``, as soon as the episode ends. While it
+episode on its standard output, ``EPISODE {json}``, as soon as the episode ends. A sequence
+cell (``spec.sequence``: ``hrc.launch tasks:=L``) is driven by :func:`drive_sequences`
+instead: it collects each task's ``/hrc/task_status`` and writes one line per whole
+sequence, ``SEQUENCE {json}`` (its row and its tasks' rows); each sequence runs on a stack of
+its own (:func:`run_each_sequence`: the loop plays one sequence per launch). While it
 waits (for the master, for a step) it watches the stack
 (:class:`ros_hrc.experiment.stack.StackWatch`): a roslaunch that exits, or a link that cannot
 bind its port, fails the cell at once with the reason and the last lines of its log.
@@ -20,6 +24,7 @@ This module imports ``ros_hrc.experiment`` (pointing down); nothing there import
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -35,14 +40,17 @@ import rospy
 
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import score_episode, step_rows
-from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch, cell_name,
-                                      encode_episode, pick_ports, read_spec, stack_environment,
-                                      stack_log, start_stack, stop_launched, stop_stack)
+from ros_hrc.experiment.stack import (CellFailed, CellSpec, EpisodeRanges, StackWatch,
+                                      cell_name, encode_episode, encode_sequence, pick_ports,
+                                      read_spec, stack_environment, stack_log, start_stack,
+                                      stop_launched, stop_stack, worker_command)
 from ros_hrc.experiment.rows import EpisodeRow
+from ros_hrc.experiment.sequence_rows import SequenceRow, sequence_row, task_episode, task_row
 from ros_hrc.models import load_robot_model, positional_mapping_line
-from ros_hrc.msg import Status
+from ros_hrc.msg import Status, TaskStatus
 from ros_hrc.nodes.common import init_node_when_master_is_up
 from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.output import write_text_atomically
 
 #: Seconds a stopped stack gets to shut down (roslaunch stops its nodes) before SIGKILL.
 STOP_GRACE = 60.0
@@ -227,16 +235,96 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
         rospy.signal_shutdown("cell done")
 
 
+class TaskInbox:
+    """The tasks of a sequence cell from ``/hrc/task_status``, as the stack ends them, and
+    the stack's liveness from ``/hrc/status`` (any step)."""
+
+    def __init__(self) -> None:
+        self.cond = threading.Condition()
+        self.tasks: list = []           # (TaskStatus, monotonic arrival), oldest first
+        self.last_seen = time.monotonic()
+        self.first_step: Optional[float] = None    # when the stack's first step arrived
+
+    def on_status(self, msg) -> None:
+        with self.cond:
+            self.last_seen = time.monotonic()
+            if self.first_step is None:
+                self.first_step = self.last_seen - msg.step_ms / 1000.0
+            self.cond.notify_all()
+
+    def on_task(self, msg) -> None:
+        with self.cond:
+            self.last_seen = time.monotonic()
+            self.tasks.append((msg, self.last_seen))
+            self.cond.notify_all()
+
+    def next_task(self, timeout: float, check: Callable[[], None] = lambda: None) -> tuple:
+        """The oldest task status not taken yet and when it arrived; CellFailed after
+        ``timeout`` wall seconds without any step or task (``check()`` every second)."""
+        with self.cond:
+            while not self.tasks:
+                check()
+                if time.monotonic() - self.last_seen > timeout:
+                    raise CellFailed(f"no step for {timeout:.0f} s")
+                self.cond.wait(1.0)
+            return self.tasks.pop(0)
+
+
+def drive_sequences(spec: CellSpec, proc: subprocess.Popen,
+                    deliver: Callable[[SequenceRow, list], None], name: str,
+                    log_dir: Path) -> int:
+    """Record ``spec``'s one sequence (``spec.episodes``: its number; a stack plays one, see
+    :func:`run_each_sequence`) from the stack ``proc`` (``hrc.launch tasks:=L``, already
+    started): collect each task's ``/hrc/task_status`` and ``deliver`` the sequence whole
+    (its :class:`SequenceRow` and task rows). Task ``t`` of sequence ``s`` is the loop's
+    episode ``s*L + t - 1`` (:func:`~ros_hrc.experiment.sequence_rows.task_episode`).
+    Returns 1, the sequences delivered."""
+    if len(spec.episodes) != 1:
+        raise ValueError(f"{name}: a stack plays one sequence, not {len(spec.episodes)}")
+    watch = StackWatch(proc, stack_log(spec, log_dir), name)
+    wait_for_master(watch)
+    init_node_when_master_is_up("hrc_experiment_cell", wait=30.0)
+    inbox = TaskInbox()
+    rospy.Subscriber("/hrc/task_status", TaskStatus, inbox.on_task, queue_size=1000)
+    # The stack waits for a listener of /hrc/status before its first step: subscribed last.
+    rospy.Subscriber("/hrc/status", Status, inbox.on_status, queue_size=1000)
+    length, (sequence,) = spec.sequence, list(spec.episodes)
+    try:
+        tasks = []
+        for index in range(1, length + 1):
+            due = task_episode(sequence, index, length)
+            while True:
+                status, arrived = inbox.next_task(spec.episode_timeout, watch.check)
+                if int(status.episode) == due:
+                    break
+                if int(status.episode) > due:
+                    raise CellFailed(f"{name}: the stack played task episode "
+                                     f"{status.episode} where {due} was due")
+            if int(status.task_index) != index:
+                raise CellFailed(f"{name}: episode {due} was task {status.task_index} of "
+                                 f"its sequence, not task {index}")
+            tasks.append(task_row(status, spec.human_model, spec.robot_policy, spec.seed,
+                                  sequence))
+        # Its wall time: from its first step (not the stack's start-up) to its last task.
+        deliver(sequence_row(tasks, max(0.0, arrived - (inbox.first_step or arrived))), tasks)
+        return 1
+    finally:
+        SIGNALS.disarm()
+        rospy.signal_shutdown("cell done")
+
+
 def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int:
     """Run the cell's episodes on a stack of its own; ``deliver(episode_row, step_rows)`` for
     each one as it ends. Returns how many episodes were delivered; raises CellFailed if the
     stack fails, ModelError if the robot model does not fit the task."""
     if not spec.episodes:
         return 0
-    model = load_robot_model(spec.robot_model, spec.task)
-    mapping = positional_mapping_line(model)
-    if mapping:   # stdout carries the episodes; stderr goes to the cell's worker log
-        print(f"{cell_name(spec)}: {mapping}", file=sys.stderr, flush=True)
+    model = None
+    if not spec.sequence:      # a sequence's robot models are its library's (the stack's)
+        model = load_robot_model(spec.robot_model, spec.task)
+        mapping = positional_mapping_line(model)
+        if mapping:   # stdout carries the episodes; stderr goes to the cell's worker log
+            print(f"{cell_name(spec)}: {mapping}", file=sys.stderr, flush=True)
     ports = pick_ports()
     log_dir = Path(spec.log_dir)
     # This process's own node talks to the cell's master too.
@@ -245,6 +333,8 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
     try:
         with SIGNALS.deferred():   # started means stopped in the finally, even on a signal
             proc = start_stack(spec, ports, log_dir)
+        if spec.sequence:
+            return drive_sequences(spec, proc, deliver, cell_name(spec), log_dir)
         return drive_cell(spec, model, proc, deliver, cell_name(spec), log_dir)
     finally:
         SIGNALS.disarm()
@@ -254,6 +344,34 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
                 print(f"{cell_name(spec)}: hrc.launch left {len(left)} processes running "
                       f"(its nodes run in sessions of their own); stopped them",
                       file=sys.stderr, flush=True)
+
+
+def run_each_sequence(spec: CellSpec) -> int:
+    """A sequence cell of several sequences: each on a stack of its own, in a worker process
+    of its own (this module again, on a spec of that one sequence), one after the other.
+    The loop plays one sequence per launch (after its last task it waits, and no reset
+    starts another: docs/sequences.md), and rospy talks to one master per process. The
+    children write their ``SEQUENCE`` lines on this process's standard output as they end.
+    A child that fails ends the cell (its attempt) with the child's status; SIGINT or
+    SIGTERM is passed on to the child, which stops its stack. The exit status."""
+    for sequence in EpisodeRanges.of(spec.episodes):
+        one = dataclasses.replace(spec, episodes=EpisodeRanges.of([sequence]))
+        spec_file = Path(spec.log_dir) / f"{cell_name(spec)}.sequence{sequence}.spec.json"
+        write_text_atomically(spec_file, one.to_json() + "\n")
+        child = None
+        try:
+            with SIGNALS.deferred():     # started means waited for, even on a signal
+                child = subprocess.Popen(worker_command(spec_file), stdin=subprocess.DEVNULL)
+            code = child.wait()
+        except CellStopped as stop:
+            SIGNALS.disarm()
+            if child is not None:
+                child.send_signal(stop.signum)
+                child.wait()
+            return 128 + stop.signum
+        if code != 0:
+            return code
+    return 0
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -268,11 +386,15 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 2
     label = f"cell {spec.human_model}/{spec.robot_policy}/seed {spec.seed}"
 
-    def deliver(row, steps) -> None:
+    def deliver(row, parts) -> None:
+        line = encode_sequence(row, parts) if isinstance(row, SequenceRow) else \
+            encode_episode(row, parts)
         with SIGNALS.deferred():
-            print(encode_episode(row, steps), flush=True)
+            print(line, flush=True)
 
     SIGNALS.install()
+    if spec.sequence and len(spec.episodes) > 1:
+        return run_each_sequence(spec)
     try:
         run_cell(spec, deliver)
     except CellStopped:

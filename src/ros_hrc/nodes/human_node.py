@@ -41,7 +41,15 @@ sent as ``/hrc/set_human_state`` sends it: without a display the MDP has no term
 own and its prompt shows here, so what is typed at it must not be taken for Enter. When the
 input ends (Ctrl-D) the node says so: Enter no longer resets, ``/hrc/reset`` still does.
 
-Topics: /hrc/status (ros_hrc/Status), one message per step.
+**A sequence of tasks** (``tasks:=N``; docs/sequences.md): the coordinator plays N tasks, each
+by the human the schedule names (``schedule``), and resets into the next by itself. When a
+task ends this node publishes it on ``/hrc/task_status`` (ros_hrc/TaskStatus: how it ended,
+and the robot's selector, policy and type belief from the POMDP process's report) and prints
+one line (``task 3/5 (...): success (robot) in 12 steps, 21.4 s, utility 0.77; policy
+policy3; belief: ...``).
+
+Topics: /hrc/status (ros_hrc/Status), one message per step; /hrc/task_status
+(ros_hrc/TaskStatus), one message per task of a sequence.
 Services offered: /hrc/reset (std_srvs/Trigger: reset everything and wait until it is done),
 /hrc/set_human_state (ros_hrc/SetHumanState: the human's next state, for manual mode without
 a terminal).
@@ -58,7 +66,9 @@ start-up still waits for), ~decide_timeout (s to wait for the POMDP process's de
 reset, which takes no planning), ~reset_timeout (s /hrc/reset waits for the reset),
 ~reply_timeout (s to wait for the MDP's answer to a next state),
 ~reset_join_window, ~wait_note_every, ~world_call_timeout (see CoordinatorConfig; the values
-of all of them are in docs/loop.md, "Timeouts"),
+of all of them are in docs/loop.md, "Timeouts"), ~tasks (a sequence's length; empty: none),
+and from the launch's resolved configuration /hrc/config: schedule, task_timeout and
+human_model (who plays a sequence's tasks without a schedule),
 ~link_session (hrc.launch's session: the link token's file) or ~token_file (by hand).
 """
 from __future__ import annotations
@@ -83,14 +93,16 @@ from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import settings, tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
                                       WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig)
-from ros_hrc.loop.display import action_values_text
+from ros_hrc.loop.display import action_values_text, task_line
 from ros_hrc.loop.effects import (DECISION_IN_REPORT, ReactionRequest, STEP_TIMINGS, StepReport,
-                                  StepRequest)
+                                  StepRequest, TaskStatusReport)
 from ros_hrc.loop.runner import LoopRunner, ReportPort
 from ros_hrc.streams import EpisodeSchedule
-from ros_hrc.msg import Status
-from ros_hrc.nodes.common import (ServiceWait, TriggerCaller, init_node, read_config,
+from ros_hrc.model_files import model_names
+from ros_hrc.msg import Status, TaskStatus
+from ros_hrc.nodes.common import (ServiceWait, TriggerCaller, init_node, parameter, read_config,
                                   registered_services, route_python_logging)
+from ros_hrc.tasks.schedule import parse_schedule
 from ros_hrc.nodes.loop_ports import LinkMdp, LinkPlanner, RosExecutor, RosWorld
 from ros_hrc.srv import SetHumanState, SetHumanStateResponse
 
@@ -125,6 +137,13 @@ class HumanNodeConfig:
     world_call_timeout: float = WORLD_CALL_TIMEOUT
     link_session: str = ""      # hrc.launch's session: where the link token is
     token_file: str = ""        # or the token's file, for a node started by hand
+    # a sequence of tasks (empty: none); its schedule, timeout and default human are the
+    # launch's resolved settings (a schedule file's path made absolute where it was typed)
+    tasks: Optional[int] = settings.default("tasks")
+    schedule: str = parameter(settings.default("schedule"), "/hrc/config/schedule")
+    task_timeout: Optional[float] = parameter(settings.default("task_timeout"),
+                                              "/hrc/config/task_timeout")
+    sequence_human: str = parameter("", "/hrc/config/human_model")
 
 
 def world_services(task: tasks.Task) -> Tuple[str, ...]:
@@ -200,6 +219,16 @@ def object_text(status: Status) -> str:
     return "missed: it left the belt" if status.object_left_belt else "on the belt"
 
 
+def task_status_message(report: TaskStatusReport) -> TaskStatus:
+    """The coordinator's report of a finished task as ``ros_hrc/TaskStatus``."""
+    status = TaskStatus()
+    status.header.stamp = rospy.Time.now()
+    for name in TaskStatus.__slots__[1:]:
+        value = getattr(report, name)
+        setattr(status, name, list(value) if isinstance(value, tuple) else value)
+    return status
+
+
 def status_message(report: StepReport, mode: str) -> Status:
     """The coordinator's step report as ``ros_hrc/Status``."""
     status = Status()
@@ -225,11 +254,20 @@ class Terminal(ReportPort):
     """Steps to the terminal and /hrc/status; the coordinator's lines to rosout."""
 
     def __init__(self, publisher: rospy.Publisher, mode: str, print_steps: bool,
-                 task: Optional[tasks.Task] = None) -> None:
+                 task: Optional[tasks.Task] = None,
+                 task_publisher: Optional[rospy.Publisher] = None) -> None:
         self.publisher = publisher
         self.mode = mode
         self.print_steps = print_steps
         self.task = task
+        self.task_publisher = task_publisher
+
+    def task_ended(self, report: TaskStatusReport) -> None:
+        """A task of the sequence ended: /hrc/task_status and one line."""
+        status = task_status_message(report)
+        if self.task_publisher is not None:
+            self.task_publisher.publish(status)
+        rospy.loginfo("hrc_human: %s", task_line(status))
 
     def step(self, report: StepReport) -> None:
         status = status_message(report, self.mode)
@@ -293,6 +331,12 @@ class HumanNode:
         # No call reaches the world or the planner before their services are up: the first
         # reset (and so the MDP's step 0) waits, however long the world takes to start.
         self.status_pub = rospy.Publisher("/hrc/status", Status, queue_size=100)
+        # latched: the last task's status is there for whoever subscribes after it ended
+        self.task_pub = rospy.Publisher("/hrc/task_status", TaskStatus, queue_size=100,
+                                        latch=True)
+        human = config.sequence_human or self.task.default_model("human")
+        schedule = parse_schedule(config.schedule, model_names(self.task.model_dirs["human"]),
+                                  human, self.task.name) if config.tasks else None
         token = launch_token(config)
         self.pomdp = MessageClient(link_url(config.pomdp_port, config.host), "hrc_human",
                                    send_timeout=config.decide_timeout, token=token)
@@ -311,13 +355,16 @@ class HumanNode:
             wait_note_every=config.wait_note_every,
             world_call_timeout=config.world_call_timeout,
             episodes=EpisodeSchedule.parse(config.episodes), task=self.task,
-            seed=config.seed))
+            seed=config.seed, human_model=human if config.tasks else "",
+            tasks=config.tasks or 0, schedule=schedule,
+            task_timeout=config.task_timeout))
         planner = LinkPlanner(self.pomdp, config.decide_timeout, config.planner_reset_timeout,
                               self.startup.wait)
         executor = RosExecutor(self.call, self.task.robot_action_services, self.startup.wait)
         self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait), planner,
                                  executor, LinkMdp(), Terminal(self.status_pub, config.mode,
-                                                               config.print_steps, self.task))
+                                                               config.print_steps, self.task,
+                                                               self.task_pub))
         table = DispatchTable("hrc_human")
         table.on(Step, self._on_step)
         table.on(Reaction, self._on_reaction)
@@ -467,7 +514,7 @@ def main() -> None:
     try:
         node = HumanNode(read_config(HumanNodeConfig))
         node.start()
-    except (HrcError, ValueError) as exc:
+    except (HrcError, ValueError) as exc:   # (a ScheduleError is a ValueError)
         rospy.logfatal("hrc_human cannot start: %s", exc)
         raise SystemExit(2) from None
     rospy.on_shutdown(node.stop)

@@ -19,11 +19,12 @@ from typing import Callable, Iterator, Mapping, Optional
 import rospy
 
 from ros_hrc.errors import WORLD_ENDING, LinkError, StackEnding
-from ros_hrc.link.protocol import ERR_SEAT_TAKEN, Ack, Error, Observation, Reset, Step
+from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, Ack, Error, Observation, Reset, Step,
+                                   TaskEnd, TaskReport)
 from ros_hrc.link.protocol import Decision as DecisionMessage
 from ros_hrc.link.transport import CLOSE_GOING_AWAY, LinkClosed, MessageClient
-from ros_hrc.loop.effects import (Decision, MdpRefused, MdpReset, MdpStepDone, Outcome,
-                                  SeatRefused, Snapshot)
+from ros_hrc.loop.effects import (Decision, EndTask, MdpRefused, MdpReset, MdpStepDone,
+                                  Outcome, SeatRefused, Snapshot, TaskAnswer)
 from ros_hrc.loop.runner import ExecutorPort, MdpPort, PlannerPort, WorldPort
 from ros_hrc.nodes.common import ServiceUnavailable, TriggerCaller
 from ros_hrc.srv import GetWorldState
@@ -157,13 +158,16 @@ class LinkPlanner(PlannerPort):
             raise LinkError(f"the POMDP process answered a {reply.type}, not a decision")
         return Decision.of(reply)
 
-    def reset(self, epoch: int, episode: int) -> Outcome:
+    def reset(self, epoch: int, episode: int, task_index: Optional[int] = None,
+              true_type: Optional[str] = None) -> Outcome:
         self.ready()
         down = self._not_connected(self.reset_timeout)
         if down:
             return Outcome(False, down)
         try:
-            reply = self.client.request(Reset(reason="reset", episode=episode, epoch=epoch),
+            reply = self.client.request(Reset(reason="reset", episode=episode, epoch=epoch,
+                                              task_index=task_index or None,
+                                              true_type=true_type or None),
                                         self.reset_timeout)
         except LinkClosed as exc:
             raise StackEnding(f"this node ends: {exc}") from exc
@@ -176,6 +180,31 @@ class LinkPlanner(PlannerPort):
         if isinstance(reply, Error):
             return Outcome(False, f"POMDP process: {reply.message}")
         return Outcome(False, f"POMDP process: answered a {reply.type}, not an ack")
+
+
+    def end_task(self, epoch: int, call: EndTask) -> TaskAnswer:
+        """``task_end`` out, the robot process's ``task_report`` in (an older process
+        answers ``unknown_type``: a LinkError, and the task is published without its part)."""
+        self.ready()
+        down = self._not_connected(self.reset_timeout)
+        if down:
+            raise LinkError(f"no task report: {down}")
+        outcome = call.outcome
+        try:
+            reply = self.client.request(TaskEnd(
+                task_index=call.task_index, outcome=outcome.outcome,
+                who_succeeded=outcome.who_succeeded or None, warnings=outcome.warnings,
+                preemptions=outcome.preemptions, steps=call.steps, duration=outcome.duration,
+                utility=call.utility, epoch=epoch), self.decide_timeout)
+        except LinkClosed as exc:
+            raise StackEnding(f"this node ends: {exc}") from exc
+        except LinkError as exc:
+            raise LinkError(f"no task report from the POMDP process: {exc}") from exc
+        if isinstance(reply, Error):
+            raise LinkError(f"the POMDP process refused task_end: {reply.message}")
+        if not isinstance(reply, TaskReport):
+            raise LinkError(f"the POMDP process answered a {reply.type}, not a task_report")
+        return TaskAnswer.of(reply)
 
 
 class RosExecutor(ExecutorPort):
@@ -206,7 +235,11 @@ class LinkMdp(MdpPort):
 
     def reset(self, effect: MdpReset) -> None:
         effect.peer.send(Reset(reason=effect.reason, episode=effect.episode,
-                               epoch=effect.epoch))
+                               epoch=effect.epoch, task_index=effect.task_index or None,
+                               true_type=effect.true_type or None,
+                               human_model=effect.human_model or None,
+                               drift_to=effect.drift_to or None,
+                               drift=effect.drift if effect.drift_to else None))
 
     def step_done(self, effect: MdpStepDone) -> None:
         effect.peer.send(Ack(step=effect.step, of=Step.TYPE, action=effect.robot_action,

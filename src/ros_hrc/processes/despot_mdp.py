@@ -33,6 +33,13 @@ random stream as the one of (``--seed``, the reset's episode, "human")
 (:mod:`ros_hrc.streams`): episode e of seed s is the same human whatever ran before it,
 and no two episodes share a stream.
 
+**A sequence of tasks** (``tasks:=N``; docs/sequences.md): each task's ``reset`` names the
+human model that plays it (``human_model``), and a model it drifts to with its weight
+(``drift_to``, ``drift``). The process loads each model once, checked against the task, and
+the agent plays the task with the two models' rows mixed
+(:meth:`~ros_hrc.agents.human.HumanAgent.play`). A reset that names none keeps the model
+it plays.
+
 The human node takes only processes of its own launch: this one proves the launch's link token
 in its hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
 ``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`). Under hrc.launch its options are the
@@ -49,7 +56,7 @@ import queue
 import sys
 import threading
 import time
-from typing import Optional, TextIO, Tuple
+from typing import Dict, Optional, TextIO, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.command_line import parse_launch_options, print_whole_lines, ranged_number
@@ -60,6 +67,7 @@ from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc import settings
 from ros_hrc.models import load_human_model, positional_mapping_line
+from ros_hrc.pomdp.model import Model
 from ros_hrc.streams import stream_seed
 from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
 
@@ -107,6 +115,9 @@ class MdpProcess:
         #: reset): a state given meanwhile would be dropped by the reset, so it is refused.
         self._no_states = ""
         self._states_lock = threading.Lock()   # _no_states vs. the states queued
+        #: The human models a sequence's resets named, loaded once each (by name or path).
+        self.models: Dict[str, Model] = {}
+        self.task_index: Optional[int] = None   # the sequence's task under way (None: none)
 
     # -- input: the link and the terminal ------------------------------------------------------
     def start_threads(self, read_stdin: bool, stdin: Optional[TextIO] = None) -> None:
@@ -263,9 +274,32 @@ class MdpProcess:
         # The coordinator names the episode (0 is one); a reset without a number (a client
         # of the protocol's own) starts the next.
         self.episode = reset.episode if reset.episode is not None else self.episode + 1
+        self.task_index = reset.task_index
+        played = self._play(reset) if reset.human_model is not None else ""
         self.agent.reset(seed=stream_seed(self.args.seed, self.episode, "human"))
-        self.print(f"\n##### RESET ({reset.reason or 'reset'}): episode {self.episode} "
-                   f"#####\nInitial state:\n[{self.state_var}:{self.agent.state_name}]")
+        self.print(f"\n##### RESET ({reset.reason or 'reset'}): episode {self.episode}"
+                   f"{played} #####\nInitial state:\n[{self.state_var}:{self.agent.state_name}]")
+
+    def _model(self, name: str) -> Model:
+        """The human model ``name`` (a scenario name or a file), loaded once, checked against
+        the task."""
+        if name not in self.models:
+            self.models[name] = load_human_model(name, self.args.task)
+        return self.models[name]
+
+    def _play(self, reset: Reset) -> str:
+        """Play the human the reset names (a sequence's task): what the RESET line adds."""
+        try:
+            model = self._model(reset.human_model)
+            drift_to = self._model(reset.drift_to) if reset.drift_to else None
+            self.agent.play(model, drift_to, reset.drift or 0.0)
+        except (HrcError, OSError, ValueError) as exc:
+            print(f"{NAME}: cannot play the human model the reset names: {exc}; the task is "
+                  f"played by {self.agent.model.source or self.agent.model.name}",
+                  file=sys.stderr, flush=True)
+            return ""
+        drift = f" drifting to {reset.drift_to} ({reset.drift or 0.0:.2f})" if drift_to else ""
+        return f", task {reset.task_index}: human {reset.human_model}{drift}"
 
     def run(self) -> int:
         """Step until stopped; 3 when the human node refuses this MDP (another is served)."""
@@ -399,7 +433,9 @@ class MdpProcess:
             self.print(f"\n===== Episode {self.episode} over ({reply.end_reason}) after "
                        f"{steps}: discounted / undiscounted = "
                        f"{agent.discounted:g} / {agent.undiscounted:g} =====")
-        if reply.episode_over:
+        if reply.episode_over and self.task_index is not None:
+            self.print("The next task of the sequence starts with the next reset, by itself.")
+        elif reply.episode_over:
             self.print("The next episode starts with the next reset (with on_episode_end:=wait: "
                        "press Enter in the ROS terminal or call /hrc/reset).")
             self._refuse_states(f"episode {self.episode} is over ({reply.end_reason or 'ended'})"

@@ -22,6 +22,17 @@ run it so (``ros_hrc.experiment.stack``), live launches keep the 0.1 s budget.
 An observation of zero probability under the belief cannot be explained by the model: the
 belief keeps the prediction through T without it, the step goes on, and the terminal says so.
 
+**A sequence of tasks** (``tasks:=N``; docs/sequences.md): each task starts with a reset that
+names it (``task_index``). With ``selector:=fixed`` (the default) the one planner runs every
+task, as above. With any other selector the process loads the policy library at start
+(:mod:`ros_hrc.processes.selection`; one line per policy), builds one planner per policy, and
+at each reset that starts a new task asks its selector for the policy and switches to that
+policy's planner (a task cut short and played again keeps its policy). During a task it keeps
+each observation's signature code (:func:`ros_hrc.agents.selectors.signature_code`) and the
+policy's own discounted reward over the true states the coordinator reports; the task's
+``task_end`` is answered with a ``task_report`` (the selector, the policy, its belief over
+the human types after learning from the task, the signature).
+
 It serves only processes of its own launch: a client must prove the launch's link token in its
 hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
 ``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`). Under hrc.launch its options are the
@@ -36,7 +47,9 @@ import math
 import sys
 import threading
 import time
-from typing import Optional
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List, Mapping, Optional
 
 import numpy as np
 
@@ -44,17 +57,23 @@ from ros_hrc import tasks
 from ros_hrc.command_line import parse_launch_options, print_whole_lines
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, DispatchTable,
-                                   Message, Observation, Reset, reply_error)
+                                   Message, Observation, Reset, TaskEnd, TaskReport,
+                                   reply_error)
 from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc import settings
 from ros_hrc.models import load_robot_model, positional_mapping_line
+from ros_hrc.models import shown_path as shown_model
 from ros_hrc.streams import stream_seed
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
 from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
+from ros_hrc.agents.selectors import Selector, TaskResult, signature_code
+from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
+from ros_hrc.tasks.definition import Task
+from ros_hrc.tasks.schedule import nearest_type
 
 NAME = "despot_pomdp"
 
@@ -111,6 +130,96 @@ class RobotAgent:
         return b / b.sum()
 
 
+@dataclass
+class TaskRecord:
+    """The task under way of a sequence: its number, the policy running it, each step's
+    signature code and the policy's own discounted reward so far."""
+    index: int
+    policy: str
+    signature: List[int] = field(default_factory=list)
+    reward: float = 0.0
+
+
+class SequenceRobot:
+    """The robot across the tasks of a sequence: one agent per policy (``agents``, by name:
+    the library's, or the launch's one robot under ``selector:=fixed``), the selection a
+    selector is made from (None: ``fixed``, the one agent every task), and what the task under
+    way recorded. ``robot_models``: each policy's robot model file ("" for none)."""
+
+    def __init__(self, task: Task, agents: Mapping[str, RobotAgent],
+                 robot_models: Mapping[str, str], selection: Optional[Selection] = None,
+                 seed: int = 0, forgetting: float = 0.0) -> None:
+        self.task = task
+        self.agents = dict(agents)
+        self.robot_models = dict(robot_models)
+        self.selection = selection
+        self.seed = seed
+        self.forgetting = forgetting
+        self.selector: Optional[Selector] = None
+        self.record: Optional[TaskRecord] = None
+        self.tasks_ended = 0
+        self._rewards = {name: agent.model.R_sa for name, agent in self.agents.items()}
+
+    @property
+    def name(self) -> str:
+        """The selector's name (``fixed`` for the launch's one robot)."""
+        return self.selector.name if self.selector is not None else (
+            self.selection.spec if self.selection is not None else "fixed")
+
+    def start_task(self, index: int, episode: int, true_type: str) -> str:
+        """A reset starts task ``index`` (of episode ``episode``; its human ``true_type``):
+        the policy that runs it (chosen now for a new task; kept for a task played again)."""
+        again = self.record is not None and self.record.index == index
+        if again:
+            policy = self.record.policy
+        elif self.selection is None:
+            policy = next(iter(self.agents))
+        else:
+            if self.selector is None or index == 1:
+                # A new sequence (its first task): a fresh selector on its own stream.
+                self.selector = new_selector(self.selection, self.seed, episode,
+                                             self.forgetting)
+                self.tasks_ended = 0
+            if true_type:
+                self.selector.tell_true_type(nearest_type(true_type))
+            policy = self.selector.choose()
+        self.record = TaskRecord(index, policy)
+        return policy
+
+    def note_step(self, bits: int, state: str, action: int) -> None:
+        """One step of the task under way: the robot saw ``bits`` while the true state was
+        ``state`` and chose ``action``."""
+        record = self.record
+        if record is None:
+            return
+        record.signature.append(signature_code(bits, self.task))
+        agent = self.agents[record.policy]
+        if state in agent.model.states:
+            step = len(record.signature) - 1
+            record.reward += agent.model.discount ** step * float(
+                self._rewards[record.policy][action, agent.model.states.index(state)])
+
+    def end_task(self, msg: TaskEnd) -> TaskReport:
+        """The task ``msg`` names ended: the selector learns from it; the report."""
+        record = self.record
+        if record is None or record.index != msg.task_index:
+            raise ValueError(f"task {msg.task_index} is not the task under way "
+                             f"({record.index if record else 'none'})")
+        names: tuple = ()
+        belief: tuple = ()
+        if self.selector is not None:
+            self.selector.observe(TaskResult(record.policy, tuple(record.signature),
+                                             msg.utility))
+            names = tuple(self.selector.type_names)
+            belief = tuple(float(p) for p in self.selector.belief())
+        self.tasks_ended += 1
+        return TaskReport(selector=self.name, policy=record.policy,
+                          robot_model=self.robot_models.get(record.policy) or None,
+                          type_names=list(names) or None, type_belief=list(belief) or None,
+                          signature=list(record.signature),
+                          total_disc_reward=record.reward)
+
+
 class PomdpProcess:
     """The 7070 server's handlers: an observation in, a decision out; a reset into an epoch.
 
@@ -118,12 +227,15 @@ class PomdpProcess:
     is refused, never applied: after a restart this process has no epoch at all, so the
     coordinator learns that the belief it relied on is gone and resets the loop."""
 
-    def __init__(self, agent: RobotAgent) -> None:
+    def __init__(self, agent: RobotAgent, sequence: Optional[SequenceRobot] = None) -> None:
         self.agent = agent
+        #: The robot across a sequence's tasks (None: this process plays no sequence).
+        self.sequence = sequence
         self.epoch: Optional[int] = None
         self.dispatch = DispatchTable(NAME)
         self.dispatch.on(Observation, self.on_observation)
         self.dispatch.on(Reset, self.on_reset)
+        self.dispatch.on(TaskEnd, self.on_task_end)
         self._said_no_time = False
 
     def on_reset(self, msg: Reset, peer: Peer) -> Message:
@@ -131,6 +243,12 @@ class PomdpProcess:
         # the protocol's own) starts the next.
         episode = msg.episode if msg.episode is not None else (
             0 if self.agent.episode is None else self.agent.episode + 1)
+        if msg.task_index is not None and self.sequence is not None:
+            policy = self.sequence.start_task(msg.task_index, episode, msg.true_type or "")
+            self.agent = self.sequence.agents[policy]
+            note = getattr(self.sequence.selector, "note", "")
+            print(f"\n##### TASK {msg.task_index}: selector {self.sequence.name} chose policy "
+                  f"{policy}{'; ' + note if note else ''} #####", flush=True)
         self.agent.reset(episode)
         self.epoch = msg.epoch
         print(f"\n##### RESET: belief back to the initial belief (episode {msg.episode}, "
@@ -147,6 +265,8 @@ class PomdpProcess:
             return reply_error(msg, f"unknown observation {msg.observation!r}; the model's are "
                                     f"{', '.join(model.observations)}", ERR_INVALID)
         action, decision_ms, note = self.agent.step(msg.observation, msg.elapsed)
+        if self.sequence is not None:
+            self.sequence.note_step(msg.bits, msg.state, action)
         belief = self.agent.belief
         at = f" at {msg.elapsed:.1f} s" if msg.elapsed is not None else ""
         print(f"\n-----Step {msg.step}-----\n- Observation = {msg.observation} "
@@ -172,6 +292,25 @@ class PomdpProcess:
                         action_names=[model.actions[a] for a, _ in values] or None,
                         action_values=[v for _, v in values] or None, epoch=msg.epoch,
                         reply_to=msg.id)
+
+    def on_task_end(self, msg: TaskEnd, peer: Peer) -> Message:
+        """A task of the sequence ended: the selector learns from it; the task's report."""
+        if self.sequence is None:
+            return reply_error(msg, f"{NAME} plays no sequence", ERR_INVALID)
+        try:
+            report = self.sequence.end_task(msg)
+        except ValueError as exc:
+            return reply_error(msg, str(exc), ERR_INVALID)
+        belief = ", ".join(f"{n} {p:.2f}" for n, p in sorted(
+            zip(report.type_names or (), report.type_belief or ()), key=lambda i: -i[1])[:3])
+        print(f"\n##### TASK {msg.task_index} over: {msg.outcome}, utility {msg.utility:.2f}; "
+              f"policy {report.policy}{'; belief ' + belief if belief else ''} #####",
+              flush=True)
+        return TaskReport(selector=report.selector, policy=report.policy,
+                          robot_model=report.robot_model, type_names=report.type_names,
+                          type_belief=report.type_belief, signature=report.signature,
+                          total_disc_reward=report.total_disc_reward, epoch=msg.epoch,
+                          reply_to=msg.id)
 
     def _belief_text(self) -> str:
         b = self.agent.belief
@@ -224,8 +363,64 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "lambda", "--lambda", dest="lambda_")
     settings.add_argument(p, "max_trials")
     settings.add_argument(p, "seed")
+    settings.add_argument(p, "selector")
+    settings.add_argument(p, "library")
+    settings.add_argument(p, "selector_model")
+    settings.add_argument(p, "bpr_forgetting")
     add_token_arguments(p)
     return p
+
+
+def fixed_policy_name(args: argparse.Namespace) -> str:
+    """What the reports call the launch's one robot (``selector:=fixed``): its model's name
+    for a planner that plans on it, else the planner's name (reactive, none, explore)."""
+    if args.planner in ("despot", "policy"):
+        return Path(str(args.robot_model)).stem
+    return args.planner
+
+
+def policy_arguments(args: argparse.Namespace, settings_of_policy: Mapping[str, object]
+                     ) -> argparse.Namespace:
+    """The command line's options with a library policy's settings (its planner, robot model
+    and options) in their place."""
+    values = dict(vars(args))
+    for name, value in settings_of_policy.items():
+        values["lambda_" if name == "lambda" else name] = value
+    return argparse.Namespace(**values)
+
+
+def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argparse.Namespace
+                         ) -> SequenceRobot:
+    """The robot of a sequence: under ``selector:=fixed`` the launch's one agent; otherwise
+    the library's policies, one agent (and planner) each, built now. Raises HrcError or
+    ValueError (one line)."""
+    first = task.robot_idle_action
+    if not uses_library(args.selector):
+        name = fixed_policy_name(args)
+        agent = RobotAgent(model, planner, first_action=first, seed=args.seed)
+        return SequenceRobot(task, {name: agent}, {name: model.source or ""})
+    selection = load_selection(args.selector, args.library, args.selector_model, task)
+    agents: Dict[str, RobotAgent] = {}
+    files: Dict[str, str] = {}
+    for policy in selection.library.policies:
+        pargs = policy_arguments(args, policy.settings())
+        # A planner without a model of its own (the reactive robot) keeps the launch's
+        # model for its belief, as planner:=reactive does.
+        pmodel = model if policy.robot_model is None else load_robot_model(
+            str(policy.robot_model), task)
+        agents[policy.name] = RobotAgent(pmodel, build_planner(pmodel, pargs),
+                                         first_action=first, seed=args.seed)
+        files[policy.name] = str(policy.robot_model or "")
+        options = ", ".join(f"{k} {v}" for k, v in policy.options.items())
+        print(f"{NAME}: policy {policy.name}: planner {policy.planner}"
+              f"{', ' + shown_model(policy.robot_model) if policy.robot_model else ''}"
+              f"{', ' + options if options else ''}", flush=True)
+    model_line = (f"selector model {shown_model(selection.model.path)}" if selection.model
+                  is not None and getattr(selection.model, "path", None) else "no selector model")
+    print(f"{NAME}: selector {args.selector} over {len(agents)} policies of "
+          f"{shown_model(selection.library.manifest)}; {model_line}", flush=True)
+    return SequenceRobot(task, agents, files, selection, seed=args.seed,
+                         forgetting=args.bpr_forgetting)
 
 
 def main(argv: Optional[list] = None) -> int:
@@ -235,6 +430,7 @@ def main(argv: Optional[list] = None) -> int:
         task = tasks.get(args.task)
         model = load_robot_model(args.robot_model, task)
         planner = build_planner(model, args)
+        sequence = build_sequence_robot(task, model, planner, args)
         token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
@@ -243,8 +439,7 @@ def main(argv: Optional[list] = None) -> int:
             print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
                   file=sys.stderr, flush=True)
         return 2
-    process = PomdpProcess(RobotAgent(model, planner, first_action=task.robot_idle_action,
-                                      seed=args.seed))
+    process = PomdpProcess(next(iter(sequence.agents.values())), sequence)
     server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,
                            read_timeout=args.link_read_timeout, token=token)
     try:

@@ -247,8 +247,21 @@ class Task:
     model_dirs: Mapping[str, Path] = field(default_factory=dict)
     #: A longer description of the rules (docs and ``hrc_check --task NAME``).
     notes: Tuple[str, ...] = ()
+    #: A task of a sequence (``tasks:=N``) still running after this many simulated seconds
+    #: since its start ends with outcome ``timeout`` (``task_timeout:=auto``). 80 s is
+    #: FABRIC's: their task manager's 1 Hz timer forces the task's reset at 80 s
+    #: (cangorur/human_robot_collaboration, TaskManager.cpp, L634-737).
+    task_timeout: float = 80.0
+    #: The human's action that warns the robot: a sequence's task counts them (its outcome's
+    #: ``warnings``).
+    human_warning_action: str = "warnRobot"
 
     def __post_init__(self) -> None:
+        if not self.task_timeout > 0:
+            raise ValueError(f"task {self.name}: task_timeout must be > 0")
+        if self.human_warning_action not in self.human_action_services:
+            raise ValueError(f"task {self.name}: warning {self.human_warning_action} is not a "
+                             "human action")
         for name in self.needs_help_states:
             if name not in self.robot_states:
                 raise ValueError(f"task {self.name}: needs-help state {name} is not a robot state")

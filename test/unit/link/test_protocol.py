@@ -10,7 +10,7 @@ from ros_hrc.errors import LinkError, ProtocolError
 from ros_hrc.link.protocol import (BELIEF_TOLERANCE, ERR_INVALID, MAX_MESSAGE_BYTES,
                                    MESSAGE_TYPES, Ack, Action, Decision, Error, Hello,
                                    MessageError, NextState, Observation, Reaction, Reset, Step,
-                                   decode, encode, error_message, error_reply, from_dict)
+                                   TaskEnd, TaskReport, decode, encode, error_message, error_reply, from_dict)
 
 # One message of each type, with every optional field set, and one with none of them.
 FULL_MESSAGES = [
@@ -31,6 +31,13 @@ FULL_MESSAGES = [
         episode_over=True, end_reason="human_has_object", epoch=2, reply_to=17),
     Error(message="bad thing", in_reply_to="step", step=3, code="stale", epoch=0,
           reply_to=0),
+    Reset(reason="task 2 over", episode=5, task_index=3, true_type="expert>tired@0.50",
+          human_model="expert", drift_to="tired", drift=0.5, epoch=4, id=22),
+    TaskEnd(task_index=3, outcome="success", who_succeeded="robot", warnings=1, preemptions=0,
+            steps=12, duration=21.4, utility=0.77, epoch=4, id=23),
+    TaskReport(selector="bpr", policy="policy3", robot_model="/m/policy3.pomdpx",
+               type_names=["a", "b"], type_belief=[0.29, 0.71], signature=[0, 3, 63],
+               total_disc_reward=4.5, epoch=4, reply_to=23),
 ]
 MINIMAL_MESSAGES = [
     Hello(who="hrc_obs"),
@@ -43,6 +50,8 @@ MINIMAL_MESSAGES = [
     NextState(None),
     Ack(0),
     Error("oops"),
+    TaskEnd(1, "timeout", 0, 0, 40, 80.0, -0.5),
+    TaskReport("random", "base"),
 ]
 
 

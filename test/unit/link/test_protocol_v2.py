@@ -27,6 +27,9 @@ BASE = {
     "next_state": {"state": None},
     "ack": {"step": 1},
     "error": {"message": "no"},
+    "task_end": {"task_index": 1, "outcome": "fail", "warnings": 0, "preemptions": 0,
+                 "steps": 3, "duration": 69.0, "utility": -0.43},
+    "task_report": {"selector": "bpr", "policy": "base"},
 }
 
 

@@ -53,9 +53,10 @@ def test_an_argument_the_launch_file_does_not_declare_stops_it(tmp_path, launch,
 
 
 def test_without_a_close_name_the_line_says_where_the_arguments_are_listed(tmp_path):
-    done, master_up = roslaunch(tmp_path, "tasks:=5", "selector:=bpr")
+    # (tasks and selector were the words here until issue #30 made them arguments)
+    done, master_up = roslaunch(tmp_path, "tsk:=5", "chooser:=bpr")
     assert refusal_line(done, master_up, tmp_path) == (
-        "hrc.launch: tasks:=5: no such argument (did you mean task?); selector:=bpr: no such "
+        "hrc.launch: tsk:=5: no such argument (did you mean task?); chooser:=bpr: no such "
         "argument (the arguments: rosrun ros_hrc hrc_check -h, or docs/settings.md)")
 
 

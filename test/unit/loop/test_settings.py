@@ -27,7 +27,8 @@ DEFAULTS = {
     "start_pomdp": True, "planner": "despot",
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
-    "verbose": False,
+    "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
+    "selector_model": "auto", "task_timeout": None, "bpr_forgetting": 0.05,
 }
 
 
@@ -253,7 +254,8 @@ def test_unknown_names_are_refused_naming_them():
 def test_resolve_fills_every_default_in_table_order():
     config = settings.resolve({}, environ={})
     assert list(config) == list(SETTINGS)
-    expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False, away_time=0.0)
+    expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False, away_time=0.0,
+                    task_timeout=80.0, tasks=0)
     assert config == expected
 
 

@@ -1,0 +1,138 @@
+"""A sequence study run and reported: ``hrc_experiment --sequence L`` once its grid is checked
+(:mod:`ros_hrc.experiment.cli`), and what ``hrc_train_selector`` runs its pairs through. No
+ROS here.
+
+The cells (:func:`ros_hrc.experiment.sequences.plan_sequence_cells`) run on the pool or the
+cluster as an episode study's do (:func:`ros_hrc.experiment.pool.run_stoppable`: attempts,
+SIGINT/SIGTERM, a full disk), each delivering whole sequences into ``sequences.csv`` and
+``tasks.csv`` (:class:`ros_hrc.experiment.sequence_rows.SequenceStore`); the same command
+resumes with the sequences not yet recorded. Then ``run.json`` (tasks per minute beside
+sequences), ``summary.md``/``summary.csv``
+(:mod:`ros_hrc.experiment.sequence_statistics`), ``learning_curve.csv`` and
+``learning_curve.png``.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import shlex
+import sys
+from pathlib import Path
+from typing import Dict, List, Sequence
+
+from ros_hrc.experiment.disk import DiskFull, full_disk_line, is_full_disk
+from ros_hrc.experiment.plots import NothingToPlot, plot_learning_curves
+from ros_hrc.experiment.pool import run_stoppable, say_last
+from ros_hrc.experiment.sequence_rows import SequenceStore
+from ros_hrc.experiment.sequence_statistics import (learning_curve, summarize_sequences,
+                                                    write_sequence_summary)
+from ros_hrc.experiment.sequences import cell_humans, plan_sequence_cells, tasks_of
+from ros_hrc.pomdp.output import write_text_atomically
+
+
+def _say(program: str, text: object) -> None:
+    print(f"{program}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
+
+
+def grid_size(args: argparse.Namespace) -> int:
+    """Sequences of the whole study: schedules' cells x selectors x seeds x episodes."""
+    cells = sum(len(cell_humans(args, schedule)) for schedule in args.schedule)
+    return cells * len(args.selectors) * len(args.seeds) * args.episodes
+
+
+def run_sequences(args: argparse.Namespace, out: Path, words: Sequence[str], program: str,
+                  report: bool = True) -> int:
+    """Run what is missing of a checked sequence study into ``out`` (locked by the caller),
+    then write ``run.json`` and, if ``report``, the summary and plots. The exit status."""
+    try:
+        store = SequenceStore(out)
+    except (OSError, ValueError) as exc:
+        _say(program, exc)
+        return 2
+    cells = plan_sequence_cells(args, store.done())
+    grid = grid_size(args)
+    todo = sum(len(c.episodes) for c in cells)
+    print(f"{program}: {grid // (len(args.seeds) * args.episodes)} cells (schedules x "
+          f"selectors) x {len(args.seeds)} seeds x {args.episodes} sequences of "
+          f"{args.sequence} tasks = {grid} sequences ({grid * args.sequence} tasks); "
+          f"{grid - todo} already in {out}, {todo} to run ({tasks_of(cells)} tasks)"
+          + (f", on {min(args.jobs, len(cells) or 1)} stacks side by side"
+             if args.cluster is None else f", on the Ray cluster --cluster {args.cluster}"),
+          flush=True)
+    figures = None
+    if cells:
+        figures, stopped = run_stoppable(cells, store, args.jobs, words, out, program=program,
+                                         cluster=args.cluster, cluster_wait=args.cluster_wait)
+        if stopped is not None:
+            return stopped
+        figures = sequence_figures(figures, args.sequence)
+        print(f"{program}: {figures['sequences']} sequences, {figures['tasks']} tasks in "
+              f"{figures['wall_seconds']:.1f} s: {figures['tasks_per_minute']:.1f} tasks/min, "
+              f"{figures['simulated_seconds']:.1f} simulated s, speed-up over real time "
+              f"x{figures['speedup_over_real_time']:.1f}", flush=True)
+    try:
+        if figures:
+            write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
+        if report:
+            report_sequences(store, out, plots=not args.no_plots, program=program)
+    except OSError as exc:
+        if not is_full_disk(exc):
+            raise
+        say_last(full_disk_line(program, DiskFull.of_error(exc), len(store.done()), out,
+                                shlex.join([program] + list(words))))
+        return 1
+    if figures and figures["failed_cells"]:
+        _say(program, f"{len(figures['failed_cells'])} cells failed (logs in {out / 'logs'}); "
+                      "run again to retry them")
+        return 1
+    return 0
+
+
+def sequence_figures(figures: Dict, length: int) -> Dict:
+    """The pool's run figures (which count sequences as its units) with the tasks: tasks and
+    tasks per minute beside sequences."""
+    out = dict(figures)
+    out["sequences"] = out.pop("episodes")
+    out["tasks"] = out["sequences"] * length
+    out["tasks_per_sequence"] = length
+    out["sequences_per_minute"] = out.pop("episodes_per_minute")
+    out["tasks_per_minute"] = out["sequences_per_minute"] * length
+    return out
+
+
+def report_sequences(store: SequenceStore, out: Path, plots: bool, program: str) -> None:
+    """The summary (CSV and Markdown), the learning curve (CSV, and its plot unless not
+    ``plots``) of everything recorded in ``out``."""
+    tasks = store.tasks()
+    if not tasks:
+        print(f"{program}: no sequences recorded yet in {out}")
+        return
+    summary = summarize_sequences(tasks)
+    csv_path, md_path = write_sequence_summary(summary, out / "summary.csv", out / "summary.md")
+    print(Path(md_path).read_text())
+    curve = learning_curve(tasks)
+    curve_path = out / "learning_curve.csv"
+    write_text_atomically(curve_path, _csv(curve))
+    written = [store.episodes_path, store.steps_path, str(csv_path), str(md_path),
+               str(curve_path)]
+    if plots:
+        best = {e["schedule"]: e["best_fixed"] for e in summary if e["best_fixed"]}
+        try:
+            written.append(plot_learning_curves(curve, out / "learning_curve.png", best))
+        except NothingToPlot as why:
+            print(f"{program}: learning_curve.png left out: {str(why).split(': ', 1)[-1]}")
+    print(f"{program}: written " + ", ".join(str(p) for p in written))
+
+
+def _csv(entries: List[Dict]) -> str:
+    if not entries:
+        return ""
+    text = io.StringIO()
+    writer = csv.DictWriter(text, list(entries[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in e.items()}
+                     for e in entries)
+    return text.getvalue()
+

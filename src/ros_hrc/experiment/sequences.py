@@ -1,0 +1,196 @@
+"""A sequence study planned: ``hrc_experiment --sequence L`` (docs/experiments.md,
+"Sequences"). No ROS here.
+
+A cell is (schedule, selector, seed); its unit is a sequence of ``L`` tasks on one stack
+(``tasks:=L``), the robot's selector choosing a policy of the task's library before each task
+and learning from each (docs/sequences.md). ``--episodes N`` is N independent sequences per
+cell, numbered from 0; task ``t`` of sequence ``s`` plays the loop's episode
+:func:`~ros_hrc.experiment.sequence_rows.task_episode` ``(s, t, L) = s*L + t - 1``, so every
+task has streams of its own and the same (seed, sequence, task) is the same human under every
+selector: the pairs of the paired tests.
+
+The schedules (``--schedule``, comma-separated, each a cell per selector and seed):
+- ``per-type``: one cell per ``--human-models`` type, the same human for all ``L`` tasks;
+- ``fabric``: FABRIC's schedule (``schedule:=fabric``: 10 types x 30 tasks; a sequence of
+  ``L`` tasks plays its first ``L``, so ``--sequence 300`` plays it whole);
+- a schedule file (``schedule:=FILE``, docs/sequences.md's format), labelled by its stem.
+
+Selectors (``--selectors``): ``fixed`` stands for every policy of the library as
+``fixed:<policy>``; the others are the robot process's (``ros_hrc.agents.selectors``). A
+selector that uses a trained model (the BPRs, the oracle) is not evaluated on the seeds its
+model was trained on (:func:`check_trained_elsewhere`).
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Dict, List, Optional, Sequence, Set, Tuple
+
+from ros_hrc.agents.selectors import NEEDS_MODEL, SELECTOR_NAMES
+from ros_hrc.experiment.grid import GridError, resolve_files, task_launch_args, task_of
+from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
+from ros_hrc.model_files import user_path
+from ros_hrc.models import model_path
+
+#: ``--schedule`` words that are no file.
+PER_TYPE = "per-type"
+FABRIC = "fabric"
+SCHEDULE_WORDS = (PER_TYPE, FABRIC)
+#: The selector that stands for every library policy (``fixed:<policy>`` each).
+FIXED = "fixed"
+#: Selectors whose choices rest on the trained selector model (the held-out rule applies).
+MODEL_SELECTORS = tuple(sorted(NEEDS_MODEL))
+#: The selector model's file name, beside the library's manifest (``models/fabric/`` and
+#: ``models/robot/``), where ``selector_model:=auto`` finds it.
+SELECTOR_MODEL_FILE = "selector_model.json"
+#: Tasks per sequence: a task is a uint32 where it travels, and so is its episode number.
+MAX_SEQUENCE = 100000
+
+
+def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]:
+    """``--selectors`` as the cells run them: ``fixed`` becomes ``fixed:<policy>`` for every
+    library policy (in the library's order), ``fixed:<policy>`` is checked against the
+    library, the others against the known selectors. GridError (one line naming the known
+    ones) for an unknown name."""
+    known = SELECTOR_NAMES
+    out: List[str] = []
+    for name in names:
+        if name == FIXED:
+            out.extend(f"{FIXED}:{policy}" for policy in policies)
+        elif name.startswith(f"{FIXED}:"):
+            policy = name[len(FIXED) + 1:]
+            if policy not in policies:
+                raise GridError(f"--selectors: {name}: no policy {policy!r} in the library "
+                                f"(its policies: {', '.join(policies)})")
+            out.append(name)
+        elif name in known:
+            out.append(name)
+        else:
+            raise GridError(f"--selectors: unknown selector {name!r}; known: "
+                            f"{', '.join(known)}, fixed:<policy>")
+    return list(dict.fromkeys(out))
+
+
+def load_study_library(args: argparse.Namespace):
+    """The library of the study (``--library``; ``auto``: the task's manifest), loaded and
+    checked against the task (``ros_hrc.agents.library.load_library``); GridError naming
+    ``--library`` otherwise."""
+    from ros_hrc.agents.library import load_library
+    from ros_hrc.errors import HrcError
+    given = args.library
+    where = given if given == "auto" else str(user_path(given))
+    try:
+        return load_library(where, task_of(args))
+    except HrcError as exc:
+        raise GridError(f"--library: {exc}") from None
+
+
+def selector_model_file(args: argparse.Namespace, library) -> Optional[Path]:
+    """The selector model a study's stacks use: ``--selector-model`` (absolute), or for
+    ``auto`` the one beside the library's manifest if it exists; None without one."""
+    if args.selector_model != "auto":
+        return user_path(args.selector_model)
+    beside = Path(library.manifest).parent / SELECTOR_MODEL_FILE
+    return beside if beside.exists() else None
+
+
+def schedule_label(schedule: str) -> str:
+    """The name a schedule's cells are known by (the results' ``schedule`` column): the word,
+    or a file's stem."""
+    return schedule if schedule in SCHEDULE_WORDS else Path(schedule).stem
+
+
+def resolve_schedules(args: argparse.Namespace) -> None:
+    """Make ``--schedule``'s files absolute and check they are there (GridError naming the
+    argument otherwise); their contents are the stack's pre-flight's to check."""
+    resolved = []
+    for schedule in args.schedule:
+        if schedule in SCHEDULE_WORDS:
+            resolved.append(schedule)
+            continue
+        path = user_path(schedule)
+        if not path.is_file():
+            raise GridError(f"--schedule: {schedule}: no schedule file (looked for {path}); "
+                            f"give {PER_TYPE}, {FABRIC} or a schedule file")
+        resolved.append(str(path))
+    labels = [schedule_label(s) for s in resolved]
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise GridError(f"--schedule: two schedules are called {twice[0]!r}")
+    args.schedule = resolved
+
+
+def check_trained_elsewhere(args: argparse.Namespace, model_seeds: Sequence[int]) -> List[str]:
+    """The held-out rule of a selector model: one trained on seeds S is not evaluated on S.
+    GridError (one line) when a selector that uses it (:data:`MODEL_SELECTORS`) would run on
+    one of its seeds, unless ``--allow-in-sample``; then the warning line, returned."""
+    users = [s for s in args.selectors if s in MODEL_SELECTORS]
+    shared = sorted(set(model_seeds) & set(args.seeds))
+    if not users or not shared:
+        return []
+    line = (f"--selectors {','.join(users)}: their selector model {args.selector_model_file} "
+            f"was trained on seeds {','.join(map(str, shared))}, which this study would "
+            f"evaluate them on")
+    if not getattr(args, "allow_in_sample", False):
+        raise GridError(f"{line}; choose other --seeds, or give --allow-in-sample to run "
+                        "them anyway")
+    return [f"warning: {line} (--allow-in-sample)"]
+
+
+def sequence_launch_args(args: argparse.Namespace, selector: str, schedule: str) -> List[str]:
+    """The hrc.launch arguments that make a cell's stack play sequences: ``tasks:=L``, the
+    selector, the library and the selector model (each ``auto`` unless given: the stack
+    finds the task's own), and the schedule (none for ``per-type``: the launch's
+    ``human_model`` plays every task)."""
+    # auto stays auto: each stack finds its task's own (on a cluster's node, its install's).
+    library = "auto" if args.library == "auto" else args.library_manifest
+    words = task_launch_args(args) + [f"tasks:={args.sequence}", f"selector:={selector}",
+                                      f"library:={library}"]
+    if args.selector_model != "auto":
+        words.append(f"selector_model:={args.selector_model_file}")
+    if schedule != PER_TYPE:
+        words.append(f"schedule:={schedule}")
+    return words
+
+
+def cell_humans(args: argparse.Namespace, schedule: str) -> List[Tuple[str, str]]:
+    """(label, human model file) of a schedule's cells: per type, one per ``--human-models``;
+    otherwise one, its human the task's default (the schedule names who plays each task)."""
+    if schedule == PER_TYPE:
+        return [(human, args.human_files[human]) for human in args.human_models]
+    task = task_of(args)
+    return [(schedule_label(schedule), str(model_path(task.default_human_model, "human", task)))]
+
+
+def plan_sequence_cells(args: argparse.Namespace, done: Set[tuple]) -> List[CellSpec]:
+    """The cells with sequences still to record: schedules x selectors x seeds (per type, x
+    ``--human-models``), each with its missing sequence numbers as ranges (a sequence is
+    recorded whole or runs again)."""
+    resolve_files(args)
+    recorded: Dict[tuple, Set[int]] = {}
+    for schedule, selector, seed, sequence in done:
+        recorded.setdefault((schedule, selector, seed), set()).add(sequence)
+    cells = []
+    for schedule in args.schedule:
+        for label, human_file in cell_humans(args, schedule):
+            for selector in args.selectors:
+                for seed in args.seeds:
+                    missing = EpisodeRanges.missing(args.episodes,
+                                                    recorded.get((label, selector, seed), ()))
+                    if missing:
+                        cells.append(CellSpec(
+                            human_model=label, robot_policy=selector, seed=seed,
+                            episodes=missing, step_limit=args.step_limit,
+                            log_dir=str(Path(args.out) / "logs"),
+                            human_model_file=human_file,
+                            robot_model=args.robot_model, human_choice=args.human_choice,
+                            max_trials=args.max_trials, reactive_budget=args.reactive_budget,
+                            scenarios=args.scenarios, depth=args.depth, lambda_=args.lambda_,
+                            record_bag=args.bag, sequence=args.sequence,
+                            extra_args=sequence_launch_args(args, selector, schedule)))
+    return cells
+
+
+def tasks_of(cells: Sequence[CellSpec]) -> int:
+    """Tasks the cells will play."""
+    return sum(len(c.episodes) * c.sequence for c in cells)

@@ -1,0 +1,59 @@
+"""How one task of a sequence went, and the one utility that scores it (issue #30).
+
+A task of a sequence ends in one of three ways (:data:`OUTCOMES`): ``success`` (the object
+was taken, by the human or by the robot: FABRIC counts both trays), ``fail`` (the object left
+the belt) or ``timeout`` (the task ran ``task_timeout`` simulated seconds, or its step limit).
+:class:`TaskOutcome` is what the loop's coordinator measured; :func:`task_utility` scores it
+on one scale whatever the robot's policy, never with a policy's own POMDP reward (FABRIC's
+performance model used each policy's own reward, whose scales differ between policies).
+Why these weights: docs/sequences.md, "The utility". No ROS, no sockets: plain data.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["OUTCOMES", "WHO_SUCCEEDED", "TaskOutcome", "task_utility"]
+
+#: How a task ends.
+OUTCOMES = ("success", "fail", "timeout")
+#: Who took the object ("" when no one did).
+WHO_SUCCEEDED = ("human", "robot", "")
+
+
+@dataclass(frozen=True)
+class TaskOutcome:
+    """How one task went, as the loop measured it.
+
+    ``outcome``: one of :data:`OUTCOMES`; ``who_succeeded``: ``human``, ``robot`` or ``""``;
+    ``warnings``: the human's warnRobot actions in the task; ``preemptions``: the robot took
+    the object while the human's true state was not a needs-help state of the task
+    (``Task.needs_help_states``), counted once; ``duration``: simulated seconds from the
+    task's start to its end; ``timeout``: the ``task_timeout`` in force (simulated s)."""
+
+    outcome: str
+    who_succeeded: str
+    warnings: int
+    preemptions: int
+    duration: float
+    timeout: float
+
+    def __post_init__(self) -> None:
+        if self.outcome not in OUTCOMES:
+            raise ValueError(f"outcome must be one of {', '.join(OUTCOMES)}, not "
+                             f"{self.outcome!r}")
+        if self.who_succeeded not in WHO_SUCCEEDED:
+            raise ValueError(f"who_succeeded must be human, robot or empty, not "
+                             f"{self.who_succeeded!r}")
+        if self.warnings < 0 or self.preemptions < 0 or self.duration < 0 or self.timeout <= 0:
+            raise ValueError("warnings, preemptions and duration >= 0 and timeout > 0 are "
+                             "required")
+
+
+def task_utility(outcome: TaskOutcome) -> float:
+    """The task's utility, the same scale for every policy (range about [-1.5, 1]): 1 for a
+    success, minus half the share of the timeout it took, minus 0.1 a warning, minus 0.5 a
+    pre-emption (docs/sequences.md says why; the selector model file keeps this definition in
+    one line, ``ros_hrc.agents.selector_model.UTILITY_DEFINITION``)."""
+    return ((1.0 if outcome.outcome == "success" else 0.0)
+            - 0.5 * min(outcome.duration / outcome.timeout, 1.0)
+            - 0.1 * outcome.warnings - 0.5 * outcome.preemptions)

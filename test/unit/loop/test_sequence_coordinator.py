@@ -1,0 +1,172 @@
+"""A sequence of tasks in the episode coordinator (tasks:=N; docs/sequences.md), driven by hand
+with the loop's fake interfaces: each end (success, failure, timeout) gives its outcome and
+utility, the task's status carries the coordinator's and the robot's fields, the reset between
+tasks tells the MDP the next task's human and the robot the task's number, and after the last
+task the loop waits."""
+import pytest
+
+from ros_hrc import tasks
+from ros_hrc.loop.coordinator import CoordinatorConfig
+from ros_hrc.loop.effects import (Decision, EndTask, Fault, MdpReset, MdpStepDone, Note,
+                                  PublishTask, ResetDone, ResetPlanner, ResetWorld, TaskAnswer)
+from ros_hrc.model_files import model_names
+from ros_hrc.tasks.schedule import parse_schedule
+from loop_fakes import Driver, calls, of, one, snap
+
+SEED = tasks.get("seed")
+START = 1.5     # the episode-start snapshot's sim time (Driver.finish_reset)
+REPORT = TaskAnswer(selector="bpr", policy="policy3", robot_model="/m/policy3.pomdp",
+                    type_names=("tired", "expert"), type_belief=(0.7, 0.3),
+                    signature=(3, 19), total_disc_reward=4.5)
+
+
+def sequence(count=3, schedule="tired,expert*2", **more):
+    config = CoordinatorConfig(tasks=count, human_model="humanModel", schedule=parse_schedule(
+        schedule, model_names(SEED.model_dirs["human"]), "humanModel"), **more)
+    d = Driver(config)
+    first = d.ready()
+    return d, first
+
+
+def end_task(d, outcome, action="lookAround", state="evaluating", decision="rPoint_obj"):
+    """Play one step whose outcome snapshot is ``outcome``: the EndTask it ends with."""
+    played = d.play_step(action=action, state=state, outcome=outcome,
+                         decision=Decision(decision))
+    return played, one(played.effects, EndTask)
+
+
+def test_each_task_starts_with_its_number_and_human_for_robot_and_mdp():
+    d, first = sequence()
+    assert (first.task_index, first.human_model, first.true_type) == (1, "tired", "tired")
+    planner = one(d.log, ResetPlanner)
+    assert (planner.task_index, planner.true_type) == (1, "tired")
+    _, end = end_task(d, snap("is_ho", holder="human", sim_time=START + 4.0))
+    after = d.answer(end, REPORT)
+    planner = one(after, ResetPlanner)
+    assert (planner.task_index, planner.true_type) == (2, "expert")
+    out = d.finish_reset(after)
+    second = one(out, MdpReset)
+    assert (second.task_index, second.human_model, second.episode) == (2, "expert", 2)
+    assert "task 2/3 (expert)" in one(out, Note, level="info").text
+
+
+def test_a_success_is_the_human_or_the_robot_taking_the_object():
+    d, _ = sequence()
+    played, end = end_task(d, snap("is_ho", holder="human", sim_time=START + 4.0))
+    assert played.done.episode_over and played.done.end_reason == "success"
+    assert end.task_index == 1 and end.steps == 1
+    assert (end.outcome.outcome, end.outcome.who_succeeded) == ("success", "human")
+    assert end.outcome.duration == pytest.approx(4.0) and end.outcome.timeout == 80.0
+    assert end.utility == pytest.approx(1.0 - 0.5 * 4.0 / 80.0)
+    status = one(d.answer(end, REPORT), PublishTask).report
+    assert (status.task_index, status.tasks, status.episode) == (1, 3, 1)
+    assert (status.human_model, status.true_type, status.outcome) == ("tired", "tired",
+                                                                       "success")
+    assert (status.who_succeeded, status.steps, status.end_reason) == ("human", 1, "success")
+    assert status.utility == pytest.approx(end.utility)
+    # the robot's part, as its report says
+    assert (status.selector, status.policy, status.robot_model) == ("bpr", "policy3",
+                                                                    "/m/policy3.pomdp")
+    assert status.type_names == ("tired", "expert") and status.type_belief == (0.7, 0.3)
+    assert status.estimation_correct and status.signature == (3, 19)
+    assert status.total_disc_reward == 4.5 and not status.robot_problem
+
+
+def test_a_failure_is_the_object_leaving_the_belt():
+    d, _ = sequence()
+    _, end = end_task(d, snap(left_belt=True, sim_time=START + 69.0))
+    assert (end.outcome.outcome, end.outcome.who_succeeded) == ("fail", "")
+    assert end.utility == pytest.approx(-0.5 * 69.0 / 80.0)
+    assert one(d.answer(end, REPORT), PublishTask).report.end_reason == "object_left_belt"
+
+
+def test_a_task_times_out_after_task_timeout_simulated_seconds_or_the_step_limit():
+    d, _ = sequence(task_timeout=20.0)
+    played = d.play_step(outcome=snap("is_ov", sim_time=START + 19.9))
+    assert not of(played.effects, EndTask) and not played.done.episode_over
+    _, end = end_task(d, snap("is_ov", sim_time=START + 20.0))
+    assert end.outcome.outcome == "timeout" and end.steps == 2
+    assert end.utility == pytest.approx(-0.5)
+    assert one(d.answer(end, REPORT), PublishTask).report.end_reason == "task_timeout"
+
+    d, _ = sequence(max_steps=1)
+    _, end = end_task(d, snap("is_ov", sim_time=START + 3.0))
+    assert end.outcome.outcome == "timeout"
+    assert one(d.answer(end, REPORT), PublishTask).report.end_reason == "step_limit"
+
+
+def test_warnings_and_a_preemption_are_counted_in_the_task():
+    d, _ = sequence()
+    d.play_step(action="warnRobot", state="warningTheRobot", decision=Decision("rIdle"))
+    # the robot grasps while the human, evaluating for the first time, needs no help (S0)
+    _, end = end_task(d, snap("is_ov", holder="robot", sim_time=START + 9.0),
+                      decision="rGrasp_obj")
+    assert (end.outcome.warnings, end.outcome.preemptions) == (1, 1)
+    assert end.outcome.who_succeeded == "robot"
+    assert end.utility == pytest.approx(1.0 - 0.5 * 9.0 / 80.0 - 0.1 - 0.5)
+    # the next task counts afresh
+    d.finish_reset(d.answer(end, REPORT))
+    _, end = end_task(d, snap("is_ho", holder="human", sim_time=START + 2.0))
+    assert (end.outcome.warnings, end.outcome.preemptions) == (0, 0)
+
+
+def test_a_robot_that_takes_the_object_from_a_human_who_needs_help_preempts_nothing():
+    d, _ = sequence()
+    for _ in range(3):   # evaluating four steps in a row, never having grasped: S3
+        d.play_step(decision=Decision("rIdle"))
+    _, end = end_task(d, snap("is_ov", holder="robot", sim_time=START + 9.0),
+                      decision="rGrasp_obj")
+    assert end.outcome.preemptions == 0
+
+
+def test_after_the_last_task_the_sequence_is_over_and_no_reset_starts_another():
+    d, _ = sequence(count=2)
+    _, end = end_task(d, snap(holder="human", sim_time=START + 1.0))
+    d.finish_reset(d.answer(end, REPORT))
+    _, end = end_task(d, snap(holder="human", sim_time=START + 1.0))
+    out = d.answer(end, REPORT)
+    assert one(out, PublishTask).report.task_index == 2
+    assert not calls(out)
+    assert "the sequence is over: its 2 tasks are played" in one(out, Note).text
+    answered = one(d.reset(), ResetDone)
+    assert not answered.success and "the sequence's 2 tasks are all played" in answered.message
+    d.c.reset_requested("Enter pressed")
+    assert "no reset: the sequence's 2 tasks are all played (Enter pressed)" in \
+        one(d.take(), Note).text
+    assert d.c.tasks_done == 2
+
+
+def test_a_task_cut_short_is_played_again_under_its_number():
+    d, _ = sequence()
+    d.play_step()
+    out = d.finish_reset(d.reset())
+    again = one(out, MdpReset)
+    assert (again.task_index, again.human_model) == (1, "tired")
+    assert one(d.log[-len(out) - 4:], ResetPlanner).task_index == 1
+
+
+def test_an_older_robot_process_without_a_report_still_gets_its_task_published_and_the_next():
+    d, _ = sequence()
+    _, end = end_task(d, snap(holder="human", sim_time=START + 1.0))
+    out = d.answer(end, Fault("the POMDP process refused: unknown message type task_end"))
+    status = one(out, PublishTask).report
+    assert status.outcome == "success" and status.policy == "" and not status.estimation_correct
+    assert "sent no task report" in status.robot_problem
+    assert one(out, ResetPlanner).task_index == 2
+
+
+def test_a_drifting_human_is_reset_with_both_models_and_the_weight():
+    d, first = sequence(count=3, schedule="expert>tired*3")
+    assert (first.human_model, first.drift_to, first.drift) == ("expert", "tired", 0.0)
+    _, end = end_task(d, snap(holder="human", sim_time=START + 1.0))
+    second = one(d.finish_reset(d.answer(end, REPORT)), MdpReset)
+    assert (second.drift, second.true_type) == (0.5, "expert>tired@0.50")
+
+
+def test_without_a_sequence_resets_carry_no_task_and_episodes_end_as_before():
+    d = Driver(CoordinatorConfig())
+    first = d.ready()
+    assert (first.task_index, first.human_model) == (0, "")
+    assert one(d.log, ResetPlanner).task_index == 0
+    played = d.play_step(outcome=snap(holder="human", sim_time=500.0))
+    assert not of(played.effects, EndTask) and played.done.end_reason == "success"
