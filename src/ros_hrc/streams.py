@@ -71,6 +71,13 @@ def stream(seed: int, episode: int, role: str) -> np.random.SeedSequence:
     return np.random.SeedSequence(entropy=seed, spawn_key=(episode, ROLES.index(role)))
 
 
+def next_episode(episode: Optional[int]) -> int:
+    """The number after ``episode`` (a solver reset without a number starts the next): 0
+    after none, and after the largest (:data:`MAX_EPISODE`) 0 again, never a number no stream
+    takes."""
+    return 0 if episode is None or episode >= MAX_EPISODE else episode + 1
+
+
 def generator(seed: int, episode: int, role: str) -> np.random.Generator:
     """A fresh ``numpy.random.Generator`` on :func:`stream` (seed, episode, role)."""
     return np.random.default_rng(stream(seed, episode, role))

@@ -68,7 +68,7 @@ from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc import settings
 from ros_hrc.models import load_human_model, positional_mapping_line
 from ros_hrc.pomdp.model import Model
-from ros_hrc.streams import stream_seed
+from ros_hrc.streams import next_episode, stream_seed
 from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
 
 NAME = "despot_mdp"
@@ -273,7 +273,7 @@ class MdpProcess:
         self.epoch = reset.epoch
         # The coordinator names the episode (0 is one); a reset without a number (a client
         # of the protocol's own) starts the next.
-        self.episode = reset.episode if reset.episode is not None else self.episode + 1
+        self.episode = reset.episode if reset.episode is not None else next_episode(self.episode)
         self.task_index = reset.task_index
         played = self._play(reset) if reset.human_model is not None else ""
         self.agent.reset(seed=stream_seed(self.args.seed, self.episode, "human"))

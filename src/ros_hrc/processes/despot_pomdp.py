@@ -64,7 +64,7 @@ from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc import settings
 from ros_hrc.models import load_robot_model, positional_mapping_line
 from ros_hrc.models import shown_path as shown_model
-from ros_hrc.streams import stream_seed
+from ros_hrc.streams import next_episode, stream_seed
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
@@ -241,8 +241,7 @@ class PomdpProcess:
     def on_reset(self, msg: Reset, peer: Peer) -> Message:
         # The coordinator names the episode (0 is one); a reset without a number (a client of
         # the protocol's own) starts the next.
-        episode = msg.episode if msg.episode is not None else (
-            0 if self.agent.episode is None else self.agent.episode + 1)
+        episode = msg.episode if msg.episode is not None else next_episode(self.agent.episode)
         if msg.task_index is not None and self.sequence is not None:
             policy = self.sequence.start_task(msg.task_index, episode, msg.true_type or "")
             self.agent = self.sequence.agents[policy]
