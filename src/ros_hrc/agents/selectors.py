@@ -293,10 +293,24 @@ def _uniform(n: int) -> np.ndarray:
     return np.full(n, 1.0 / n) if n else np.zeros(0)
 
 
-class FixedSelector:
-    """``fixed:<policy>``: always that policy."""
+class _BlindSelector:
+    """What a selector that learns nothing between tasks and holds no type belief answers
+    (``fixed`` and ``random``): a task's result and the true type change nothing."""
 
     type_names: Tuple[str, ...] = ()
+
+    def observe(self, result: TaskResult) -> None:
+        pass
+
+    def belief(self) -> np.ndarray:
+        return np.zeros(0)
+
+    def tell_true_type(self, name: str) -> None:
+        pass
+
+
+class FixedSelector(_BlindSelector):
+    """``fixed:<policy>``: always that policy."""
 
     def __init__(self, policy: str) -> None:
         self.policy = policy
@@ -306,21 +320,11 @@ class FixedSelector:
     def choose(self) -> str:
         return self.policy
 
-    def observe(self, result: TaskResult) -> None:
-        pass
 
-    def belief(self) -> np.ndarray:
-        return np.zeros(0)
-
-    def tell_true_type(self, name: str) -> None:
-        pass
-
-
-class RandomSelector:
+class RandomSelector(_BlindSelector):
     """``random``: a policy drawn uniformly from the library for each task."""
 
     name = "random"
-    type_names: Tuple[str, ...] = ()
 
     def __init__(self, policies: Sequence[str], rng: np.random.Generator) -> None:
         self.policies = tuple(policies)
@@ -329,15 +333,6 @@ class RandomSelector:
 
     def choose(self) -> str:
         return self.policies[int(self.rng.integers(len(self.policies)))]
-
-    def observe(self, result: TaskResult) -> None:
-        pass
-
-    def belief(self) -> np.ndarray:
-        return np.zeros(0)
-
-    def tell_true_type(self, name: str) -> None:
-        pass
 
 
 class BprSelector:

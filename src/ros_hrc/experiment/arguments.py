@@ -5,6 +5,7 @@ cannot be written. No ROS here.
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Callable, List, Optional
 
 
@@ -67,3 +68,10 @@ def file_error_line(exc: OSError) -> str:
     """``<file>: <why>`` of an I/O error (a full disk), for one line."""
     where = f"{exc.filename}: " if exc.filename else ""
     return f"{where}{exc.strerror or exc}"
+
+
+def say_one_line(program: str, text: object) -> int:
+    """Print ``<program>: <text>`` on stderr as one line (its whitespace folded: an error's
+    own newlines would split it); returns 2, the exit status of a refusal."""
+    print(f"{program}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
+    return 2

@@ -45,7 +45,7 @@ from ros_hrc import tasks
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
-                                          file_error_line, names_argument)
+                                          file_error_line, names_argument, say_one_line)
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc.experiment.episode import DEFAULT_POLICIES as POLICIES_BY_DEFAULT
@@ -349,8 +349,7 @@ def report(store: ResultsStore, out: Path, plots: bool) -> None:
 
 
 def _error(text: object) -> int:
-    print(f"{NAME}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
-    return 2
+    return say_one_line(NAME, text)
 
 
 def main(argv: Optional[list] = None) -> int:

@@ -51,7 +51,7 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
-                                          file_error_line, names_argument)
+                                          file_error_line, names_argument, say_one_line)
 from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
@@ -261,8 +261,7 @@ def fitted_on_lines(args: argparse.Namespace) -> List[str]:
 
 
 def _error(text: object) -> int:
-    print(f"{NAME}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
-    return 2
+    return say_one_line(NAME, text)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

@@ -23,8 +23,6 @@ Benjamini and Hochberg, one family per test and baseline).
 """
 from __future__ import annotations
 
-import csv
-import io
 import math
 import os
 from collections import defaultdict
@@ -33,9 +31,8 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 from ros_hrc.experiment import paired
 from ros_hrc.experiment.sequence_rows import TaskRow
 from ros_hrc.experiment.statistics import (adjust_for_many_tests, format_ci, format_p,
-                                           markdown_table, mean_ci, median, proportion_ci)
-from ros_hrc.experiment.store import ensure_parent
-from ros_hrc.pomdp.output import write_text_atomically
+                                           markdown_table, mean_ci, median, proportion_ci,
+                                           write_summary_files)
 
 #: The baselines every selector is set against (summary prefixes).
 BASELINES: Tuple[str, ...] = ("vs_best_fixed", "vs_oracle")
@@ -286,15 +283,5 @@ def write_sequence_summary(summary: Sequence[Mapping[str, Any]],
                            csv_path: Union[str, os.PathLike],
                            markdown_path: Union[str, os.PathLike]) -> Tuple[str, str]:
     """The summary as CSV (every number) and Markdown, each written whole or not at all."""
-    csv_path, markdown_path = os.fspath(csv_path), os.fspath(markdown_path)
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(SEQUENCE_SUMMARY_COLUMNS)
-    for entry in summary:
-        writer.writerow(repr(v) if isinstance(v, float) else str(v)
-                        for v in (entry[c] for c in SEQUENCE_SUMMARY_COLUMNS))
-    ensure_parent(csv_path)
-    write_text_atomically(csv_path, buffer.getvalue())
-    ensure_parent(markdown_path)
-    write_text_atomically(markdown_path, sequence_markdown(summary))
-    return csv_path, markdown_path
+    return write_summary_files(summary, SEQUENCE_SUMMARY_COLUMNS, sequence_markdown(summary),
+                               csv_path, markdown_path)

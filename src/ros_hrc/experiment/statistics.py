@@ -486,16 +486,25 @@ def write_summary(summary: Sequence[Mapping[str, Any]], csv_path: Union[str, os.
                   markdown_path: Union[str, os.PathLike]) -> Tuple[str, str]:
     """Write the :func:`summarize` output as a CSV (every number, full precision) and as
     Markdown tables (:func:`markdown`); returns both paths."""
+    return write_summary_files(summary, SUMMARY_COLUMNS, markdown(summary), csv_path,
+                               markdown_path)
+
+
+def write_summary_files(summary: Sequence[Mapping[str, Any]], columns: Sequence[str],
+                        markdown_text: str, csv_path: Union[str, os.PathLike],
+                        markdown_path: Union[str, os.PathLike]) -> Tuple[str, str]:
+    """A summary's ``columns`` as CSV (floats at full precision) and its Markdown text, each
+    file written whole; returns both paths."""
     csv_path, markdown_path = os.fspath(csv_path), os.fspath(markdown_path)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(SUMMARY_COLUMNS)
+    writer.writerow(columns)
     for entry in summary:
         writer.writerow(repr(v) if isinstance(v, float) else str(v)
-                        for v in (entry[c] for c in SUMMARY_COLUMNS))
+                        for v in (entry[c] for c in columns))
     # Each file whole or not at all: a full disk leaves the previous summary, never half of one.
     ensure_parent(csv_path)
     write_text_atomically(csv_path, buffer.getvalue())
     ensure_parent(markdown_path)
-    write_text_atomically(markdown_path, markdown(summary))
+    write_text_atomically(markdown_path, markdown_text)
     return csv_path, markdown_path

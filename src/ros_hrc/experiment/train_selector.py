@@ -34,7 +34,7 @@ from ros_hrc.agents.selector_model import (TrainingTask, from_tasks, load_select
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
-                                          file_error_line, names_argument)
+                                          file_error_line, names_argument, say_one_line)
 from ros_hrc.experiment.cli import DEFAULT_SEEDS as STUDY_SEEDS
 from ros_hrc.experiment.cli import seeds_argument
 from ros_hrc.experiment.cli import build_parser as study_parser
@@ -119,8 +119,7 @@ def training_tasks(rows: Sequence[TaskRow], types: Sequence[str], policies: Sequ
 
 
 def _say(text: object) -> int:
-    print(f"{NAME}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
-    return 2
+    return say_one_line(NAME, text)
 
 
 def main(argv: Optional[list] = None) -> int:
