@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """`hrc_experiment --sequence` on a tiny grid, as a researcher runs it: one kind of human,
 a fixed library policy and the random selector, two sequences of three tasks per cell through
-the real stack (each sequence on a stack of its own, up for its tasks), one row per task in
+the real stack (a cell's sequences one after the other on its one stack), one row per task in
 tasks.csv, the summary with the paired tests and the learning curve; then the same study with
 one sequence more per cell runs only the new sequences and keeps every row of the first
 run."""
@@ -60,7 +60,7 @@ class TestExperimentSequences(unittest.TestCase):
         self.assertTrue(chosen, "random chose a policy for every task")
         header, sequences = read_csv(os.path.join(out, "sequences.csv"))
         self.assertEqual(tuple(header), SEQUENCE_COLUMNS)
-        # Each cell's two sequences, each on a stack of its own.
+        # Each cell's two sequences, played one after the other on the cell's stack.
         self.assertEqual(sorted((s["selector"], s["episode"], s["tasks"]) for s in sequences),
                          [("fixed:authors", "0", "3"), ("fixed:authors", "1", "3"),
                           ("random", "0", "3"), ("random", "1", "3")])

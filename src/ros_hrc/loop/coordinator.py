@@ -66,9 +66,10 @@ the robot's pre-emption: it took the object while the human's true state, as the
 decided, was not one that needs help), asks the robot process for its part
 (:class:`EndTask`, answered with its selector's report), publishes the task
 (:class:`PublishTask`) and resets into the next task by itself, whatever
-``on_episode_end`` says. After the N-th task it says the sequence is over and waits; no reset
-starts another. A task cut short (a failed step, a reset asked for) is played again, under
-the same number.
+``on_episode_end`` says. After the N-th task it says the sequence is over; a reset then starts
+a new sequence from its first task (the robot process makes a fresh selector), at once with
+``on_episode_end:=reset`` (while the ``episodes`` asked for last), else on Enter. A task cut
+short (a failed step, a reset asked for) is played again, under the same number.
 
 **Failures.** A call that fails (a fault: the service or process is gone, or answered
 nonsense) fails its step visibly (the report's ``fault``), and the loop recovers by a reset,
@@ -81,6 +82,7 @@ import itertools
 from dataclasses import dataclass
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
+from ros_hrc.loop.display import counted
 from ros_hrc.loop.effects import (BUSY, DECISION_IN_REPORT, EPISODE_IS_OVER, FAILED, INVALID,
                                   NOT_READY, SEAT_TAKEN, STALE, ActHuman, ActRobot, Call,
                                   Decide, Effect, EndTask, Fault, MdpRefused, MdpReset,
@@ -229,6 +231,8 @@ class Coordinator:
         self.dropped = 0                # results of an older epoch, dropped
         # a sequence of tasks (config.tasks > 0)
         self.tasks_done = 0             # tasks of the sequence that ended
+        self.sequences_started = 1      # sequences begun since the start (a reset after a
+                                        # sequence's last task begins the next)
         self.task_index = 0             # the task under way (0: none yet)
         self.play: Optional[TaskPlay] = None   # who plays it
         self._task_warnings = 0
@@ -665,12 +669,11 @@ class Coordinator:
                                      f"({self.config.episodes.text()}) are all played"))
             return
         if self.config.tasks and self.tasks_done >= self.config.tasks:
-            why = f"no reset: the sequence's {self.config.tasks} tasks are all played"
-            if token is not None:
-                self._emit(ResetDone((token,), False, why))
-            else:   # (Enter pressed: said, not ignored in silence)
-                self._note("info", f"{why} ({reason}); Ctrl-C ends the launch")
-            return
+            # The sequence is played: this reset starts a new one, from its first task (the
+            # robot process makes a fresh selector for a first task). One stack can so play
+            # many sequences: an experiment's cell plays all of its own on one launch.
+            self.tasks_done = 0
+            self.sequences_started += 1
         self._retry_timer = None
         self.epoch = self._next_epoch
         self._next_epoch += 1
@@ -841,8 +844,11 @@ class Coordinator:
             return     # a reset came meanwhile: it starts the next task
         if self.tasks_done < self.config.tasks:
             self._begin_reset(f"task {status.task_index} over ({status.outcome})", None)
-        else:
-            self._note("info", sequence_over_line(self.config.tasks))
+            return
+        goes_on = self.config.on_episode_end == "reset" and self._next_episode() is not None
+        self._note("info", sequence_over_line(self.config.tasks, goes_on))
+        if goes_on:
+            self._begin_reset(f"sequence {self.sequences_started} over", None)
 
     def _reset_failed(self, why: str) -> None:
         self.phase = BROKEN
@@ -856,11 +862,6 @@ class Coordinator:
         self._retry_timer = next(self._ids)
         self._emit(Timer(self._retry_timer, self._retry_delay))
         self._retry_delay = min(self._retry_delay * 2, self.config.max_retry_delay)
-
-
-def counted(number: int, noun: str) -> str:
-    """``1 step``, ``4 steps``: a count and its noun, singular for one."""
-    return f"{number} {noun}" if number == 1 else f"{number} {noun}s"
 
 
 def episode_over_line(episode: int, reason: str, steps: int, policy: str,
@@ -880,10 +881,15 @@ def episode_over_line(episode: int, reason: str, steps: int, policy: str,
     return f"{over}: stepping goes on (on_episode_end:=continue)"
 
 
-def sequence_over_line(tasks: int) -> str:
-    """What the terminal says once the sequence's last task ended."""
-    return (f"the sequence is over: its {counted(tasks, 'task')} are played (/hrc/task_status "
-            "has one message each); no reset starts another: Ctrl-C ends the launch")
+def sequence_over_line(tasks: int, goes_on: bool = False) -> str:
+    """What the terminal says once the sequence's last task ended: and what comes next, a new
+    sequence at once (``goes_on``: ``on_episode_end:=reset``) or on Enter."""
+    over = (f"the sequence is over: its {counted(tasks, 'task')} are played (/hrc/task_status "
+            "has one message each)")
+    if goes_on:
+        return f"{over}; the next sequence starts now, with a fresh selector (on_episode_end:=reset)"
+    return (f"{over}; Enter (or `rosservice call /hrc/reset`) starts a new sequence with a "
+            "fresh selector, Ctrl-C ends the launch")
 
 
 def _what(call: Call) -> str:

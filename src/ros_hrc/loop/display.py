@@ -15,6 +15,11 @@ from ros_hrc import tasks
 from ros_hrc.tasks.definition import Task
 
 
+def counted(number: int, noun: str) -> str:
+    """``1 step``, ``4 steps``: a count and its noun, singular for one."""
+    return f"{number} {noun}" if number == 1 else f"{number} {noun}s"
+
+
 @dataclass(frozen=True)
 class BeliefBar:
     """One state's bar: its name, the robot's belief in it, and whether it is the true state."""
@@ -267,11 +272,12 @@ def task_line(status) -> str:
     in 12 steps, 21.4 s, utility 0.77; policy policy3; belief: expert_tired_noncollaborative
     0.71, ...``."""
     who = f" ({status.who_succeeded})" if status.who_succeeded else ""
-    steps = f"{status.steps} step" + ("" if status.steps == 1 else "s")
+    steps = counted(status.steps, "step")
     line = (f"task {status.task_index}/{status.tasks} ({status.true_type}): {status.outcome}"
             f"{who} in {steps}, {status.duration:.1f} s, utility {status.utility:.2f}")
     if status.warnings or status.preemptions:
-        line += f", {status.warnings} warning(s), {status.preemptions} pre-emption(s)"
+        line += (f", {counted(status.warnings, 'warning')}, "
+                 f"{counted(status.preemptions, 'pre-emption')}")
     if status.policy:
         line += f"; policy {status.policy}"
     ranked = sorted(zip(status.type_names, status.type_belief), key=lambda item: -item[1])

@@ -10,8 +10,9 @@ episode's ``/hrc/status`` messages, scores it and hands the row over. The proces
 episode on its standard output, ``EPISODE {json}``, as soon as the episode ends. A sequence
 cell (``spec.sequence``: ``hrc.launch tasks:=L``) is driven by :func:`drive_sequences`
 instead: it collects each task's ``/hrc/task_status`` and writes one line per whole
-sequence, ``SEQUENCE {json}`` (its row and its tasks' rows); each sequence runs on a stack of
-its own (:func:`run_each_sequence`: the loop plays one sequence per launch). While it
+sequence, ``SEQUENCE {json}`` (its row and its tasks' rows); all the cell's sequences run on
+its one stack, one after the other (the loop starts the next after a sequence's last task,
+with a fresh selector). While it
 waits (for the master, for a step) it watches the stack
 (:class:`ros_hrc.experiment.stack.StackWatch`): a roslaunch that exits, or a link that cannot
 bind its port, fails the cell at once with the reason and the last lines of its log.
@@ -24,7 +25,6 @@ This module imports ``ros_hrc.experiment`` (pointing down); nothing there import
 """
 from __future__ import annotations
 
-import dataclasses
 import os
 import signal
 import subprocess
@@ -40,17 +40,16 @@ import rospy
 
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import score_episode, step_rows
-from ros_hrc.experiment.stack import (CellFailed, CellSpec, EpisodeRanges, StackWatch,
+from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch,
                                       cell_name, encode_episode, encode_sequence, pick_ports,
                                       read_spec, stack_environment, stack_log, start_stack,
-                                      stop_launched, stop_stack, worker_command)
+                                      stop_launched, stop_stack)
 from ros_hrc.experiment.rows import EpisodeRow
 from ros_hrc.experiment.sequence_rows import SequenceRow, sequence_row, task_episode, task_row
 from ros_hrc.models import load_robot_model, positional_mapping_line
 from ros_hrc.msg import Status, TaskStatus
 from ros_hrc.nodes.common import init_node_when_master_is_up
 from ros_hrc.pomdp.model import Model
-from ros_hrc.pomdp.output import write_text_atomically
 
 #: Seconds a stopped stack gets to shut down (roslaunch stops its nodes) before SIGKILL.
 STOP_GRACE = 60.0
@@ -273,14 +272,14 @@ class TaskInbox:
 def drive_sequences(spec: CellSpec, proc: subprocess.Popen,
                     deliver: Callable[[SequenceRow, list], None], name: str,
                     log_dir: Path) -> int:
-    """Record ``spec``'s one sequence (``spec.episodes``: its number; a stack plays one, see
-    :func:`run_each_sequence`) from the stack ``proc`` (``hrc.launch tasks:=L``, already
-    started): collect each task's ``/hrc/task_status`` and ``deliver`` the sequence whole
-    (its :class:`SequenceRow` and task rows). Task ``t`` of sequence ``s`` is the loop's
-    episode ``s*L + t - 1`` (:func:`~ros_hrc.experiment.sequence_rows.task_episode`).
-    Returns 1, the sequences delivered."""
-    if len(spec.episodes) != 1:
-        raise ValueError(f"{name}: a stack plays one sequence, not {len(spec.episodes)}")
+    """Record ``spec``'s sequences (``spec.episodes``: their numbers) from the stack ``proc``
+    (``hrc.launch tasks:=L on_episode_end:=reset`` with the sequences' task episodes, already
+    started: after a sequence's last task the loop starts the next, and the robot process
+    makes a fresh selector for it): collect each task's ``/hrc/task_status`` and ``deliver``
+    each sequence whole (its :class:`SequenceRow` and task rows) as it ends. Task ``t`` of
+    sequence ``s`` is the loop's episode ``s*L + t - 1``
+    (:func:`~ros_hrc.experiment.sequence_rows.task_episode`). Returns the sequences
+    delivered."""
     watch = StackWatch(proc, stack_log(spec, log_dir), name)
     wait_for_master(watch)
     init_node_when_master_is_up("hrc_experiment_cell", wait=30.0)
@@ -288,26 +287,35 @@ def drive_sequences(spec: CellSpec, proc: subprocess.Popen,
     rospy.Subscriber("/hrc/task_status", TaskStatus, inbox.on_task, queue_size=1000)
     # The stack waits for a listener of /hrc/status before its first step: subscribed last.
     rospy.Subscriber("/hrc/status", Status, inbox.on_status, queue_size=1000)
-    length, (sequence,) = spec.sequence, list(spec.episodes)
+    length = spec.sequence
+    delivered = 0
+    last_arrival: Optional[float] = None
     try:
-        tasks = []
-        for index in range(1, length + 1):
-            due = task_episode(sequence, index, length)
-            while True:
-                status, arrived = inbox.next_task(spec.episode_timeout, watch.check)
-                if int(status.episode) == due:
-                    break
-                if int(status.episode) > due:
-                    raise CellFailed(f"{name}: the stack played task episode "
-                                     f"{status.episode} where {due} was due")
-            if int(status.task_index) != index:
-                raise CellFailed(f"{name}: episode {due} was task {status.task_index} of "
-                                 f"its sequence, not task {index}")
-            tasks.append(task_row(status, spec.human_model, spec.robot_policy, spec.seed,
-                                  sequence))
-        # Its wall time: from its first step (not the stack's start-up) to its last task.
-        deliver(sequence_row(tasks, max(0.0, arrived - (inbox.first_step or arrived))), tasks)
-        return 1
+        for sequence in spec.episodes:
+            tasks = []
+            began: Optional[float] = None
+            for index in range(1, length + 1):
+                due = task_episode(sequence, index, length)
+                while True:
+                    status, arrived = inbox.next_task(spec.episode_timeout, watch.check)
+                    if int(status.episode) == due:
+                        break
+                    if int(status.episode) > due:
+                        raise CellFailed(f"{name}: the stack played task episode "
+                                         f"{status.episode} where {due} was due")
+                if int(status.task_index) != index:
+                    raise CellFailed(f"{name}: episode {due} was task {status.task_index} "
+                                     f"of its sequence, not task {index}")
+                if began is None:
+                    # Its wall time: from its first step (not the stack's start-up) for the
+                    # cell's first sequence, from the one before's last task for the others.
+                    began = inbox.first_step if last_arrival is None else last_arrival
+                tasks.append(task_row(status, spec.human_model, spec.robot_policy, spec.seed,
+                                      sequence))
+                last_arrival = arrived
+            deliver(sequence_row(tasks, max(0.0, arrived - (began or arrived))), tasks)
+            delivered += 1
+        return delivered
     finally:
         SIGNALS.disarm()
         rospy.signal_shutdown("cell done")
@@ -346,34 +354,6 @@ def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int
                       file=sys.stderr, flush=True)
 
 
-def run_each_sequence(spec: CellSpec) -> int:
-    """A sequence cell of several sequences: each on a stack of its own, in a worker process
-    of its own (this module again, on a spec of that one sequence), one after the other.
-    The loop plays one sequence per launch (after its last task it waits, and no reset
-    starts another: docs/sequences.md), and rospy talks to one master per process. The
-    children write their ``SEQUENCE`` lines on this process's standard output as they end.
-    A child that fails ends the cell (its attempt) with the child's status; SIGINT or
-    SIGTERM is passed on to the child, which stops its stack. The exit status."""
-    for sequence in EpisodeRanges.of(spec.episodes):
-        one = dataclasses.replace(spec, episodes=EpisodeRanges.of([sequence]))
-        spec_file = Path(spec.log_dir) / f"{cell_name(spec)}.sequence{sequence}.spec.json"
-        write_text_atomically(spec_file, one.to_json() + "\n")
-        child = None
-        try:
-            with SIGNALS.deferred():     # started means waited for, even on a signal
-                child = subprocess.Popen(worker_command(spec_file), stdin=subprocess.DEVNULL)
-            code = child.wait()
-        except CellStopped as stop:
-            SIGNALS.disarm()
-            if child is not None:
-                child.send_signal(stop.signum)
-                child.wait()
-            return 128 + stop.signum
-        if code != 0:
-            return code
-    return 0
-
-
 def main(argv: Optional[List[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
@@ -393,8 +373,6 @@ def main(argv: Optional[List[str]] = None) -> int:
             print(line, flush=True)
 
     SIGNALS.install()
-    if spec.sequence and len(spec.episodes) > 1:
-        return run_each_sequence(spec)
     try:
         run_cell(spec, deliver)
     except CellStopped:

@@ -133,11 +133,14 @@ class RobotAgent:
 @dataclass
 class TaskRecord:
     """The task under way of a sequence: its number, the policy running it, each step's
-    signature code and the policy's own discounted reward so far."""
+    signature code and the policy's own discounted reward so far; ``ended`` once its end
+    was reported (a reset into the same number then starts a new sequence's task, not the
+    same task again)."""
     index: int
     policy: str
     signature: List[int] = field(default_factory=list)
     reward: float = 0.0
+    ended: bool = False
 
 
 class SequenceRobot:
@@ -169,7 +172,8 @@ class SequenceRobot:
     def start_task(self, index: int, episode: int, true_type: str) -> str:
         """A reset starts task ``index`` (of episode ``episode``; its human ``true_type``):
         the policy that runs it (chosen now for a new task; kept for a task played again)."""
-        again = self.record is not None and self.record.index == index
+        again = self.record is not None and self.record.index == index and \
+            not self.record.ended
         if again:
             policy = self.record.policy
         elif self.selection is None:
@@ -213,6 +217,7 @@ class SequenceRobot:
             names = tuple(self.selector.type_names)
             belief = tuple(float(p) for p in self.selector.belief())
         self.tasks_ended += 1
+        record.ended = True
         return TaskReport(selector=self.name, policy=record.policy,
                           robot_model=self.robot_models.get(record.policy) or None,
                           type_names=list(names) or None, type_belief=list(belief) or None,

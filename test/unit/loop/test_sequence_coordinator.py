@@ -10,6 +10,7 @@ from ros_hrc.loop.coordinator import CoordinatorConfig
 from ros_hrc.loop.effects import (Decision, EndTask, Fault, MdpReset, MdpStepDone, Note,
                                   PublishTask, ResetDone, ResetPlanner, ResetWorld, TaskAnswer)
 from ros_hrc.model_files import model_names
+from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.tasks.schedule import parse_schedule
 from loop_fakes import Driver, calls, of, one, snap
 
@@ -119,21 +120,41 @@ def test_a_robot_that_takes_the_object_from_a_human_who_needs_help_preempts_noth
     assert end.outcome.preemptions == 0
 
 
-def test_after_the_last_task_the_sequence_is_over_and_no_reset_starts_another():
+def test_after_the_last_task_the_sequence_is_over_and_a_reset_starts_a_new_one():
     d, _ = sequence(count=2)
     _, end = end_task(d, snap(holder="human", sim_time=START + 1.0))
     d.finish_reset(d.answer(end, REPORT))
     _, end = end_task(d, snap(holder="human", sim_time=START + 1.0))
     out = d.answer(end, REPORT)
     assert one(out, PublishTask).report.task_index == 2
-    assert not calls(out)
-    assert "the sequence is over: its 2 tasks are played" in one(out, Note).text
-    answered = one(d.reset(), ResetDone)
-    assert not answered.success and "the sequence's 2 tasks are all played" in answered.message
-    d.c.reset_requested("Enter pressed")
-    assert "no reset: the sequence's 2 tasks are all played (Enter pressed)" in \
-        one(d.take(), Note).text
+    assert not calls(out)    # on_episode_end:=wait (the default): it waits
+    assert ("the sequence is over: its 2 tasks are played (/hrc/task_status has one message "
+            "each); Enter") in one(out, Note).text
     assert d.c.tasks_done == 2
+    # Enter: a new sequence, from its first task, with the schedule's first human again.
+    out = d.reset(reason="Enter pressed")
+    planner = one(out, ResetPlanner)
+    assert (planner.task_index, planner.true_type) == (1, "tired")
+    first = one(d.finish_reset(out), MdpReset)
+    assert (first.task_index, first.human_model) == (1, "tired")
+    assert (d.c.tasks_done, d.c.sequences_started) == (0, 2)
+
+
+def test_with_on_episode_end_reset_the_sequences_follow_one_another_until_the_episodes_asked_for():
+    d, _ = sequence(count=2, on_episode_end="reset", episodes=EpisodeSchedule.parse("0-3"))
+    seen = []
+    for _ in range(2):
+        for index in (1, 2):
+            _, end = end_task(d, snap(holder="human", sim_time=START + 1.0))
+            out = d.answer(end, REPORT)
+            status = one(out, PublishTask).report
+            seen.append((status.episode, status.task_index))
+            if of(out, ResetPlanner):
+                d.finish_reset(out)
+    assert seen == [(0, 1), (1, 2), (2, 1), (3, 2)]
+    assert "the episodes asked for" not in one(out, Note).text
+    assert not of(out, ResetPlanner)      # episodes 0-3 are played: no third sequence
+    assert one(d.reset(), ResetDone).success is False
 
 
 def test_a_task_cut_short_is_played_again_under_its_number():

@@ -46,7 +46,7 @@ def test_the_terminal_publishes_the_task_and_says_it_in_one_line(monkeypatch):
     assert [m.task_index for m in task_statuses.sent] == [3] and not steps.sent
     assert said == [
         "hrc_human: task 3/5 (expert_tired_noncollaborative): success (robot) in 12 steps, "
-        "21.4 s, utility 0.13, 1 warning(s), 1 pre-emption(s); policy policy3; belief: "
+        "21.4 s, utility 0.13, 1 warning, 1 pre-emption; policy policy3; belief: "
         "expert_tired_noncollaborative 0.71, beginner_tired_collaborative 0.20, b 0.05 ..."]
 
 

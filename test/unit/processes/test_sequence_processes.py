@@ -95,6 +95,24 @@ def test_a_task_played_again_keeps_its_policy_and_starts_its_record_afresh():
     assert process.sequence.record.signature == []
 
 
+def test_a_reset_into_task_1_after_a_sequence_ended_starts_a_new_sequence_with_a_fresh_selector():
+    """One launch plays many sequences (an experiment cell's): after the last task of a
+    one-task sequence, task 1 again is a new sequence's, not the same task played again."""
+    process = robot_process("--selector", "random", "--seed", "3")
+    chosen = []
+    for sequence in range(8):
+        process.on_reset(Reset(episode=sequence, task_index=1, epoch=sequence + 1), None)
+        selector = process.sequence.selector
+        chosen.append(process.sequence.record.policy)
+        end(process, 1, sequence + 1)
+        assert process.sequence.record.ended
+        if sequence:
+            assert selector is not previous     # a fresh selector for each sequence
+        previous = selector
+    # Each sequence draws on its own stream: the choices are not one policy kept eight times.
+    assert len(set(chosen)) > 1, chosen
+
+
 def test_the_same_seed_chooses_the_same_policies():
     def choices():
         process = robot_process("--selector", "random", "--seed", "7")
