@@ -34,9 +34,7 @@ refused. SIGINT or SIGTERM stops every cell's stack, keeps what was recorded and
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import shlex
 import sys
 from pathlib import Path
 from typing import List, Optional, Sequence
@@ -55,8 +53,7 @@ from ros_hrc.experiment.grid import (DEFAULT_HUMANS, GridError, apply_task_defau
                                      plan_cells, resolve_files, task_of)
 from ros_hrc.experiment.plots import (NothingToPlot, plot_belief, plot_outcomes, plot_success,
                                       plot_time_gain)
-from ros_hrc.experiment.disk import DiskFull, full_disk_line, is_full_disk
-from ros_hrc.experiment.pool import run_stoppable, say_last
+from ros_hrc.experiment.pool import finish_run, run_stoppable
 from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder, open_results
 from ros_hrc.experiment.stack import MAX_EPISODES, check_launch_settings
 from ros_hrc.experiment.statistics import summarize, write_summary
@@ -71,7 +68,6 @@ from ros_hrc import settings
 from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model,
                                  positional_mapping_line)
 from ros_hrc.settings import SettingError
-from ros_hrc.pomdp.output import write_text_atomically
 
 NAME = "hrc_experiment"
 DEFAULT_POLICIES = ",".join(POLICIES_BY_DEFAULT)
@@ -417,23 +413,8 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
               f"(the human-alone ones included): {figures['episodes_per_minute']:.1f} "
               f"episodes/min, {figures['simulated_seconds']:.1f} simulated s, "
               f"speed-up over real time x{figures['speedup_over_real_time']:.1f}")
-    try:
-        if figures:
-            write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
-        report(store, out, plots=not args.no_plots)
-    except OSError as exc:
-        if not is_full_disk(exc):
-            raise
-        # Each file is whole or not there (written beside, then renamed): the episodes are
-        # all kept, and the same command writes what is missing once there is room.
-        say_last(full_disk_line(NAME, DiskFull.of_error(exc), len(store.done()), out,
-                                shlex.join([NAME] + list(words))))
-        return 1
-    if figures and figures["failed_cells"]:
-        print(f"{NAME}: {len(figures['failed_cells'])} cells failed (logs in {out / 'logs'}); "
-              "run again to retry them", file=sys.stderr)
-        return 1
-    return 0
+    return finish_run(NAME, figures, store, out, words,
+                      lambda: report(store, out, plots=not args.no_plots))
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ or a write of the run's own that found none), in one line naming the disk.
 from __future__ import annotations
 
 import functools
+import json
 import shlex
 import signal
 import subprocess
@@ -32,6 +33,7 @@ from ros_hrc.experiment.episode import ALONE_POLICY
 from ros_hrc.experiment.recording import Progress
 from ros_hrc.experiment.stack import (CellSpec, cell_name, decode_episode, worker_command,
                                       write_spec)
+from ros_hrc.pomdp.output import write_text_atomically
 
 
 class Stopper:
@@ -337,6 +339,30 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
     print(f"\n{program}: stopped by {name}; {len(store.done())} {unit} are kept in {out}. "
           f"Resume with: {command}", file=sys.stderr, flush=True)
     return None, 128 + int(stopper.signum)  # type: ignore[arg-type]
+
+
+def finish_run(program: str, figures: Optional[dict], store, out: Path, words: Sequence[str],
+               write_report: Callable[[], None]) -> int:
+    """A run's end, the same for episodes and sequences: ``run.json`` (when cells ran) and the
+    report (``write_report``) written; a full disk under them is one line and status 1 (every
+    row is kept, and the same command writes what is missing); failed cells are one line and
+    status 1 (run again to retry them). The exit status."""
+    try:
+        if figures:
+            write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
+        write_report()
+    except OSError as exc:
+        if not is_full_disk(exc):
+            raise
+        # Each file is whole or not there (written beside, then renamed).
+        say_last(full_disk_line(program, DiskFull.of_error(exc), len(store.done()), out,
+                                shlex.join([program] + list(words))))
+        return 1
+    if figures and figures["failed_cells"]:
+        print(f"{program}: {len(figures['failed_cells'])} cells failed (logs in "
+              f"{out / 'logs'}); run again to retry them", file=sys.stderr, flush=True)
+        return 1
+    return 0
 
 
 def say_last(line: str) -> None:

@@ -16,24 +16,17 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import json
-import shlex
-import sys
 from pathlib import Path
 from typing import Dict, List, Sequence
 
-from ros_hrc.experiment.disk import DiskFull, full_disk_line, is_full_disk
+from ros_hrc.experiment.arguments import say_one_line
 from ros_hrc.experiment.plots import NothingToPlot, plot_learning_curves
-from ros_hrc.experiment.pool import run_stoppable, say_last
+from ros_hrc.experiment.pool import finish_run, run_stoppable
 from ros_hrc.experiment.sequence_rows import SequenceStore
 from ros_hrc.experiment.sequence_statistics import (learning_curve, summarize_sequences,
                                                     write_sequence_summary)
 from ros_hrc.experiment.sequences import cell_humans, plan_sequence_cells, tasks_of
 from ros_hrc.pomdp.output import write_text_atomically
-
-
-def _say(program: str, text: object) -> None:
-    print(f"{program}: {' '.join(str(text).split())}", file=sys.stderr, flush=True)
 
 
 def grid_size(args: argparse.Namespace) -> int:
@@ -49,7 +42,7 @@ def run_sequences(args: argparse.Namespace, out: Path, words: Sequence[str], pro
     try:
         store = SequenceStore(out)
     except (OSError, ValueError) as exc:
-        _say(program, exc)
+        say_one_line(program, exc)
         return 2
     cells = plan_sequence_cells(args, store.done())
     grid = grid_size(args)
@@ -72,22 +65,9 @@ def run_sequences(args: argparse.Namespace, out: Path, words: Sequence[str], pro
               f"{figures['wall_seconds']:.1f} s: {figures['tasks_per_minute']:.1f} tasks/min, "
               f"{figures['simulated_seconds']:.1f} simulated s, speed-up over real time "
               f"x{figures['speedup_over_real_time']:.1f}", flush=True)
-    try:
-        if figures:
-            write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
-        if report:
-            report_sequences(store, out, plots=not args.no_plots, program=program)
-    except OSError as exc:
-        if not is_full_disk(exc):
-            raise
-        say_last(full_disk_line(program, DiskFull.of_error(exc), len(store.done()), out,
-                                shlex.join([program] + list(words))))
-        return 1
-    if figures and figures["failed_cells"]:
-        _say(program, f"{len(figures['failed_cells'])} cells failed (logs in {out / 'logs'}); "
-                      "run again to retry them")
-        return 1
-    return 0
+    return finish_run(program, figures, store, out, words,
+                      (lambda: report_sequences(store, out, plots=not args.no_plots,
+                                                program=program)) if report else (lambda: None))
 
 
 def sequence_figures(figures: Dict, length: int) -> Dict:
