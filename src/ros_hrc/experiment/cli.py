@@ -270,9 +270,31 @@ def validate_sequences(args: argparse.Namespace) -> List[str]:
         except HrcError as exc:
             raise GridError(f"--selector-model: {exc}") from None
         warnings += check_trained_elsewhere(args, model.header.get("seeds", ()))
+        warnings += adopt_model_trials(args, model.header.get("max_trials"))
     for spec in plan_sequence_cells(args, set())[:1]:
         check_launch_settings(spec)
     return warnings
+
+
+def adopt_model_trials(args: argparse.Namespace, model_trials: Optional[int]) -> List[str]:
+    """A selector model's μ, σ and signatures are of its policies as DESPOT planned them with
+    the trials its header names: the study plans with the same. Without ``--max-trials`` the
+    study takes the model's (the returned line says so); another number is refused in one
+    line (GridError). A model whose header names none (older files) changes nothing."""
+    if not model_trials:
+        return []
+    model_trials = int(model_trials)
+    file = args.selector_model_file
+    if not args.max_trials:
+        args.max_trials = model_trials
+        return [f"DESPOT plans with {model_trials} trials per decision, as the selector model "
+                f"{file} was trained (--max-trials to choose)"]
+    if args.max_trials != model_trials:
+        raise GridError(f"--max-trials {args.max_trials}: the selector model {file} was trained "
+                        f"with DESPOT at {model_trials} trials per decision, and its utilities "
+                        f"are of the policies planned so; give --max-trials {model_trials}, or "
+                        f"retrain it with --max-trials {args.max_trials}")
+    return []
 
 
 def validate_grid(args: argparse.Namespace) -> None:

@@ -46,6 +46,7 @@ from ros_hrc.experiment.recording import open_results
 from ros_hrc.experiment.sequence_rows import SequenceStore, TaskRow
 from ros_hrc.experiment.sequence_study import run_sequences
 from ros_hrc.experiment.sequences import FIXED, PER_TYPE, SELECTOR_MODEL_FILE
+from ros_hrc.experiment.stack import EXPERIMENT_TRIALS
 from ros_hrc.model_files import MODELS_DIR, user_path
 
 NAME = "hrc_train_selector"
@@ -82,6 +83,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the training runs' results directory (results/train_selector_TASK)")
     p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=None,
                    help="steps before a task ends (the task's)")
+    settings.add_argument(p, "max_trials", default=EXPERIMENT_TRIALS,
+                          help=f"DESPOT's trials per decision, no time budget "
+                               f"({EXPERIMENT_TRIALS}, the study's default): the study that "
+                               "uses the model must plan with the same (the header says it)")
     p.add_argument("--jobs", type=at_least(0, MAX_JOBS), default=0,
                    help="stacks side by side (0: one per core)")
     add_cluster_argument(p)
@@ -93,7 +98,8 @@ def study_words(args: argparse.Namespace) -> List[str]:
     words = ["--task", args.task, "--sequence", str(args.tasks_per_pair), "--selectors", FIXED,
              "--schedule", PER_TYPE, "--library", args.library,
              "--seeds", ",".join(map(str, args.seeds)), "--episodes", "1",
-             "--out", args.runs, "--jobs", str(args.jobs), "--no-plots"]
+             "--out", args.runs, "--jobs", str(args.jobs), "--no-plots",
+             "--max-trials", str(args.max_trials)]
     if args.human_models:
         words += ["--human-models", ",".join(args.human_models)]
     if args.step_limit is not None:
@@ -176,6 +182,7 @@ def main(argv: Optional[list] = None) -> int:
                      "signature codes counted per pair with an additive prior",
               "from": f"{Path(args.runs) / 'tasks.csv'}: {len(training)} tasks",
               "seeds": list(args.seeds), "leave_out": args.leave_out or "",
+              "max_trials": args.max_trials or EXPERIMENT_TRIALS,
               "command": shlex.join([NAME] + list(words)),
               "date": datetime.datetime.now(datetime.timezone.utc).isoformat(
                   timespec="seconds")}

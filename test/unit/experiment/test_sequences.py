@@ -300,7 +300,7 @@ def test_the_learning_curve_plot_draws_the_adaptive_selectors_and_the_best_fixed
                              tmp_path / "none.png", {"expert": "fixed:base"})
 
 
-def write_fixture_model(path, seeds):
+def write_fixture_model(path, seeds, max_trials=None):
     """A selector model for fabric's library, from hand-made training tasks (a fixture: the
     shipped model comes from hrc_train_selector)."""
     from ros_hrc import tasks
@@ -315,7 +315,9 @@ def write_fixture_model(path, seeds):
     write_selector_model(from_tasks(rows, task="fabric", policies=policies, types=types,
                                     header={"how": "fixture", "from": "a test",
                                             "seeds": seeds, "command": "pytest",
-                                            "date": "2026-11-27"}), path)
+                                            "date": "2026-11-27",
+                                            **({"max_trials": max_trials}
+                                               if max_trials else {})}), path)
 
 
 def test_a_selector_model_is_not_evaluated_on_the_seeds_it_was_trained_on(tmp_path):
@@ -342,6 +344,27 @@ def test_with_allow_in_sample_the_trained_seeds_run_with_a_warning_line():
     args.selectors = ["random", "fixed:base"]
     args.allow_in_sample = False
     assert check_trained_elsewhere(args, [2]) == []
+
+
+def test_the_study_plans_with_the_trials_its_selector_model_was_trained_with(tmp_path):
+    from ros_hrc.experiment.cli import adopt_model_trials
+    args = SimpleNamespace(max_trials=0, selector_model_file="/m/model.json")
+    assert adopt_model_trials(args, 100) == [
+        "DESPOT plans with 100 trials per decision, as the selector model /m/model.json was "
+        "trained (--max-trials to choose)"]
+    assert args.max_trials == 100
+    assert adopt_model_trials(args, 100) == []          # asked for the same: nothing to say
+    assert adopt_model_trials(SimpleNamespace(max_trials=300), None) == []   # header silent
+    write_fixture_model(tmp_path / "model.json", seeds=[4], max_trials=100)
+    done = run_cli("--task", "fabric", "--sequence", "3", "--selectors", "bpr",
+                   "--selector-model", "model.json", "--max-trials", "500", "--out",
+                   str(tmp_path / "results"), cwd=tmp_path)
+    assert done.returncode == 2
+    assert done.stderr == (f"hrc_experiment: --max-trials 500: the selector model "
+                           f"{tmp_path / 'model.json'} was trained with DESPOT at 100 trials "
+                           "per decision, and its utilities are of the policies planned so; "
+                           "give --max-trials 100, or retrain it with --max-trials 500\n")
+    assert not (tmp_path / "results").exists()
 
 
 def test_a_selector_that_needs_a_model_without_one_names_make_train_selector(tmp_path):
