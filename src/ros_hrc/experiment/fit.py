@@ -56,7 +56,7 @@ from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc import tasks
-from ros_hrc.experiment.grid import task_humans, task_launch_args, task_of
+from ros_hrc.experiment.grid import task_launch_args, task_of, training_humans
 from ros_hrc.experiment.pool import run_stoppable
 from ros_hrc.experiment.provenance import FittedStreams, file_sha256
 from ros_hrc.experiment.recording import open_results
@@ -170,8 +170,7 @@ def check_arguments(args: argparse.Namespace) -> Model:
         if args.prior is None:
             args.prior = which.default_robot_model
         if args.human_models is None:
-            args.human_models = (names_argument(DEFAULT_HUMANS)
-                                 if which.name == tasks.DEFAULT_TASK else task_humans(which))
+            args.human_models = training_humans(which)
         if args.step_limit is None:
             args.step_limit = which.study_step_limit
         args.prior = str(model_path(args.prior, "robot", which))

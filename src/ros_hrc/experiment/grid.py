@@ -50,6 +50,15 @@ def task_humans(task: tasks.Task) -> List[str]:
     return sorted({p.stem for p in Path(task.model_dirs["human"]).glob("*.pomdp*")})
 
 
+def training_humans(task: tasks.Task) -> List[str]:
+    """The human models a task's robot is fitted or its selector trained on when
+    ``--human-models`` is not given: the seed's zoo's fit set (never the held-out humans the
+    study evaluates on); another task's every shipped type (its study's types)."""
+    if task.name == tasks.DEFAULT_TASK:
+        return names_argument(zoo_argument("fit"))
+    return task_humans(task)
+
+
 def task_launch_args(args: argparse.Namespace) -> List[str]:
     """The cells' hrc.launch argument for a task other than the default (none for it)."""
     task = task_of(args)

@@ -41,7 +41,7 @@ from ros_hrc.experiment.cli import build_parser as study_parser
 from ros_hrc.experiment.cli import check_mode, validate_sequences
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
-from ros_hrc.experiment.grid import GridError, task_humans
+from ros_hrc.experiment.grid import GridError, training_humans
 from ros_hrc.experiment.recording import open_results
 from ros_hrc.experiment.sequence_rows import SequenceStore, TaskRow
 from ros_hrc.experiment.sequence_study import run_sequences
@@ -66,7 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the policy library, a manifest or a folder holding library.toml "
                         "(auto: the task's)")
     p.add_argument("--human-models", type=names_argument, default=None,
-                   help="the human types, comma-separated (the task's shipped types)")
+                   help="the human types, comma-separated (the seed: the zoo's fit set, "
+                        "never the study's held-out humans; fabric: its ten types)")
     p.add_argument("--tasks-per-pair", type=at_least(1, 100000),
                    default=DEFAULT_TASKS_PER_PAIR,
                    help=f"tasks per (type, policy) pair ({DEFAULT_TASKS_PER_PAIR}, FABRIC's)")
@@ -133,7 +134,7 @@ def main(argv: Optional[list] = None) -> int:
     try:
         args = build_parser().parse_args(words)
         task = tasks.get(args.task)
-        types = list(args.human_models or task_humans(task))
+        types = list(args.human_models or training_humans(task))
         if args.leave_out is not None:
             if args.leave_out not in types:
                 raise GridError(f"--leave-out: {args.leave_out!r} is not one of the types "

@@ -86,3 +86,13 @@ def test_the_trainer_refuses_in_one_line_before_any_stack(tmp_path, args, line):
     assert done.stderr.startswith(line), done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "runs").exists()
+
+
+def test_the_seeds_selector_is_trained_on_the_zoos_fit_set_never_the_held_out_humans():
+    from ros_hrc import tasks
+    from ros_hrc.experiment.grid import task_humans, training_humans
+    from ros_hrc.experiment.zoo import ZOO_FIT, ZOO_HELD_OUT
+    assert training_humans(tasks.get("seed")) == list(ZOO_FIT)
+    assert not set(training_humans(tasks.get("seed"))) & set(ZOO_HELD_OUT)
+    # fabric's study is on its ten types: they are what the selector knows.
+    assert training_humans(tasks.get("fabric")) == task_humans(tasks.get("fabric"))
