@@ -34,8 +34,10 @@ from ros_hrc.experiment.statistics import (adjust_for_many_tests, format_ci, for
                                            markdown_table, mean_ci, median, proportion_ci,
                                            write_summary_files)
 
-#: The baselines every selector is set against (summary prefixes).
-BASELINES: Tuple[str, ...] = ("vs_best_fixed", "vs_oracle")
+#: The baselines every selector is set against (summary prefixes): the best fixed policy in
+#: hindsight, the oracle, and the authors' own policy (the library's first, ``base`` for
+#: fabric): "better than the authors' base" is not "better than the best fixed policy".
+BASELINES: Tuple[str, ...] = ("vs_best_fixed", "vs_oracle", "vs_base")
 #: The paired tests against each.
 SEQUENCE_TESTS: Tuple[str, ...] = ("utility", "success")
 #: The schedule of the entries pooled over every per-type schedule.
@@ -122,19 +124,24 @@ def paired_tests(rows: Sequence[TaskRow], baseline_rows: Sequence[TaskRow],
     """The paired tests of ``rows`` against ``baseline_rows`` on the tasks both played (same
     schedule, seed, episode, task): ``<prefix>_pairs``, ``<prefix>_utility_diff`` (the median
     paired difference, the selector's minus the baseline's) and ``_p`` (Wilcoxon),
-    ``<prefix>_success_diff`` (the difference in success rate) and ``_p`` (McNemar exact)."""
+    ``<prefix>_utility_mean_diff`` (the mean paired difference: what a task gains on
+    average), ``<prefix>_success_diff`` (the difference in success rate) and ``_p``
+    (McNemar exact)."""
     theirs = {pair_key(r): r for r in baseline_rows}
     pairs = [(theirs[pair_key(r)], r) for r in rows if pair_key(r) in theirs]
     out: Dict[str, Any] = {f"{prefix}_pairs": len(pairs)}
     if not pairs:
         for test in SEQUENCE_TESTS:
             out[f"{prefix}_{test}_diff"] = out[f"{prefix}_{test}_p"] = math.nan
+        out[f"{prefix}_utility_mean_diff"] = math.nan
         return out
     wilcoxon = paired.wilcoxon_paired([b.utility for b, _ in pairs],
                                       [r.utility for _, r in pairs])
     mcnemar = paired.mcnemar_exact([bool(b.success) for b, _ in pairs],
                                    [bool(r.success) for _, r in pairs])
     out.update({f"{prefix}_utility_diff": wilcoxon.median_difference,
+                f"{prefix}_utility_mean_diff": float(sum(r.utility - b.utility
+                                                         for b, r in pairs) / len(pairs)),
                 f"{prefix}_utility_p": wilcoxon.p_value,
                 f"{prefix}_success_diff": mcnemar.difference,
                 f"{prefix}_success_p": mcnemar.p_value})
@@ -171,18 +178,22 @@ SEQUENCE_SUMMARY_COLUMNS: Tuple[str, ...] = (
     "schedule", "selector", "tasks", "sequences", "success", "success_low", "success_high",
     "utility", "utility_low", "utility_high", "warnings", "warnings_low", "warnings_high",
     "preemptions", "preemptions_low", "preemptions_high", "duration", "duration_low",
-    "duration_high", "blocks", "identified", "tasks_to_identify_median", "best_fixed") + tuple(
-    f"{b}_{c}" for b in BASELINES for c in ("pairs", "utility_diff", "utility_p", "utility_q",
-                                             "success_diff", "success_p", "success_q"))
+    "duration_high", "blocks", "identified", "tasks_to_identify_median", "best_fixed",
+    "base") + tuple(
+    f"{b}_{c}" for b in BASELINES for c in ("pairs", "utility_mean_diff", "utility_diff",
+                                             "utility_p", "utility_q", "success_diff",
+                                             "success_p", "success_q"))
 
 
 def summarize_sequences(rows: Iterable[Union[TaskRow, Mapping[str, Any]]],
-                        confidence: float = 0.95) -> List[Dict[str, Any]]:
+                        confidence: float = 0.95,
+                        base: Optional[str] = None) -> List[Dict[str, Any]]:
     """One entry per (schedule, selector), then per selector pooled over the per-type
     schedules (:data:`POOLED_TYPES`): tasks, sequences, success (Wilson), utility, warnings,
     pre-emptions and duration per task (Student's t), the blocks identified and the median
     tasks to identify, the best fixed policy of the schedule (in hindsight) and the paired
-    tests against it and against the oracle, with their q-values."""
+    tests against it, against the oracle and against ``base`` (the authors' own policy as a
+    selector, ``fixed:base``), with their q-values."""
     rows = [r if isinstance(r, TaskRow) else TaskRow.from_dict(r) for r in rows]
     blocks = _groups_of_dicts(identification(rows))
     scopes: List[Tuple[str, List[TaskRow]]] = [
@@ -201,7 +212,9 @@ def summarize_sequences(rows: Iterable[Union[TaskRow, Mapping[str, Any]]],
                            [b for s in names for b in blocks.get((s, selector), [])],
                            confidence)
             entry["best_fixed"] = best or ""
-            for prefix, baseline in (("vs_best_fixed", best), ("vs_oracle", ORACLE)):
+            entry["base"] = base or ""
+            for prefix, baseline in (("vs_best_fixed", best), ("vs_oracle", ORACLE),
+                                     ("vs_base", base)):
                 if baseline is None or baseline == selector or baseline not in by_selector:
                     entry.update(paired_tests(group, [], prefix))
                 else:
@@ -244,11 +257,11 @@ def sequence_markdown(summary: Sequence[Mapping[str, Any]], confidence: float = 
          for e in believing]) if believing else \
         "No selector of this study holds a belief over the human's type."
     compared = markdown_table(
-        ["Schedule", "Selector", "Against", "Pairs", "Δ utility (median)", "p", "q",
-         "Δ success", "p", "q"],
-        [[e["schedule"], e["selector"],
-          e["best_fixed"] + " (best fixed)" if prefix == "vs_best_fixed" else ORACLE,
-          str(e[f"{prefix}_pairs"]), _signed(e[f"{prefix}_utility_diff"]),
+        ["Schedule", "Selector", "Against", "Pairs", "Δ utility (mean)", "Δ utility (median)",
+         "p", "q", "Δ success", "p", "q"],
+        [[e["schedule"], e["selector"], _against(e, prefix),
+          str(e[f"{prefix}_pairs"]), _signed(e[f"{prefix}_utility_mean_diff"]),
+          _signed(e[f"{prefix}_utility_diff"]),
           format_p(e[f"{prefix}_utility_p"]), format_p(e[f"{prefix}_utility_q"]),
           _signed(e[f"{prefix}_success_diff"]), format_p(e[f"{prefix}_success_p"]),
           format_p(e[f"{prefix}_success_q"])]
@@ -268,11 +281,19 @@ def sequence_markdown(summary: Sequence[Mapping[str, Any]], confidence: float = 
         "from its first task), over the identified blocks.", "",
         "## Paired tests", "", compared, "",
         "Pairs: the same (schedule, seed, sequence, task), hence the same human stream. "
-        "Δ utility: the median paired difference, this selector's minus the other's "
-        "(Wilcoxon's signed-rank test); Δ success: the difference in success rate "
+        "Δ utility: the mean and the median paired difference, this selector's minus the "
+        "other's (Wilcoxon's signed-rank test); Δ success: the difference in success rate "
         "(McNemar's exact test). q: Benjamini-Hochberg over the summary's rows, one family "
         "per test and baseline. The best fixed policy is chosen in hindsight on these same "
         "tasks, which favours it.", ""])
+
+
+def _against(entry: Mapping[str, Any], prefix: str) -> str:
+    if prefix == "vs_best_fixed":
+        return entry["best_fixed"] + " (best fixed)"
+    if prefix == "vs_base":
+        return entry["base"] + " (the authors')"
+    return ORACLE
 
 
 def _signed(value: float) -> str:

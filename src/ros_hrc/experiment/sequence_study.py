@@ -17,7 +17,7 @@ import argparse
 import csv
 import io
 from pathlib import Path
-from typing import Dict, List, Sequence
+from typing import Dict, List, Optional, Sequence
 
 from ros_hrc.experiment.arguments import say_one_line
 from ros_hrc.experiment.plots import NothingToPlot, plot_learning_curves
@@ -25,7 +25,8 @@ from ros_hrc.experiment.pool import finish_run, run_stoppable
 from ros_hrc.experiment.sequence_rows import SequenceStore
 from ros_hrc.experiment.sequence_statistics import (learning_curve, summarize_sequences,
                                                     write_sequence_summary)
-from ros_hrc.experiment.sequences import cell_humans, plan_sequence_cells, tasks_of
+from ros_hrc.experiment.sequences import (cell_humans, load_study_library, plan_sequence_cells,
+                                          tasks_of)
 from ros_hrc.pomdp.output import write_text_atomically
 
 
@@ -67,7 +68,7 @@ def run_sequences(args: argparse.Namespace, out: Path, words: Sequence[str], pro
               f"x{figures['speedup_over_real_time']:.1f}", flush=True)
     return finish_run(program, figures, store, out, words,
                       (lambda: report_sequences(store, out, plots=not args.no_plots,
-                                                program=program)) if report else (lambda: None))
+                                                program=program, base=authors_base(args))) if report else (lambda: None))
 
 
 def sequence_figures(figures: Dict, length: int) -> Dict:
@@ -82,14 +83,23 @@ def sequence_figures(figures: Dict, length: int) -> Dict:
     return out
 
 
-def report_sequences(store: SequenceStore, out: Path, plots: bool, program: str) -> None:
-    """The summary (CSV and Markdown), the learning curve (CSV, and its plot unless not
-    ``plots``) of everything recorded in ``out``."""
+def authors_base(args) -> Optional[str]:
+    """The authors' own policy as a selector: ``fixed:`` and the library's first policy
+    (models/README.md, "Policy libraries": fabric's ``base``, the seed's ``authors``)."""
+    names = load_study_library(args).names()
+    return f"fixed:{names[0]}" if names else None
+
+
+def report_sequences(store: SequenceStore, out: Path, plots: bool, program: str,
+                     base: Optional[str] = None) -> None:
+    """The summary (CSV and Markdown; every selector also against ``base``, the authors'
+    policy), the learning curve (CSV, and its plot unless not ``plots``) of everything
+    recorded in ``out``."""
     tasks = store.tasks()
     if not tasks:
         print(f"{program}: no sequences recorded yet in {out}")
         return
-    summary = summarize_sequences(tasks)
+    summary = summarize_sequences(tasks, base=base)
     csv_path, md_path = write_sequence_summary(summary, out / "summary.csv", out / "summary.md")
     print(Path(md_path).read_text())
     curve = learning_curve(tasks)

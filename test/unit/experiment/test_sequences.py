@@ -253,18 +253,25 @@ def test_the_summary_sets_every_selector_against_the_best_fixed_policy_and_the_o
                                       schedule=human)
             rows += tasks_of_sequence("oracle", seed, 0, [0.8, 0.7, 0.9], schedule=human)
             rows += tasks_of_sequence("bpr", seed, 0, [-0.2, 0.6, 0.8], schedule=human)
-    summary = summarize_sequences(rows)
+    summary = summarize_sequences(rows, base="fixed:base")
     by = {(e["schedule"], e["selector"]): e for e in summary}
     assert {s for s, _ in by} == {"expert", "novice", "per-type (pooled)"}
     pooled = by[("per-type (pooled)", "bpr")]
     assert pooled["tasks"] == 12 and pooled["best_fixed"] == "fixed:policy3"
     assert pooled["vs_best_fixed_pairs"] == 12 and pooled["vs_oracle_pairs"] == 12
     assert pooled["utility"] == pytest.approx(np.mean([-0.2, 0.6, 0.8]))
+    # Against the authors' base too: beating it is not beating the best fixed policy.
+    assert pooled["vs_base_pairs"] == 12 and pooled["base"] == "fixed:base"
+    assert pooled["vs_base_utility_mean_diff"] == pytest.approx(
+        np.mean([-0.2, 0.6, 0.8]) - np.mean([0.2, 0.3, 0.1]))
+    assert pooled["vs_best_fixed_utility_mean_diff"] == pytest.approx(
+        np.mean([-0.2, 0.6, 0.8]) - np.mean([0.4, 0.5, 0.6]))
+    assert by[("expert", "fixed:base")]["vs_base_pairs"] == 0
     # Nobody is compared with itself; every q is at least its p.
     assert by[("expert", "oracle")]["vs_oracle_pairs"] == 0
     assert math.isnan(by[("expert", "oracle")]["vs_oracle_utility_q"])
     for e in summary:
-        for prefix in ("vs_best_fixed", "vs_oracle"):
+        for prefix in ("vs_best_fixed", "vs_oracle", "vs_base"):
             if e[f"{prefix}_pairs"]:
                 assert e[f"{prefix}_utility_q"] >= e[f"{prefix}_utility_p"] - 1e-12
 
