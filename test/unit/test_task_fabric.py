@@ -60,6 +60,16 @@ def test_after_the_robots_grasp_the_human_is_interfered():
         "RobotInterfered"
 
 
+def test_a_robot_that_grasps_on_draws_the_interfered_humans_next_state_from_its_row():
+    # The authors draw from RobotInterfered's row at every grasp of the robot: a human it
+    # keeps grasping against is not held still (he may warn it).
+    reaction = RULES.next_state("RobotInterfered", "idle", "grasp", "", drawn)
+    assert (reaction.state, reaction.rule) == ("drawn(RobotInterfered,idle)",
+                                               "robot_grasped_again")
+    reaction = RULES.next_state("RobotInterfered", "warnRobot", "grasp", "", drawn)
+    assert reaction.state == "drawn(RobotInterfered,warnRobot)"
+
+
 def test_his_own_grasp_keeps_the_outcome_drawn_before_the_robot_acted():
     for robot in ("idle", "point", "cancel", "graspPlanning"):
         reaction = RULES.next_state("FailedToGrasp", "graspAttempt", robot, "", no_draw)

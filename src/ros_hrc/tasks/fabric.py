@@ -10,7 +10,7 @@ is our own code for them, and ``docs/tasks.md`` says where it differs and why.
   in his state (a grasp's outcome is drawn before the robot acts, and is the state the step
   shows); after the robot acted, the first rule that applies gives his next state: the task's
   end (or a terminal state) stays; Recovery, or a walk away, -> Recovery; the robot grasped ->
-  RobotInterfered; his own grasp -> its outcome; the robot pointed -> Evaluating; he warned
+  RobotInterfered (already in it: a draw from its row); his own grasp -> its outcome; the robot pointed -> Evaluating; he warned
   and the robot idled or cancelled -> RobotIsWarned; else a draw from his model's row.
 * **The robot** (11 states, 5 actions: idle, grasp, cancel, point, graspPlanning, the last
   through ``/robot/grasp_planning``) sees 12 observations mapped from seven bits: the seed's
@@ -304,8 +304,16 @@ class FabricReaction:
             why = "he walked away" if action == "walkAway" else "he is recovering"
             return Reaction("Recovery", "recovery", f"{why}: Recovery")
         if robot_action == "grasp":
-            return Reaction("RobotInterfered", "robot_grasped",
-                            "the robot grasped: RobotInterfered")
+            if acting != "RobotInterfered":
+                return Reaction("RobotInterfered", "robot_grasped",
+                                "the robot grasped: RobotInterfered")
+            # Interfered already and the robot grasps on: the authors draw from
+            # RobotInterfered's row at every grasp, so a human under a robot that keeps
+            # grasping may warn it or turn away, not stand still (docs/tasks.md).
+            state = draw("RobotInterfered", action)
+            return Reaction(state, "robot_grasped_again",
+                            f"the robot grasped again: drawn from RobotInterfered's {action} "
+                            f"row: {state}")
         if action == self.grasp:
             return Reaction(acting, "own_grasp", f"his grasp's outcome, drawn before the robot "
                                                  f"acted: {acting}")

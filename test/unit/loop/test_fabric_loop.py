@@ -110,8 +110,9 @@ def test_a_seeded_fabric_run_with_the_reactive_robot_is_the_recorded_one(reactiv
 
 
 @pytest.mark.parametrize("run, rules", [
+    # He warns a robot that grasps on (a draw from RobotInterfered's row), and it cancels.
     ("reactive_run", {"attempt_failed", "grasp_attempt", "no_change", "not_detected",
-                      "success"}),
+                      "success", "warning", "waited"}),
     ("reactive_waiting_run", {"waited", "no_change", "success"}),
 ])
 def test_the_reactive_robot_decides_by_the_authors_rules_on_the_simulated_time(run, rules,
