@@ -10,3 +10,16 @@ def link_token(tmp_path):
     the test's own."""
     path = mint_token("unit_test", environ={"ROS_HOME": str(tmp_path / "ros_home")})
     return read_token(path), path
+
+
+@pytest.fixture
+def library_without_model(tmp_path):
+    """fabric's library in a folder of its own, without a selector model beside it (the
+    shipped one is beside models/fabric/library.toml): its manifest's path."""
+    from pathlib import Path
+    manifest = Path(__file__).resolve().parents[2] / "models" / "fabric" / "library.toml"
+    folder = tmp_path / "library"
+    folder.mkdir()
+    (folder / "library.toml").write_text(
+        manifest.read_text().replace('model = "', f'model = "{manifest.parent}/'))
+    return folder / "library.toml"

@@ -45,8 +45,10 @@ def test_a_selector_model_of_another_task_is_refused(tmp_path):
     assert line.startswith(f"selector_model:={path}: ") and "of task 'seed'" in line
 
 
-def test_a_selector_that_needs_a_model_without_one_names_make_train_selector():
-    line = refusal("task:=fabric", "tasks:=3", "selector:=oracle")
+def test_a_selector_that_needs_a_model_without_one_names_make_train_selector(
+        library_without_model):
+    line = refusal("task:=fabric", "tasks:=3", "selector:=oracle",
+                   f"library:={library_without_model}")
     assert line.startswith("selector:=oracle needs a selector model") and \
         "make train-selector" in line
 
@@ -63,8 +65,8 @@ def test_a_sequence_without_a_selector_model_runs_the_selectors_that_need_none()
                                         "selector chooses between the tasks of a sequence"),
     (("task:=fabric", "tasks:=5", "schedule:=sleepy*3"),
      "hrc.launch: schedule:=sleepy*3: unknown human type 'sleepy'; known: "),
-    (("task:=fabric", "tasks:=5", "selector:=bpr"),
-     "hrc.launch: selector:=bpr needs a selector model"),
+    (("task:=fabric", "tasks:=5", "selector:=bpr", "selector_model:=/nowhere/model.json"),
+     "hrc.launch: selector_model:=/nowhere/model.json: "),
 ])
 def test_the_launch_stops_before_anything_starts(words, line):
     done, master_up = roslaunch(*words)

@@ -158,10 +158,22 @@ def test_selector_fixed_is_the_one_robot_and_still_reports_a_task():
     assert isinstance(end(plain, 1, 1), Error)
 
 
+def test_a_selector_that_needs_a_model_in_a_library_without_one_names_make_train_selector(
+        library_without_model):
+    with pytest.raises(SelectionError) as info:
+        load_selection("bpr", str(library_without_model), "auto", FABRIC)
+    assert str(info.value).startswith(
+        f"selector:=bpr needs a selector model, and the library has none (looked for "
+        f"{library_without_model.parent}/selector_model.json): `make train-selector` writes it")
+
+
+def test_the_shipped_selector_models_fit_their_libraries():
+    for task in (FABRIC, tasks.get("seed")):
+        for selector in ("bpr", "bpr-pi", "bpr-fabric", "oracle"):
+            load_selection(selector, "auto", "auto", task)     # no refusal
+
+
 @pytest.mark.parametrize("words, line", [
-    (("bpr", "auto", "auto"), "selector:=bpr needs a selector model, and the library has none "
-                              "(looked for models/fabric/selector_model.json): `make "
-                              "train-selector` writes it"),
     (("fixed:policy99", "auto", "auto"), "selector:=fixed:policy99: no policy 'policy99' in "
                                          "the library models/fabric/library.toml"),
     (("random", "/nowhere/library.toml", "auto"), "library:=/nowhere/library.toml: "),
