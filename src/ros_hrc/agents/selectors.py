@@ -34,6 +34,7 @@ from scipy.special import logsumexp
 from scipy.stats import norm
 
 from ros_hrc.agents.selector_model import SIGNATURE_CODES, SelectorModel
+from ros_hrc.tasks.utility import UTILITY_MAX
 
 __all__ = ["SELECTOR_NAMES", "NEEDS_MODEL", "DEFAULT_FORGETTING", "SIGNATURE_OBSERVABLES",
            "TaskResult", "Selector", "signature_code", "make_selector",
@@ -194,10 +195,14 @@ def expected_utilities(belief: np.ndarray, mean: np.ndarray) -> np.ndarray:
     return np.asarray(belief, dtype=float) @ np.asarray(mean, dtype=float)
 
 
-def utility_ceiling(mean: np.ndarray, std: np.ndarray) -> float:
-    """U_max, the largest utility the performance model gives any chance: the largest
-    μ + 3σ over all (type, policy) pairs (3σ leaves out 0.13 % of a Gaussian)."""
-    return float(np.max(np.asarray(mean) + 3.0 * np.asarray(std)))
+def utility_ceiling(mean: np.ndarray, std: np.ndarray, top: float = UTILITY_MAX) -> float:
+    """U_max, the largest utility a task can reach: the largest μ + 3σ over all (type,
+    policy) pairs (3σ leaves out 0.13 % of a Gaussian), but never above the utility's own
+    top (``top``, :data:`~ros_hrc.tasks.utility.UTILITY_MAX`). The cap matters: a policy
+    that fails some tasks of a type has a bimodal utility and a wide σ, and a Gaussian with
+    that σ puts chances above what any task can score; without the cap, BPR-EI paid for that
+    impossible upside and chose the erratic policy over the sure one (docs/selectors.md)."""
+    return float(min(np.max(np.asarray(mean) + 3.0 * np.asarray(std)), top))
 
 
 def improvement_target(u_bar: float, u_max: float) -> float:

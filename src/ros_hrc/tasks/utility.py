@@ -49,6 +49,10 @@ class TaskOutcome:
                              "required")
 
 
+#: The largest utility a task can have: a success at once, with no warning and no pre-emption.
+UTILITY_MAX = 1.0
+
+
 def task_utility(outcome: TaskOutcome) -> float:
     """The task's utility, the same scale for every policy (range about [-1.5, 1]): 1 for a
     success, minus half the share of the timeout it took, minus 0.1 a warning, minus 0.5 a

@@ -173,6 +173,26 @@ def test_the_belief_decides_the_policy():
         [0.1427898, 0.0158655], abs=1e-6)
 
 
+# The utility cannot pass 1 (a success at once, nothing else): U_max is capped there. The
+# fabric figures that showed why, one type: a sure policy N(0.77, 0.2) (policy9 on a
+# non-collaborating beginner) and an erratic one N(0.36, 0.6) (the reactive robot: it fails
+# some of his tasks). Ū = 0.77. Uncapped, EI pays for the erratic policy's chances above 1,
+# which no task can score: 0.0882 against 0.0798; capped at 1 the sure policy leads, 0.0674
+# against 0.0442 (numbers from the closed form above).
+def test_u_max_is_the_utilitys_top_so_ei_does_not_buy_impossible_upside():
+    from ros_hrc.agents.selectors import utility_ceiling
+    mean, std = [[0.77, 0.36]], [[0.2, 0.6]]
+    assert utility_ceiling(np.array(mean), np.array(std)) == 1.0
+    assert utility_ceiling(np.array([[0.1]]), np.array([[0.1]])) == pytest.approx(0.4)
+    belief = np.array([1.0])
+    assert expected_improvement(belief, mean, std, 0.77, math.inf) == pytest.approx(
+        [0.0797885, 0.0881734], abs=1e-6)
+    assert expected_improvement(belief, mean, std, 0.77, 1.0) == pytest.approx(
+        [0.0673678, 0.0442149], abs=1e-6)
+    model = model_of(mean, std)
+    assert make_selector("bpr", model.policies, model, 0, 0.0).choose() == "policy0"
+
+
 # -- FABRIC's variant -----------------------------------------------------------------------
 # Their update, from the uniform belief, codes (1, 33):
 #   A: (0.5 + 1e-5) (0.5 + 1e-4)(0.5 + 1e-4), B: (0.5 + 1e-5) (0.2 + 1e-4)(0.8 + 1e-4)
