@@ -150,10 +150,17 @@ def paired_tests(rows: Sequence[TaskRow], baseline_rows: Sequence[TaskRow],
 
 def per_type_schedules(rows: Iterable[TaskRow]) -> List[str]:
     """The schedules that are one type throughout (``--schedule per-type``'s cells: every
-    task's true type is the schedule's name)."""
+    task's true type is the schedule's name, or for a human given as a file, such as
+    ``hrc_perturb_humans``' ``DIR/<type>.pomdpx``, the file's stem)."""
     by_schedule = _groups(rows, "schedule")
     return sorted(s for (s,), group in by_schedule.items()
-                  if all(r.true_type == s for r in group))
+                  if all(r.true_type in (s, _model_stem(s)) for r in group))
+
+
+def _model_stem(schedule: str) -> str:
+    """A per-type cell's label given as a model file: the type its tasks are labelled with."""
+    return os.path.splitext(os.path.basename(schedule))[0] if schedule.endswith(
+        (".pomdpx", ".pomdp")) else schedule
 
 
 def _entry(schedule: str, selector: str, group: Sequence[TaskRow],

@@ -276,6 +276,25 @@ def test_the_summary_sets_every_selector_against_the_best_fixed_policy_and_the_o
                 assert e[f"{prefix}_utility_q"] >= e[f"{prefix}_utility_p"] - 1e-12
 
 
+def test_humans_given_as_files_are_per_type_cells_and_pooled_as_such():
+    # hrc_perturb_humans' DIR/<type>.pomdpx: the cell is labelled by the file, its tasks by
+    # the type it was made from.
+    from ros_hrc.experiment.sequence_statistics import per_type_schedules
+    rows = []
+    for name in ("expert", "novice"):
+        label = f"/humans/{name}.pomdpx"
+        for selector in ("bpr", "fixed:base"):
+            rows += tasks_of_sequence(selector, 2, 0, [0.5, 0.6], schedule=label,
+                                      true_types={1: name, 2: name})
+    assert per_type_schedules(rows) == ["/humans/expert.pomdpx", "/humans/novice.pomdpx"]
+    pooled = [e for e in summarize_sequences(rows) if e["schedule"] == "per-type (pooled)"]
+    assert {e["selector"]: e["tasks"] for e in pooled} == {"bpr": 4, "fixed:base": 4}
+    # A schedule of two types is not one type throughout.
+    mixed = tasks_of_sequence("bpr", 2, 0, [0.5, 0.6], schedule="/h/expert.pomdpx",
+                              true_types={1: "expert", 2: "novice"})
+    assert per_type_schedules(mixed) == []
+
+
 def test_a_sequence_study_defaults_to_five_sequences_of_the_issues_selectors_per_type():
     from ros_hrc.experiment.cli import build_parser, check_mode
     words = ["--sequence", "30", "--task", "fabric"]
