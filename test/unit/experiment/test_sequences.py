@@ -346,17 +346,25 @@ def write_fixture_model(path, seeds, max_trials=None):
                                                if max_trials else {})}), path)
 
 
-def test_a_selector_model_is_not_evaluated_on_the_seeds_it_was_trained_on(tmp_path):
-    write_fixture_model(tmp_path / "model.json", seeds=[2, 7])
-    done = run_cli("--task", "fabric", "--sequence", "3", "--selectors", "bpr,random",
-                   "--selector-model", "model.json", "--seeds", "1,7", "--out",
+def refusal_of_a_study_with_model(tmp_path, selectors, *words, **model):
+    """The stderr of a sequence study with a fixture selector model (``model``: its seeds,
+    max_trials), refused before anything ran (exit status 2, no results folder)."""
+    write_fixture_model(tmp_path / "model.json", **model)
+    done = run_cli("--task", "fabric", "--sequence", "3", "--selectors", selectors,
+                   "--selector-model", "model.json", *words, "--out",
                    str(tmp_path / "results"), cwd=tmp_path)
     assert done.returncode == 2
-    assert done.stderr == (f"hrc_experiment: --selectors bpr: their selector model "
-                           f"{tmp_path / 'model.json'} was trained on seeds 7, which this "
-                           "study would evaluate them on; choose other --seeds, or give "
-                           "--allow-in-sample to run them anyway\n")
     assert not (tmp_path / "results").exists()
+    return done.stderr
+
+
+def test_a_selector_model_is_not_evaluated_on_the_seeds_it_was_trained_on(tmp_path):
+    stderr = refusal_of_a_study_with_model(tmp_path, "bpr,random", "--seeds", "1,7",
+                                           seeds=[2, 7])
+    assert stderr == (f"hrc_experiment: --selectors bpr: their selector model "
+                      f"{tmp_path / 'model.json'} was trained on seeds 7, which this "
+                      "study would evaluate them on; choose other --seeds, or give "
+                      "--allow-in-sample to run them anyway\n")
 
 
 def test_with_allow_in_sample_the_trained_seeds_run_with_a_warning_line():
@@ -381,16 +389,12 @@ def test_the_study_plans_with_the_trials_its_selector_model_was_trained_with(tmp
     assert args.max_trials == 100
     assert adopt_model_trials(args, 100) == []          # asked for the same: nothing to say
     assert adopt_model_trials(SimpleNamespace(max_trials=300), None) == []   # header silent
-    write_fixture_model(tmp_path / "model.json", seeds=[4], max_trials=100)
-    done = run_cli("--task", "fabric", "--sequence", "3", "--selectors", "bpr",
-                   "--selector-model", "model.json", "--max-trials", "500", "--out",
-                   str(tmp_path / "results"), cwd=tmp_path)
-    assert done.returncode == 2
-    assert done.stderr == (f"hrc_experiment: --max-trials 500: the selector model "
-                           f"{tmp_path / 'model.json'} was trained with DESPOT at 100 trials "
-                           "per decision, and its utilities are of the policies planned so; "
-                           "give --max-trials 100, or retrain it with --max-trials 500\n")
-    assert not (tmp_path / "results").exists()
+    stderr = refusal_of_a_study_with_model(tmp_path, "bpr", "--max-trials", "500", seeds=[4],
+                                           max_trials=100)
+    assert stderr == (f"hrc_experiment: --max-trials 500: the selector model "
+                      f"{tmp_path / 'model.json'} was trained with DESPOT at 100 trials "
+                      "per decision, and its utilities are of the policies planned so; "
+                      "give --max-trials 100, or retrain it with --max-trials 500\n")
 
 
 def test_a_selector_that_needs_a_model_without_one_names_make_train_selector(tmp_path):
