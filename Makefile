@@ -52,7 +52,10 @@ fit: setup
 # every (type, policy) pair of the task's library plays 50 tasks through the real stack on
 # the trainer's seed (4, not the study's 2), into results/train_selector_<task>, then
 # models/<task>/selector_model.json. ARGS="--task fabric" for FABRIC's (the default task is
-# the seed's); ARGS="--leave-out TYPE" writes a model without TYPE beside it.
+# the seed's); ARGS="--leave-out TYPE" writes a model without TYPE beside it. The shipped
+# models were trained with fewer tasks (their headers name the command): fabric's with
+# ARGS="--task fabric --tasks-per-pair 20 --max-trials 100", the seed's with
+# ARGS="--tasks-per-pair 20" (docs/study/sequences.md).
 train-selector: setup
 	@source env.sh && rosrun ros_hrc hrc_train_selector $(ARGS)
 
