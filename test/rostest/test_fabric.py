@@ -32,7 +32,9 @@ def expected(status, acting):
     if acting == "Recovery" or status.human_action == "walkAway":
         return "Recovery"
     if status.robot_action == "grasp":
-        return "RobotInterfered"
+        # Interfered already (or his own grasp's drawn outcome, which may be), a robot that
+        # grasps on draws his next state from RobotInterfered's row.
+        return None if acting in ("RobotInterfered", None) else "RobotInterfered"
     if status.human_action == "graspAttempt":
         return None
     if status.robot_action == "point":
