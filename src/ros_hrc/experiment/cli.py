@@ -253,6 +253,7 @@ def validate_sequences(args: argparse.Namespace) -> List[str]:
             raise GridError(f"--human-models: {exc}") from None
     library = load_study_library(args)
     args.library_manifest = str(library.manifest)
+    args.library_policies = library.names()
     args.selectors = expand_selectors(args.selectors, library.names())
     resolve_schedules(args)
     args.selector_model_file = selector_model_file(args, library)

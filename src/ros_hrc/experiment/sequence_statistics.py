@@ -33,6 +33,7 @@ from ros_hrc.experiment.sequence_rows import TaskRow
 from ros_hrc.experiment.statistics import (adjust_for_many_tests, format_ci, format_p,
                                            markdown_table, mean_ci, median, proportion_ci,
                                            write_summary_files)
+from ros_hrc.tasks.schedule import type_name
 
 #: The baselines every selector is set against (summary prefixes): the best fixed policy in
 #: hindsight, the oracle, and the authors' own policy (the library's first, ``base`` for
@@ -154,13 +155,7 @@ def per_type_schedules(rows: Iterable[TaskRow]) -> List[str]:
     ``hrc_perturb_humans``' ``DIR/<type>.pomdpx``, the file's stem)."""
     by_schedule = _groups(rows, "schedule")
     return sorted(s for (s,), group in by_schedule.items()
-                  if all(r.true_type in (s, _model_stem(s)) for r in group))
-
-
-def _model_stem(schedule: str) -> str:
-    """A per-type cell's label given as a model file: the type its tasks are labelled with."""
-    return os.path.splitext(os.path.basename(schedule))[0] if schedule.endswith(
-        (".pomdpx", ".pomdp")) else schedule
+                  if all(r.true_type == type_name(s) for r in group))
 
 
 def _entry(schedule: str, selector: str, group: Sequence[TaskRow],

@@ -25,8 +25,7 @@ from ros_hrc.experiment.pool import finish_run, run_stoppable
 from ros_hrc.experiment.sequence_rows import SequenceStore
 from ros_hrc.experiment.sequence_statistics import (learning_curve, summarize_sequences,
                                                     write_sequence_summary)
-from ros_hrc.experiment.sequences import (cell_humans, load_study_library, plan_sequence_cells,
-                                          tasks_of)
+from ros_hrc.experiment.sequences import cell_humans, plan_sequence_cells, tasks_of
 from ros_hrc.pomdp.output import write_text_atomically
 
 
@@ -66,9 +65,11 @@ def run_sequences(args: argparse.Namespace, out: Path, words: Sequence[str], pro
               f"{figures['wall_seconds']:.1f} s: {figures['tasks_per_minute']:.1f} tasks/min, "
               f"{figures['simulated_seconds']:.1f} simulated s, speed-up over real time "
               f"x{figures['speedup_over_real_time']:.1f}", flush=True)
-    return finish_run(program, figures, store, out, words,
-                      (lambda: report_sequences(store, out, plots=not args.no_plots,
-                                                program=program, base=authors_base(args))) if report else (lambda: None))
+    def write_report() -> None:
+        if report:
+            report_sequences(store, out, plots=not args.no_plots, program=program,
+                             base=authors_base(args))
+    return finish_run(program, figures, store, out, words, write_report)
 
 
 def sequence_figures(figures: Dict, length: int) -> Dict:
@@ -86,7 +87,7 @@ def sequence_figures(figures: Dict, length: int) -> Dict:
 def authors_base(args) -> Optional[str]:
     """The authors' own policy as a selector: ``fixed:`` and the library's first policy
     (models/README.md, "Policy libraries": fabric's ``base``, the seed's ``authors``)."""
-    names = load_study_library(args).names()
+    names = args.library_policies       # validate_sequences loaded the library
     return f"fixed:{names[0]}" if names else None
 
 

@@ -74,10 +74,10 @@ class TaskPlay:
     @property
     def true_type(self) -> str:
         """The type's label: ``TYPE``, or ``TYPE>TYPE2@0.40`` while drifting."""
-        name = _stem(self.human_model)
+        name = type_name(self.human_model)
         if not self.drift_to:
             return name
-        return f"{name}>{_stem(self.drift_to)}@{self.drift:.2f}"
+        return f"{name}>{type_name(self.drift_to)}@{self.drift:.2f}"
 
     @property
     def nearest_type(self) -> str:
@@ -129,7 +129,7 @@ def nearest_type(true_type: str) -> str:
         return start
 
 
-def _stem(model: str) -> str:
+def type_name(model: str) -> str:
     """A model's type name: a scenario name as it is, a file's stem."""
     return Path(model).stem if ("/" in model or model.endswith((".pomdpx", ".pomdp"))) \
         else model
