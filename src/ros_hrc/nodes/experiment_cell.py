@@ -75,6 +75,7 @@ class _Signals:
     def __init__(self) -> None:
         self.signum: Optional[int] = None
         self.armed = False
+        self.cleaning_up = False
 
     def install(self) -> None:
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -102,9 +103,19 @@ class _Signals:
                     raise CellStopped(self.signum)
                 self.armed = True
 
+    def check(self) -> None:
+        """Raise CellStopped if a signal came and its CellStopped was swallowed on the way up:
+        rosgraph's ``is_master_online`` catches everything with a bare ``except``, and a
+        signal during its XML-RPC call was lost there, so the cell waited on for its master
+        (the parent's SIGTERM seemingly ignored). Called by every polling loop."""
+        if self.signum is not None and not self.cleaning_up:
+            self.armed = False
+            raise CellStopped(self.signum)
+
     def disarm(self) -> None:
         """From here on (stopping the stack), a signal must not cut the cleanup short."""
         self.armed = False
+        self.cleaning_up = True
 
     def grace(self) -> float:
         return INTERRUPT_GRACE if self.signum is not None else STOP_GRACE
@@ -167,12 +178,19 @@ MAX_ABANDONED = 5
 MASTER_WAIT = 120.0
 
 
+def still_running(watch: StackWatch) -> None:
+    """What every wait of a worker checks between its polls: a signal not yet acted on
+    (:meth:`_Signals.check`), then the stack (:meth:`StackWatch.check`)."""
+    SIGNALS.check()
+    watch.check()
+
+
 def wait_for_master(watch: StackWatch, wait: float = MASTER_WAIT) -> None:
     """Until the cell's master (``ROS_MASTER_URI``) answers; CellFailed at once when the stack
     dies meanwhile (``watch``), or after ``wait`` s."""
     deadline = time.monotonic() + wait
     while not rosgraph.is_master_online():
-        watch.check()
+        still_running(watch)
         if time.monotonic() > deadline:
             raise CellFailed(f"no ROS master after {wait:.0f} s; see "
                              f"{watch.log_path}")
@@ -200,12 +218,12 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
         delivered = 0
         previous_end = None
         for episode in spec.episodes:
-            watch.check()
+            still_running(watch)
             # The stack plays the spec's episodes by their numbers (episodes:=), in order;
             # a restarted coordinator plays them from the first again: those are done.
             while True:
-                steps, first_arrived, last_arrived = inbox.next_episode(spec.episode_timeout,
-                                                                        watch.check)
+                steps, first_arrived, last_arrived = inbox.next_episode(
+                    spec.episode_timeout, lambda: still_running(watch))
                 played = int(steps[0].episode)
                 if played == episode:
                     break
@@ -297,7 +315,8 @@ def drive_sequences(spec: CellSpec, proc: subprocess.Popen,
             for index in range(1, length + 1):
                 due = task_episode(sequence, index, length)
                 while True:
-                    status, arrived = inbox.next_task(spec.episode_timeout, watch.check)
+                    status, arrived = inbox.next_task(spec.episode_timeout,
+                                                      lambda: still_running(watch))
                     if int(status.episode) == due:
                         break
                     if int(status.episode) > due:

@@ -351,6 +351,25 @@ def test_a_signal_to_the_experiment_stops_every_stack_and_keeps_the_results(
 
 
 
+@pytest.mark.skipif(importlib.util.find_spec("rospy") is None, reason="the worker needs rospy")
+def test_a_signal_a_library_swallowed_still_stops_the_cell_at_its_next_poll():
+    """Before: rosgraph's is_master_online (a bare ``except``) swallowed the CellStopped of a
+    SIGTERM that came during its XML-RPC call; the worker then waited on for its master
+    (120 s) and hrc_experiment's Ctrl-C seemed ignored (the CI caught it under load)."""
+    from ros_hrc.nodes.experiment_cell import CellStopped, _Signals
+    signals = _Signals()
+    signals.armed = True
+    try:                    # what the library did with it
+        signals._on_signal(signal.SIGTERM, None)
+    except BaseException:   # noqa: B036 -- the library's bare except, on purpose
+        pass
+    with pytest.raises(CellStopped, match="stopped by SIGTERM"):
+        signals.check()
+    signals.disarm()        # the cell stops its stack: that is not cut short
+    signals._on_signal(signal.SIGINT, None)
+    signals.check()
+
+
 # ------------------------------------------------------------------ a stack that cannot run
 
 DYING_ROSLAUNCH = """#!/bin/sh
