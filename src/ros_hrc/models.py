@@ -46,6 +46,7 @@ from ros_hrc.tasks import seed as task
 from ros_hrc.model_files import MODELS_DIR, resolve_model
 from ros_hrc.pomdp.fileformat import default_names
 from ros_hrc.pomdp.io import load_model
+from ros_hrc.pomdp.typed import TypeLayout
 from ros_hrc.pomdp.model import Model
 from ros_hrc.tasks.definition import Task
 
@@ -256,9 +257,15 @@ def check_robot_model(model: Model, path: Optional[str] = None,
                       task: "Task | str | None" = None) -> None:
     """ModelError (one line naming ``path`` and the names) unless the robot POMDP fits the
     task: its states, actions and observations are the task's (the seed's: S0..S6, its four
-    actions, observations O<bits> of the legal bits)."""
+    actions, observations O<bits> of the legal bits). A model of human types
+    (:mod:`ros_hrc.pomdp.typed`: states ``<state>@<type>``, every type over the task's states)
+    fits when each type's states are the task's."""
     which = _task(task)
     whose = _whose(which)
     where = shown_path(path or model.source or model.name or "robot model")
+    layout = TypeLayout.of(model)
     for label, expected in which.names("robot").items():
-        _same_names(where, label, list(getattr(model, label)), expected, whose)
+        names = list(getattr(model, label))
+        if label == "states" and layout is not None:
+            names = list(layout.states)
+        _same_names(where, label, names, expected, whose)

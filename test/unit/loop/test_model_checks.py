@@ -67,6 +67,17 @@ def test_a_robot_model_with_renamed_actions_or_states_is_refused(tmp_path):
                                               "(missing: S6)")
 
 
+
+def test_a_model_of_human_types_fits_when_each_types_states_are_the_tasks(tmp_path):
+    from ros_hrc.pomdp.fit import write_fitted
+    from ros_hrc.pomdp.typed import compose
+    robot = load_robot_model("robot")
+    path = tmp_path / "types.pomdp"
+    write_fitted(compose({"tired": robot, "expert": robot}), path)
+    assert load_robot_model(str(path)).states[:2] == ["S0@tired", "S1@tired"]
+    bad = edited_copy(path, tmp_path / "s.pomdp", r"\bS6@expert\b", "S7@expert")
+    assert refusal(load_robot_model, bad).startswith(f"{bad}: states ")
+
 def test_a_human_model_with_a_renamed_state_is_refused(tmp_path):
     bad = edited_copy(MODELS / "human" / "tired.pomdpx", tmp_path / "h.pomdpx", r"\bevaluating\b",
                       "thinking")
