@@ -19,6 +19,7 @@ from ros_hrc.tasks.definition import Task
 from ros_hrc.experiment.paired import counterfactual_outcome
 from ros_hrc.experiment.rows import UNPAIRED, EpisodeKey, EpisodeRow, StepRow
 from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.typed import TypeLayout
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,10 @@ ROBOT_POLICIES: Dict[str, RobotPolicy] = {
                                      "the same planner on the considerate robot model (success "
                                      "valued once; acting against a warning and pre-empting "
                                      "costly), its T and O fitted to the world (hrc_fit)"),
+    "pomdp_types": RobotPolicy("despot", "robot_types",
+                               "the same planner on the robot model of human types: its hidden "
+                               "state is (type, task state), each type's T and O fitted to the "
+                               "world (hrc_fit --types), so it infers whom it works with"),
     "reactive": RobotPolicy("reactive", None, "treats the need for help as observable "
                                               "(agents/robots.py)"),
     "no_robot": RobotPolicy("none", None, "never acts"),
@@ -52,6 +57,9 @@ ROBOT_POLICIES: Dict[str, RobotPolicy] = {
 }
 #: The policies of ``make experiment``'s default grid.
 DEFAULT_POLICIES = ("pomdp", "pomdp_fitted", "pomdp_considerate", "reactive", "no_robot")
+#: The robot that infers its human's type (issue #31); in a sequence study it is a selector
+#: name too: the one robot plays every task, its type belief carried from task to task.
+TYPES_POLICY = "pomdp_types"
 #: The human alone: the counterfactual every robot's episode is set against.
 ALONE_POLICY = "no_robot"
 REACTIVE = "reactive"
@@ -107,12 +115,18 @@ def needs_help_mass(step, task: Optional[Task] = None) -> float:
 
 def discounted_robot_reward(steps: Sequence, model: Model) -> float:
     """sum_t gamma^t R(s_t, a_t) of the robot model, with the true robot state s_t the
-    observer reported and the action a_t the robot took."""
+    observer reported and the action a_t the robot took (for a model of human types, R
+    expected under the step's type belief: the observer knows no type)."""
     total, weight = 0.0, 1.0
+    layout = TypeLayout.of(model)
     for step in steps:
-        s = model.index("state", step.robot_state)
         a = model.index("action", step.robot_action)
-        total += weight * float(model.R_sa[a, s])
+        if layout is None:
+            reward = float(model.R_sa[a, model.index("state", step.robot_state)])
+        else:   # a model of human types: the reward expected under the step's type belief
+            reward = layout.expected_reward(model, step.robot_state, a,
+                                            getattr(step, "type_belief", None))
+        total += weight * reward
         weight *= model.discount
     return total
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 from collections import defaultdict
 from pathlib import Path
-from typing import Dict, Iterable, List, Protocol, Set, Tuple
+from typing import Dict, Iterable, List, Optional, Protocol, Set, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.errors import HrcError
@@ -110,14 +110,14 @@ def resolve_files(args: argparse.Namespace) -> None:
     args.human_files = files
 
 
-def robot_model_of(policy: str, grid_model: str) -> str:
+def robot_model_of(policy: str, grid_model: str, task: Optional[tasks.Task] = None) -> str:
     """The robot model a policy runs with, as an absolute file: its own (pomdp_fitted:
-    robot_fitted) or the grid's."""
+    robot_fitted, in ``task``'s folder) or the grid's."""
     own = robot_policy(policy).robot_model
     if own is None:
         return grid_model
     try:
-        return str(model_path(own, "robot"))
+        return str(model_path(own, "robot", task))
     except ModelNotFound:
         return own      # validate_grid refuses it, naming the policy
 
@@ -135,7 +135,7 @@ def in_sample_streams(args: argparse.Namespace) -> Dict[Tuple[str, str, int], Se
     for policy in dict.fromkeys(args.policies):
         if robot_policy(policy).planner not in MODEL_PLANNERS:
             continue
-        model_file = robot_model_of(policy, args.robot_model)
+        model_file = robot_model_of(policy, args.robot_model, task_of(args))
         try:
             fitted = read_fitted_on(model_file)
         except OSError:
@@ -158,7 +158,7 @@ def check_held_out(args: argparse.Namespace) -> None:
     args.in_sample = in_sample_streams(args)
     if args.in_sample and not getattr(args, "allow_in_sample", False):
         (policy, human, seed), episodes = next(iter(args.in_sample.items()))
-        model = shown_path(robot_model_of(policy, args.robot_model))
+        model = shown_path(robot_model_of(policy, args.robot_model, task_of(args)))
         raise GridError(f"--policies {policy}: its robot model {model} was fitted on human "
                         f"model {human}, seed {seed}, episodes {ranges_text(episodes)}, which "
                         "this grid would evaluate it on; choose other --seeds (or human "
@@ -226,7 +226,7 @@ def _cell(args: argparse.Namespace, human: str, policy: str, seed: int,
         human_model=human, robot_policy=policy, seed=seed, episodes=episodes,
         step_limit=args.step_limit, log_dir=log_dir,
         human_model_file=args.human_files[human],
-        robot_model=robot_model_of(policy, args.robot_model),
+        robot_model=robot_model_of(policy, args.robot_model, task_of(args)),
         human_choice=args.human_choice,
         max_trials=args.max_trials,
         reactive_budget=args.reactive_budget if budget is None else budget,

@@ -21,6 +21,7 @@ from typing import Any, ClassVar, Sequence, Tuple
 
 import numpy as np
 
+from ros_hrc.experiment.episode import TYPES_POLICY
 from ros_hrc.experiment.rows import Row
 from ros_hrc.experiment.store import ResultsStore
 
@@ -221,11 +222,18 @@ def belief_argmax(type_names: Sequence[str], belief: Sequence[float]) -> str:
     return str(type_names[int(np.argmax(np.asarray(belief, dtype=float)))])
 
 
+def launched_selector(selector: str) -> str:
+    """The ``selector:=`` a cell's stack runs for the study's selector ``selector``: itself,
+    but ``fixed`` for ``pomdp_types`` (no library policy: the launch's one robot, on the
+    model of human types, plays every task)."""
+    return "fixed" if selector == TYPES_POLICY else selector
+
+
 def task_row(status: Any, schedule: str, selector: str, seed: int, sequence: int) -> TaskRow:
     """The row of one ``/hrc/task_status`` message (``ros_hrc/TaskStatus``'s fields) of the
     sequence ``sequence`` of cell (``schedule``, ``selector``, ``seed``). ``selector`` is the
     cell's (the one the status names should be it; a mismatch is the stack's bug: ValueError)."""
-    if status.selector and status.selector != selector:
+    if status.selector and status.selector != launched_selector(selector):
         raise ValueError(f"task {status.task_index}: the stack ran selector "
                          f"{status.selector!r}, the cell asked for {selector!r}")
     names = [str(n) for n in status.type_names]

@@ -16,7 +16,9 @@ The schedules (``--schedule``, comma-separated, each a cell per selector and see
 - a schedule file (``schedule:=FILE``, docs/sequences.md's format), labelled by its stem.
 
 Selectors (``--selectors``): ``fixed`` stands for every policy of the library as
-``fixed:<policy>``; the others are the robot process's (``ros_hrc.agents.selectors``). A
+``fixed:<policy>``; ``pomdp_types`` is the robot that infers its human's type (the study's
+policy of that name: one model of human types plays every task, its type belief carried
+from task to task); the others are the robot process's (``ros_hrc.agents.selectors``). A
 selector that uses a trained model (the BPRs, the oracle) is not evaluated on the seeds its
 model was trained on (:func:`check_trained_elsewhere`).
 """
@@ -27,7 +29,10 @@ from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Set, Tuple
 
 from ros_hrc.agents.selectors import NEEDS_MODEL, SELECTOR_NAMES
-from ros_hrc.experiment.grid import GridError, resolve_files, task_launch_args, task_of
+from ros_hrc.experiment.episode import TYPES_POLICY
+from ros_hrc.experiment.grid import (GridError, resolve_files, robot_model_of, task_launch_args,
+                                     task_of)
+from ros_hrc.experiment.sequence_rows import launched_selector
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
 from ros_hrc.model_files import user_path
 from ros_hrc.models import model_path
@@ -63,11 +68,11 @@ def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]
                 raise GridError(f"--selectors: {name}: no policy {policy!r} in the library "
                                 f"(its policies: {', '.join(policies)})")
             out.append(name)
-        elif name in known:
+        elif name in known or name == TYPES_POLICY:
             out.append(name)
         else:
             raise GridError(f"--selectors: unknown selector {name!r}; known: "
-                            f"{', '.join(known)}, fixed:<policy>")
+                            f"{', '.join(known)}, fixed:<policy>, {TYPES_POLICY}")
     return list(dict.fromkeys(out))
 
 
@@ -144,7 +149,8 @@ def sequence_launch_args(args: argparse.Namespace, selector: str, schedule: str)
     ``human_model`` plays every task)."""
     # auto stays auto: each stack finds its task's own (on a cluster's node, its install's).
     library = "auto" if args.library == "auto" else args.library_manifest
-    words = task_launch_args(args) + [f"tasks:={args.sequence}", f"selector:={selector}",
+    words = task_launch_args(args) + [f"tasks:={args.sequence}",
+                                      f"selector:={launched_selector(selector)}",
                                       f"library:={library}"]
     if args.selector_model != "auto":
         words.append(f"selector_model:={args.selector_model_file}")
@@ -183,7 +189,10 @@ def plan_sequence_cells(args: argparse.Namespace, done: Set[tuple]) -> List[Cell
                             episodes=missing, step_limit=args.step_limit,
                             log_dir=str(Path(args.out) / "logs"),
                             human_model_file=human_file,
-                            robot_model=args.robot_model, human_choice=args.human_choice,
+                            robot_model=(robot_model_of(TYPES_POLICY, args.robot_model,
+                                                        task_of(args))
+                                         if selector == TYPES_POLICY else args.robot_model),
+                            human_choice=args.human_choice,
                             max_trials=args.max_trials, reactive_budget=args.reactive_budget,
                             scenarios=args.scenarios, depth=args.depth, lambda_=args.lambda_,
                             record_bag=args.bag, sequence=args.sequence,

@@ -91,6 +91,17 @@ class TypeLayout:
         """P(state) under ``belief``, the type summed out."""
         return self.blocks(belief).sum(axis=0)
 
+    def expected_reward(self, model: Model, state: str, action: int,
+                        type_belief: Optional[Sequence[float]] = None) -> float:
+        """R(state, action) of a task state when the type is known only by ``type_belief``
+        (the model's initial type marginal when not given): Σ_t P(t) R((state, t), action).
+        A step's reward is scored so, since the world tells the task state, never the type."""
+        p = self.type_marginal(model.initial_belief) if type_belief is None or \
+            len(type_belief) == 0 else np.asarray(type_belief, dtype=float)
+        s = self.states.index(state)
+        n = len(self.states)
+        return float(sum(pt * model.R_sa[action, t * n + s] for t, pt in enumerate(p)))
+
     def with_type_prior(self, initial: np.ndarray, prior: Sequence[float]) -> np.ndarray:
         """The belief whose type marginal is ``prior`` and whose state belief given each type
         is ``initial``'s (a composed model's initial belief: each type's own start).

@@ -86,6 +86,22 @@ def test_the_robot_reward_is_discounted_over_the_true_states(robot_model):
     assert expected != 0.0
 
 
+
+def test_a_model_of_types_scores_the_reward_expected_under_the_steps_type_belief(robot_model):
+    """The observer reports the task state (S3), never the type: R is the type belief's mix."""
+    import dataclasses
+    import scipy.sparse as sp
+    from ros_hrc.pomdp.typed import compose
+    doubled = dataclasses.replace(robot_model, R=[sp.csr_matrix(r * 2.0) for r in robot_model.R])
+    typed = compose({"calm": robot_model, "keen": doubled})
+    steps = [step(0, robot_state="S3", robot_action="rGrasp_obj")]
+    one = robot_model.R_sa[robot_model.actions.index("rGrasp_obj"), 3]
+    steps[0].type_belief = [0.25, 0.75]
+    assert discounted_robot_reward(steps, typed) == pytest.approx(0.25 * one + 0.75 * 2 * one)
+    del steps[0].type_belief            # none reported: the model's own prior (uniform)
+    assert discounted_robot_reward(steps, typed) == pytest.approx(1.5 * one)
+
+
 def test_the_step_trace_carries_the_belief_in_needs_help_and_the_truth():
     belief = [0.1, 0.1, 0.2, 0.3, 0.1, 0.1, 0.1]
     assert needs_help_mass(step(0, belief=belief)) == pytest.approx(0.7)
@@ -114,9 +130,10 @@ def test_each_robot_policy_starts_its_own_planner_on_its_own_ports():
     assert "planner:=reactive" in args and "reactive_budget:=5" in args
     assert {"pomdp_port:=7071", "human_port:=9091"} <= set(args)
     assert {"use_sim_time:=false", "real_time_factor:=0", "gui:=false", "seed:=4"} <= set(args)
-    assert set(ROBOT_POLICIES) == {"pomdp", "pomdp_fitted", "pomdp_considerate", "reactive",
-                                   "no_robot", "explore"}
+    assert set(ROBOT_POLICIES) == {"pomdp", "pomdp_fitted", "pomdp_considerate", "pomdp_types",
+                                   "reactive", "no_robot", "explore"}
     assert ROBOT_POLICIES["pomdp_fitted"].robot_model == "robot_fitted"
+    assert ROBOT_POLICIES["pomdp_types"].robot_model == "robot_types"
     with pytest.raises(ValueError, match="unknown robot policy"):
         launch_arguments(CellSpec("tired", "telepathic", 0, episodes=[0]), {
             "master": 1, "pomdp": 2, "robot": 3, "human": 4})

@@ -19,7 +19,7 @@ from ros_hrc.experiment.sequence_rows import (SequenceStore, TaskRow, sequence_o
 from ros_hrc.experiment.sequence_statistics import (best_fixed, identification,
                                                     learning_curve, paired_tests,
                                                     summarize_sequences)
-from ros_hrc.experiment.sequences import expand_selectors
+from ros_hrc.experiment.sequences import expand_selectors, sequence_launch_args
 from ros_hrc.experiment.stack import CellSpec, launch_settings
 from ros_hrc.experiment.store import ResultsWarning
 
@@ -67,11 +67,26 @@ def test_an_unknown_selector_or_library_policy_is_one_line_naming_the_known():
     with pytest.raises(GridError) as unknown:
         expand_selectors(["bpr", "ucb"], POLICIES)
     assert str(unknown.value) == ("--selectors: unknown selector 'ucb'; known: fixed, random, "
-                                  "bpr, bpr-pi, bpr-fabric, bandit, oracle, fixed:<policy>")
+                                  "bpr, bpr-pi, bpr-fabric, bandit, oracle, fixed:<policy>, "
+                                  "pomdp_types")
     with pytest.raises(GridError) as foreign:
         expand_selectors(["fixed:policy2"], POLICIES)
     assert str(foreign.value) == ("--selectors: fixed:policy2: no policy 'policy2' in the "
                                   "library (its policies: base, policy1, policy3, reactive)")
+
+
+def test_the_type_inferring_robot_is_a_selector_its_stack_runs_as_the_one_fixed_robot():
+    """pomdp_types in a sequence study: no library policy; the stack runs selector:=fixed on
+    the model of human types, and its tasks' statuses (selector "fixed") are the cell's."""
+    assert expand_selectors(["bpr", "pomdp_types"], POLICIES) == ["bpr", "pomdp_types"]
+    args = SimpleNamespace(library="auto", sequence=30, selector_model="auto", task="seed")
+    words = sequence_launch_args(args, "pomdp_types", "per-type")
+    assert "selector:=fixed" in words and "tasks:=30" in words
+    row = task_row(status(selector="fixed", policy="robot_types"), "tired", "pomdp_types", 2, 0)
+    assert (row.selector, row.policy, row.belief_argmax) == ("pomdp_types", "robot_types",
+                                                             "expert_tired")
+    with pytest.raises(ValueError, match="the stack ran selector 'bpr'"):
+        task_row(status(selector="bpr"), "tired", "pomdp_types", 2, 0)
 
 
 def status(**fields):
