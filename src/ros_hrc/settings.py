@@ -509,7 +509,8 @@ _TABLE: Tuple[Setting, ...] = (
         _s("bpr_forgetting", "float", 0.05, "the BPR selectors' (bpr, bpr-pi) floor: after "
            "each task this share of the belief over the human types is spread evenly over "
            "them, so that a switched human is found again (0: the paper's plain Bayes rule; "
-           "docs/selectors.md, Forgetting)", minimum=0, maximum=0.99),
+           "docs/selectors.md, Forgetting); a robot model of human types carries its type "
+           "belief to the next task with the same floor", minimum=0, maximum=0.99),
     ),
     *_group(
         "the terminal",

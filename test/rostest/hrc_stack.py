@@ -138,6 +138,10 @@ def check_step(case, status):
         best = max(values.values())
         case.assertGreaterEqual(values.get(status.robot_action, -math.inf),
                                 best - 1e-6 * max(1.0, abs(best)), where)
+    # A robot model of human types sends its belief over them; a robot of no types none.
+    case.assertEqual(len(status.type_names), len(status.type_belief), where)
+    if status.type_belief:
+        case.assertAlmostEqual(sum(status.type_belief), 1.0, places=6, msg=where)
     bits = status.observation_bits
     if status.human_action == "warnRobot":
         case.assertTrue(bits & task.WARNING, f"{where}: warned, but no warning observed ({bits})")

@@ -12,7 +12,8 @@ Types and their fields (``?`` marks an optional field, left out of the JSON when
                                                            the robot, his state after it acted
     observation  step, observation, bits, state, elapsed?  coordinator -> POMDP (7070)
     decision     step, action, belief [p...], belief_states?, decision_ms?, surprise?, rule?,
-                 action_names?, action_values?         POMDP -> coordinator: answers observation
+                 action_names?, action_values?, type_names?, type_belief?
+                                                           POMDP -> coordinator: answers observation
     action       step, action, belief? [p...], belief_states?, decision_ms?
                                                            "carry out this action" (no link
                                                            takes it since the robot node was
@@ -249,7 +250,10 @@ class Decision(Message):
     (which rule of a baseline robot chose the action), and ``action_names`` with
     ``action_values`` (the planner's value of each action it compared, one number per name,
     the chosen action's the best: why it chose; both or neither, e.g. a baseline robot has
-    none). A reply: it carries ``reply_to`` and ``epoch`` of the observation."""
+    none), and ``type_names`` with ``type_belief`` (a robot model of human types,
+    :mod:`ros_hrc.pomdp.typed`: its belief over the types; ``belief`` is then over the task's
+    states, the types summed out; both or neither). A reply: it carries ``reply_to`` and
+    ``epoch`` of the observation."""
 
     TYPE: ClassVar[str] = "decision"
     step: int
@@ -261,6 +265,8 @@ class Decision(Message):
     rule: Optional[str] = None
     action_names: Optional[Sequence[str]] = None
     action_values: Optional[Sequence[float]] = None
+    type_names: Optional[Sequence[str]] = None
+    type_belief: Optional[Sequence[float]] = None
 
     def _validate(self, check: Checker) -> None:
         self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
@@ -271,6 +277,11 @@ class Decision(Message):
                                                 "action_values", self.action_values)
             self._set("action_names", names)
             self._set("action_values", values)
+        if self.type_names is not None or self.type_belief is not None:
+            names, belief = check.named_belief("type_names", self.type_names,
+                                               "type_belief", self.type_belief)
+            self._set("type_names", names)
+            self._set("type_belief", belief)
         if self.belief_states is not None:
             self._set("belief_states", check.belief_names(self.belief, self.belief_states))
         if self.decision_ms is not None:
@@ -402,15 +413,8 @@ class TaskReport(Message):
         if self.robot_model is not None:
             self._set("robot_model", check.prose("robot_model", self.robot_model))
         if self.type_names is not None or self.type_belief is not None:
-            if self.type_names is None or self.type_belief is None:
-                given, missing = (("type_names", "type_belief") if self.type_belief is None
-                                  else ("type_belief", "type_names"))
-                raise check.fail(given, f"is given without {missing}")
-            belief = check.belief_list("type_belief", self.type_belief)
-            names = check.names("type_names", self.type_names)
-            if len(names) != len(belief):
-                raise check.fail("type_names", f"has {len(names)} names for {len(belief)} "
-                                               "probabilities")
+            names, belief = check.named_belief("type_names", self.type_names,
+                                               "type_belief", self.type_belief)
             self._set("type_names", names)
             self._set("type_belief", belief)
         if self.signature is not None:

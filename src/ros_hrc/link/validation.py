@@ -238,14 +238,18 @@ class Checker:
                                              f"{len(belief)} probabilities")
         return names
 
-    def named_numbers(self, names_field: str, names: Any, values_field: str,
-                      values: Any) -> Tuple[Tuple[str, ...], Tuple[float, ...]]:
-        """Two parallel arrays, given together: distinct names and one finite number each
-        (e.g. a decision's ``action_names`` and ``action_values``)."""
+    def _together(self, names_field: str, names: Any, values_field: str, values: Any) -> None:
+        """Two parallel arrays are given together or not at all."""
         if names is None or values is None:
             given, missing = ((names_field, values_field) if values is None
                               else (values_field, names_field))
             raise self.fail(given, f"is given without {missing}")
+
+    def named_numbers(self, names_field: str, names: Any, values_field: str,
+                      values: Any) -> Tuple[Tuple[str, ...], Tuple[float, ...]]:
+        """Two parallel arrays, given together: distinct names and one finite number each
+        (e.g. a decision's ``action_names`` and ``action_values``)."""
+        self._together(names_field, names, values_field, values)
         checked = self.names(names_field, names)
         if not isinstance(values, (list, tuple)):
             raise self.fail(values_field, f"must be an array of numbers, {self._got(values)}")
@@ -254,6 +258,18 @@ class Checker:
                                           f"{names_field}")
         return checked, tuple(self.number(f"{values_field}[{i}]", v)
                               for i, v in enumerate(values))
+
+    def named_belief(self, names_field: str, names: Any, belief_field: str,
+                     belief: Any) -> Tuple[Tuple[str, ...], Tuple[float, ...]]:
+        """Two parallel arrays, given together: distinct names and a belief over them (e.g.
+        ``type_names`` and ``type_belief``, a belief over the human types)."""
+        self._together(names_field, names, belief_field, belief)
+        probabilities = self.belief_list(belief_field, belief)
+        checked = self.names(names_field, names)
+        if len(checked) != len(probabilities):
+            raise self.fail(names_field, f"has {len(checked)} names for {len(probabilities)} "
+                                         "probabilities")
+        return checked, probabilities
 
 
 def check_extra(check: Checker, extra: Mapping[str, Any]) -> None:

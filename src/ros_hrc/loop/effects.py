@@ -311,6 +311,10 @@ class StepReport:
     #: or a planner that sends none).
     action_names: Tuple[str, ...] = ()
     action_values: Tuple[float, ...] = ()
+    #: A robot model of human types: its belief over the types, parallel lists (empty: a
+    #: robot of no types); ``belief`` is then over the task's states, the types summed out.
+    type_names: Tuple[str, ...] = ()
+    type_belief: Tuple[float, ...] = ()
     sim_time: float = 0.0
     episode_start_time: float = 0.0
     object_holder: str = "none"

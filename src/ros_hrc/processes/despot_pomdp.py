@@ -22,6 +22,11 @@ run it so (``ros_hrc.experiment.stack``), live launches keep the 0.1 s budget.
 An observation of zero probability under the belief cannot be explained by the model: the
 belief keeps the prediction through T without it, the step goes on, and the terminal says so.
 
+**A robot model of human types** (:mod:`ros_hrc.pomdp.typed`: states ``<state>@<type>``) is
+planned on like any model. Its decisions still carry the belief over the task's states (the
+types summed out), so every reader of a decision's belief works unchanged, and with it the
+belief over the types (``type_names``, ``type_belief``); the terminal prints both each step.
+
 **A sequence of tasks** (``tasks:=N``; docs/sequences.md): each task starts with a reset that
 names it (``task_index``). With ``selector:=fixed`` (the default) the one planner runs every
 task, as above. With any other selector the process loads the policy library at start
@@ -31,7 +36,13 @@ policy's planner (a task cut short and played again keeps its policy). During a 
 each observation's signature code (:func:`ros_hrc.agents.selectors.signature_code`) and the
 policy's own discounted reward over the true states the coordinator reports; the task's
 ``task_end`` is answered with a ``task_report`` (the selector, the policy, its belief over
-the human types after learning from the task, the signature).
+the human types after learning from the task, the signature; a selector without a type
+belief, e.g. ``fixed``, reports the belief of a robot model of types instead). A robot model
+of types carries its type belief from task to task: a new task (``task_index`` above 1)
+starts from the model's initial belief with the type prior
+``mix_with_uniform(type belief at the last task's end, bpr_forgetting)``; task 1 (a new
+sequence) and a reset outside a sequence start from the model's own prior, and a task cut
+short and played again from the prior it started with.
 
 It serves only processes of its own launch: a client must prove the launch's link token in its
 hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
@@ -49,7 +60,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Dict, List, Mapping, Optional
+from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -69,8 +80,9 @@ from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
+from ros_hrc.pomdp.typed import TypeLayout
 from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
-from ros_hrc.agents.selectors import Selector, TaskResult, signature_code
+from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.schedule import nearest_type
@@ -80,26 +92,30 @@ NAME = "despot_pomdp"
 
 class RobotAgent:
     """The robot's belief and planner, stepped by observation names. ``seed``: the run's seed,
-    from which each episode's planner stream is derived."""
+    from which each episode's planner stream is derived. A model of human types
+    (:mod:`ros_hrc.pomdp.typed`) has a ``layout``: its belief is then over (type, state), and
+    the agent tells the task-state part (:meth:`task_belief`) from the type part
+    (:attr:`type_belief`)."""
 
     def __init__(self, model: Model, planner: Planner, first_action: str = "rIdle",
                  seed: int = 0) -> None:
         self.model = model
         self.planner = planner
         self.seed = seed
+        self.layout = TypeLayout.of(model)
         self.episode: Optional[int] = None
         self.first_action = model.index("action", first_action) if first_action in model.actions else 0
         self.reset()
 
-    def reset(self, episode: Optional[int] = None) -> None:
-        """Back to the initial belief; for ``episode`` (when given), the planner draws from
-        that episode's stream, from its start."""
+    def reset(self, episode: Optional[int] = None, belief: Optional[np.ndarray] = None) -> None:
+        """Back to ``belief`` (the model's initial belief when not given); for ``episode``
+        (when given), the planner draws from that episode's stream, from its start."""
         if episode is not None:
             reseed = getattr(self.planner, "reseed", None)
             if reseed is not None:
                 reseed(stream_seed(self.seed, episode, "planner"))
             self.episode = episode
-        self.planner.reset()
+        self.planner.reset(belief)
         self.last_action = self.first_action
         self.surprises = 0
 
@@ -126,18 +142,45 @@ class RobotAgent:
 
     @property
     def belief(self) -> np.ndarray:
+        """The planner's belief over the model's states (with types: over (type, state))."""
         b = np.clip(np.asarray(self.planner.belief, dtype=float), 0.0, None)
         return b / b.sum()
+
+    def task_belief(self) -> Tuple[List[str], np.ndarray]:
+        """(state names, probabilities) over the task's states: the belief itself, or with
+        types the types summed out (what every reader of a decision's belief expects)."""
+        if self.layout is None:
+            return list(self.model.states), self.belief
+        return list(self.layout.states), self.layout.state_marginal(self.belief)
+
+    @property
+    def type_belief(self) -> Optional[np.ndarray]:
+        """P(type) in the order of ``layout.types`` (None: a model of no types)."""
+        return None if self.layout is None else self.layout.type_marginal(self.belief)
+
+    def expected_reward(self, state: str, action: int) -> Optional[float]:
+        """R(state, action) of a true state named as the task names it (None: a state the
+        model lacks). With types, the reward expected under the current type belief:
+        Σ_t P(t) R(state@t, action)."""
+        if state in self.model.states:
+            return float(self.model.R_sa[action, self.model.states.index(state)])
+        if self.layout is None or state not in self.layout.states:
+            return None
+        at = self.layout.states.index(state)
+        per_type = self.layout.blocks(self.model.R_sa[action])[:, at]
+        return float(self.type_belief @ per_type)
 
 
 @dataclass
 class TaskRecord:
-    """The task under way of a sequence: its number, the policy running it, each step's
-    signature code and the policy's own discounted reward so far; ``ended`` once its end
-    was reported (a reset into the same number then starts a new sequence's task, not the
-    same task again)."""
+    """The task under way of a sequence: its number, the policy running it, the belief it
+    started from (None: the model's initial belief; a task played again starts from it
+    again), each step's signature code and the policy's own discounted reward so far;
+    ``ended`` once its end was reported (a reset into the same number then starts a new
+    sequence's task, not the same task again)."""
     index: int
     policy: str
+    start_belief: Optional[np.ndarray] = None
     signature: List[int] = field(default_factory=list)
     reward: float = 0.0
     ended: bool = False
@@ -147,7 +190,12 @@ class SequenceRobot:
     """The robot across the tasks of a sequence: one agent per policy (``agents``, by name:
     the library's, or the launch's one robot under ``selector:=fixed``), the selection a
     selector is made from (None: ``fixed``, the one agent every task), and what the task under
-    way recorded. ``robot_models``: each policy's robot model file ("" for none)."""
+    way recorded. ``robot_models``: each policy's robot model file ("" for none).
+
+    An agent whose model has human types carries its type belief from task to task: the
+    belief at the end of its last task, mixed with uniform by ``forgetting`` (the BPR
+    selectors' floor, so a switched human is found again), is the type prior of its next
+    task in the sequence; the first task of a sequence starts from the model's own prior."""
 
     def __init__(self, task: Task, agents: Mapping[str, RobotAgent],
                  robot_models: Mapping[str, str], selection: Optional[Selection] = None,
@@ -161,7 +209,8 @@ class SequenceRobot:
         self.selector: Optional[Selector] = None
         self.record: Optional[TaskRecord] = None
         self.tasks_ended = 0
-        self._rewards = {name: agent.model.R_sa for name, agent in self.agents.items()}
+        #: Policy name -> its agent's type belief at the end of its last task of this sequence.
+        self.type_belief_at_end: Dict[str, np.ndarray] = {}
 
     @property
     def name(self) -> str:
@@ -171,12 +220,16 @@ class SequenceRobot:
 
     def start_task(self, index: int, episode: int, true_type: str) -> str:
         """A reset starts task ``index`` (of episode ``episode``; its human ``true_type``):
-        the policy that runs it (chosen now for a new task; kept for a task played again)."""
+        the policy that runs it (chosen now for a new task; kept for a task played again),
+        and in ``record.start_belief`` the belief its agent starts from."""
         again = self.record is not None and self.record.index == index and \
             not self.record.ended
         if again:
-            policy = self.record.policy
-        elif self.selection is None:
+            self.record = TaskRecord(index, self.record.policy, self.record.start_belief)
+            return self.record.policy
+        if index == 1:
+            self.type_belief_at_end.clear()    # a new sequence: nothing carried over
+        if self.selection is None:
             policy = next(iter(self.agents))
         else:
             if self.selector is None or index == 1:
@@ -187,8 +240,19 @@ class SequenceRobot:
             if true_type:
                 self.selector.tell_true_type(nearest_type(true_type))
             policy = self.selector.choose()
-        self.record = TaskRecord(index, policy)
+        self.record = TaskRecord(index, policy, self._start_belief(policy))
         return policy
+
+    def _start_belief(self, policy: str) -> Optional[np.ndarray]:
+        """The belief ``policy``'s agent starts a new task from: the type belief it ended its
+        last task with, mixed with uniform, as the prior; None (the model's initial belief)
+        for a model of no types or an agent that ended no task of this sequence yet."""
+        agent = self.agents[policy]
+        at_end = self.type_belief_at_end.get(policy)
+        if agent.layout is None or at_end is None:
+            return None
+        return agent.layout.with_type_prior(agent.model.initial_belief,
+                                            mix_with_uniform(at_end, self.forgetting))
 
     def note_step(self, bits: int, state: str, action: int) -> None:
         """One step of the task under way: the robot saw ``bits`` while the true state was
@@ -198,10 +262,10 @@ class SequenceRobot:
             return
         record.signature.append(signature_code(bits, self.task))
         agent = self.agents[record.policy]
-        if state in agent.model.states:
+        reward = agent.expected_reward(state, action)
+        if reward is not None:
             step = len(record.signature) - 1
-            record.reward += agent.model.discount ** step * float(
-                self._rewards[record.policy][action, agent.model.states.index(state)])
+            record.reward += agent.model.discount ** step * reward
 
     def end_task(self, msg: TaskEnd) -> TaskReport:
         """The task ``msg`` names ended: the selector learns from it; the report."""
@@ -216,6 +280,12 @@ class SequenceRobot:
                                              msg.utility))
             names = tuple(self.selector.type_names)
             belief = tuple(float(p) for p in self.selector.belief())
+        agent = self.agents[record.policy]
+        if agent.layout is not None:
+            self.type_belief_at_end[record.policy] = agent.type_belief
+            if not names:    # the selector's own type belief, when it has one, is the report's
+                names = agent.layout.types
+                belief = tuple(float(p) for p in agent.type_belief)
         self.tasks_ended += 1
         record.ended = True
         return TaskReport(selector=self.name, policy=record.policy,
@@ -247,15 +317,18 @@ class PomdpProcess:
         # The coordinator names the episode (0 is one); a reset without a number (a client of
         # the protocol's own) starts the next.
         episode = msg.episode if msg.episode is not None else next_episode(self.agent.episode)
+        start: Optional[np.ndarray] = None
         if msg.task_index is not None and self.sequence is not None:
             policy = self.sequence.start_task(msg.task_index, episode, msg.true_type or "")
             self.agent = self.sequence.agents[policy]
+            start = self.sequence.record.start_belief
             note = getattr(self.sequence.selector, "note", "")
             print(f"\n##### TASK {msg.task_index}: selector {self.sequence.name} chose policy "
                   f"{policy}{'; ' + note if note else ''} #####", flush=True)
-        self.agent.reset(episode)
+        self.agent.reset(episode, start)
         self.epoch = msg.epoch
-        print(f"\n##### RESET: belief back to the initial belief (episode {msg.episode}, "
+        which = "the initial belief" if start is None else "the type prior carried over"
+        print(f"\n##### RESET: belief back to {which} (episode {msg.episode}, "
               f"epoch {msg.epoch}) #####\n{self._belief_text()}", flush=True)
         return Ack(step=0, of=msg.type, result="robot belief reset", epoch=msg.epoch,
                    reply_to=msg.id)
@@ -271,7 +344,8 @@ class PomdpProcess:
         action, decision_ms, note = self.agent.step(msg.observation, msg.elapsed)
         if self.sequence is not None:
             self.sequence.note_step(msg.bits, msg.state, action)
-        belief = self.agent.belief
+        states, belief = self.agent.task_belief()
+        type_belief = self.agent.type_belief
         at = f" at {msg.elapsed:.1f} s" if msg.elapsed is not None else ""
         print(f"\n-----Step {msg.step}-----\n- Observation = {msg.observation} "
               f"(bits {msg.bits}){at}; true state (not seen) = {msg.state}", flush=True)
@@ -290,12 +364,15 @@ class PomdpProcess:
               f"({why}{decision_ms:.1f} ms)", flush=True)
         # Why it chose: the value of each action the planner compared (none from a baseline).
         values = sorted(self.agent.planner.last_stats.action_values.items())
+        layout = self.agent.layout
         return Decision(step=msg.step, action=model.actions[action], belief=belief.tolist(),
-                        belief_states=list(model.states), decision_ms=decision_ms,
+                        belief_states=states, decision_ms=decision_ms,
                         surprise=bool(note), rule=rule or None,
                         action_names=[model.actions[a] for a, _ in values] or None,
-                        action_values=[v for _, v in values] or None, epoch=msg.epoch,
-                        reply_to=msg.id)
+                        action_values=[v for _, v in values] or None,
+                        type_names=list(layout.types) if layout is not None else None,
+                        type_belief=type_belief.tolist() if type_belief is not None else None,
+                        epoch=msg.epoch, reply_to=msg.id)
 
     def on_task_end(self, msg: TaskEnd, peer: Peer) -> Message:
         """A task of the sequence ended: the selector learns from it; the task's report."""
@@ -305,8 +382,7 @@ class PomdpProcess:
             report = self.sequence.end_task(msg)
         except ValueError as exc:
             return reply_error(msg, str(exc), ERR_INVALID)
-        belief = ", ".join(f"{n} {p:.2f}" for n, p in sorted(
-            zip(report.type_names or (), report.type_belief or ()), key=lambda i: -i[1])[:3])
+        belief = ranked_types(report.type_names or (), report.type_belief or (), limit=3)
         print(f"\n##### TASK {msg.task_index} over: {msg.outcome}, utility {msg.utility:.2f}; "
               f"policy {report.policy}{'; belief ' + belief if belief else ''} #####",
               flush=True)
@@ -317,8 +393,22 @@ class PomdpProcess:
                           reply_to=msg.id)
 
     def _belief_text(self) -> str:
-        b = self.agent.belief
-        return "\n".join(f"  {s} = {p:.4f}" for s, p in zip(self.agent.model.states, b) if p > 0)
+        """The belief over the task's states, one line each, and a model of types' belief
+        over the types."""
+        states, b = self.agent.task_belief()
+        lines = [f"  {s} = {p:.4f}" for s, p in zip(states, b) if p > 0]
+        type_belief = self.agent.type_belief
+        if type_belief is not None:
+            lines.append(f"- Type belief: {ranked_types(self.agent.layout.types, type_belief)}")
+        return "\n".join(lines)
+
+
+def ranked_types(names: Sequence[str], belief: Sequence[float],
+                 limit: Optional[int] = None) -> str:
+    """A belief over types as one line, the most likely first: ``tired 0.62, beginner 0.21``
+    (the first ``limit`` only, when given)."""
+    ranked = sorted(zip(names, belief), key=lambda item: -item[1])[:limit]
+    return ", ".join(f"{name} {p:.2f}" for name, p in ranked)
 
 
 def build_planner(model: Model, args: argparse.Namespace) -> Planner:
@@ -402,7 +492,9 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
     if not uses_library(args.selector):
         name = fixed_policy_name(args)
         agent = RobotAgent(model, planner, first_action=first, seed=args.seed)
-        return SequenceRobot(task, {name: agent}, {name: model.source or ""})
+        # The forgetting a model of human types carries its type belief across tasks with.
+        return SequenceRobot(task, {name: agent}, {name: model.source or ""}, seed=args.seed,
+                             forgetting=args.bpr_forgetting)
     selection = load_selection(args.selector, args.library, args.selector_model, task)
     agents: Dict[str, RobotAgent] = {}
     files: Dict[str, str] = {}

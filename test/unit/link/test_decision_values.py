@@ -1,7 +1,8 @@
 """A decision carries the planner's value of each action it compared (``action_names``,
-``action_values``): they go over the wire and come back whole, a decision of an older peer
-without them still parses (and reaches the loop as empty lists), and wrong ones are refused in
-one line that names the field."""
+``action_values``) and, from a robot model of human types, its belief over the types
+(``type_names``, ``type_belief``): they go over the wire and come back whole, a decision of an
+older peer without them still parses (and reaches the loop as empty lists), and wrong ones are
+refused in one line that names the field."""
 import json
 
 import pytest
@@ -22,6 +23,18 @@ def test_the_values_go_over_the_wire_and_come_back_whole():
     assert received == sent
     assert LoopDecision.of(received).action_values == (11.9, 12.345678901234567)
     assert LoopDecision.of(received).action_names == ("rIdle", "rGrasp_obj")
+
+
+def test_the_type_belief_goes_over_the_wire_and_comes_back_whole():
+    sent = Decision(4, "rIdle", BELIEF, type_names=["tired", "expert"],
+                    type_belief=[0.62, 0.38], epoch=2, reply_to=9)
+    wire = json.loads(encode(sent))
+    assert (wire["type_names"], wire["type_belief"]) == (["tired", "expert"], [0.62, 0.38])
+    received = decode(encode(sent))
+    assert received == sent
+    taken = LoopDecision.of(received)
+    assert (taken.type_names, taken.type_belief) == (("tired", "expert"), (0.62, 0.38))
+    assert LoopDecision.of(Decision(4, "rIdle", BELIEF)).type_belief == ()
 
 
 def test_a_decision_of_an_older_peer_without_values_parses():
@@ -47,6 +60,14 @@ def test_a_decision_of_an_older_peer_without_values_parses():
     ({"action_names": ["rIdle"], "action_values": 1.0},
      'field "action_values" must be an array of numbers, got number 1.0'),
     ({"action_names": [""], "action_values": [1.0]}, 'field "action_names[0]" must not be empty'),
+    ({"type_names": ["tired"]}, 'field "type_names" is given without type_belief'),
+    ({"type_belief": [1.0]}, 'field "type_belief" is given without type_names'),
+    ({"type_names": ["tired", "expert"], "type_belief": [1.0]},
+     'field "type_names" has 2 names for 1 probabilities'),
+    ({"type_names": ["tired", "expert"], "type_belief": [0.7, 0.7]},
+     'field "type_belief" must sum to 1 (within 0.0001), sums to 1.4'),
+    ({"type_names": ["tired", "tired"], "type_belief": [0.5, 0.5]},
+     'field "type_names" must not repeat a name'),
 ])
 def test_wrong_values_are_refused_in_one_line(fields, reason):
     frame = json.dumps({"type": "decision", "step": 1, "action": "rIdle", "belief": [1.0],
