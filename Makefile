@@ -4,7 +4,7 @@ SHELL := /bin/bash
 , := ,
 ARGS ?=
 
-.PHONY: setup run test unit rostest bench experiment fit train-selector lint clean
+.PHONY: setup run test unit rostest bench experiment fit fit-types train-selector lint clean
 
 setup:
 	@bash tools/setup.sh
@@ -47,6 +47,15 @@ fit: setup
 	@source env.sh && rosrun ros_hrc hrc_fit --out models/robot/robot_fitted.pomdp $(ARGS) \
 	    && rosrun ros_hrc hrc_fit --prior robot_considerate \
 	       --out models/robot/robot_considerate_fitted.pomdp $(ARGS)
+
+# A robot model of human types (issue #31, docs/robot_model.md): T and O fitted per human model
+# of the fit set, each a type, on make fit's episodes (results/fit: reused), composed into one
+# POMDP whose hidden state is (type, state): models/robot/robot_types.pomdp (the considerate
+# rewards). ARGS="--task fabric": fabric's ten types with the authors' base, on
+# results/fit_fabric, into models/fabric/robot/robot_types.pomdp.
+fit-types: setup
+	@source env.sh && rosrun ros_hrc hrc_fit --types $(if $(FABRIC_STUDY),,--prior robot_considerate) \
+	    $(ARGS)
 
 # Train the selector's model from our own runs (docs/experiments.md, "hrc_train_selector"):
 # every (type, policy) pair of the task's library plays 50 tasks through the real stack on

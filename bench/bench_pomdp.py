@@ -22,15 +22,21 @@ robot models (median of 3 runs, wall and CPU seconds), and on RockSample_7_8 the
 the process that solved it (a child of its own, the policy included), each against the
 figures SARSOP's ``pomdpsol`` reached on the same machine when the issue was filed (SARSOP is
 not needed). ``robot_fitted.pomdp`` has been refitted since; the file SARSOP's 0.52 s was
-measured on is bench/models/robot_fitted_9a32e6f.pomdp, and both are printed. The load average
-is printed beside the figures: on a shared machine wall time follows it.
+measured on is bench/models/robot_fitted_9a32e6f.pomdp, and both are printed. Then the seed's
+robot model of human types (issue #31: models/robot/robot_types.pomdp, 8 types x 7 states,
+``hrc_fit --types``): the solver to precision 1e-3 or for a budget of wall seconds (120; 20
+with --quick), its bounds, its CPU time and when its gap first fell under 1, 0.1, 0.01 and
+1e-3, beside SARSOP's figures on the same file when there are any (``SARSOP_TYPES``: none
+yet, ``pomdpsol`` is not on this machine). The load average is printed beside the figures: on
+a shared machine wall time follows it.
 
 Prints the figures and writes bench/results/pomdp.json.
 
     source env.sh
     python bench/bench_pomdp.py                 # a few minutes
     python bench/bench_pomdp.py --quick         # well under a minute: fewer runs, looser solves
-    python bench/bench_pomdp.py --sarsop-only   # only the solver against SARSOP (about 1 min)
+    python bench/bench_pomdp.py --sarsop-only   # only the solver against SARSOP (about 3 min)
+    python bench/bench_pomdp.py --types-only    # only the model of human types (about 2 min)
 """
 from __future__ import annotations
 
@@ -56,6 +62,7 @@ from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.io import load_model
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.simulate import simulate
+from ros_hrc.pomdp.typed import TypeLayout
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -74,6 +81,13 @@ REFITTED = "models/robot/robot_fitted.pomdp"
 SARSOP_ROCKSAMPLE = {"seconds": 30.0, "lower": 21.10, "upper": 24.69, "memory_mb": 245.0}
 #: Issue #24's targets: time <= 2x SARSOP's; RockSample gap <= 1.5x, memory <= 2x.
 TIME_FACTOR, GAP_FACTOR, MEMORY_FACTOR = 2.0, 1.5, 2.0
+#: The seed's robot model of human types (issue #31, ``make fit-types``).
+TYPES_MODEL = "models/robot/robot_types.pomdp"
+#: SARSOP (``pomdpsol --precision 1e-3``) on TYPES_MODEL: its seconds and bounds, as
+#: ``{"seconds": ..., "lower": ..., "upper": ...}``; None: not measured (no pomdpsol here).
+SARSOP_TYPES: Optional[dict] = None
+#: The gaps at which the solver's time on TYPES_MODEL is recorded.
+TYPES_GAPS = (1.0, 0.1, 0.01, 1e-3)
 
 
 def best_parse(path: Path, repeat: int = 3):
@@ -289,7 +303,50 @@ def rocksample_solve(seconds: float) -> dict:
                                and memory_mb <= MEMORY_FACTOR * SARSOP_ROCKSAMPLE["memory_mb"])}
 
 
-def against_sarsop(runs: int, rocksample_seconds: Optional[float]) -> dict:
+def types_solve(seconds: float) -> dict:
+    """TYPES_MODEL solved to precision 1e-3 or for ``seconds`` of wall time: its bounds, wall
+    and CPU seconds, vectors, and the solver's seconds when its gap first fell to each of
+    TYPES_GAPS (None: not within the budget)."""
+    model = load_model(ROOT / TYPES_MODEL)
+    reached = {gap: None for gap in TYPES_GAPS}
+
+    def progress(p) -> None:
+        for gap in TYPES_GAPS:
+            if reached[gap] is None and p.upper - p.lower <= gap:
+                reached[gap] = round(p.seconds, 2)
+
+    start, start_cpu = time.perf_counter(), time.process_time()
+    policy = offline.solve(model, timeout=seconds, precision=1e-3, progress=progress)
+    wall, cpu = time.perf_counter() - start, time.process_time() - start_cpu
+    gap = policy.upper - policy.lower
+    for g in TYPES_GAPS:        # the last bounds, after the last progress call
+        if reached[g] is None and gap <= g:
+            reached[g] = round(wall, 2)
+    return {"model": TYPES_MODEL, "states": model.n_states,
+            "types": len(TypeLayout.of(model).types),
+            "budget_s": seconds, "wall_s": round(wall, 2), "cpu_s": round(cpu, 2),
+            "lower": policy.lower, "upper": policy.upper, "gap": gap,
+            "converged": gap <= 1e-3, "vectors": int(len(policy.alphas)),
+            "trials": policy.stats.get("trials"),
+            "seconds_to_gap": {f"{g:g}": reached[g] for g in TYPES_GAPS},
+            "sarsop": SARSOP_TYPES}
+
+
+def types_line(row: dict) -> str:
+    reached = ", ".join(f"{g} at {s:.1f} s" if s is not None else f"{g} not reached"
+                        for g, s in row["seconds_to_gap"].items())
+    s = row["sarsop"]
+    sarsop = ("SARSOP: no figure (pomdpsol is not on this machine)" if s is None else
+              f"SARSOP: [{s['lower']:.4f}, {s['upper']:.4f}] in {s['seconds']:.2f} s")
+    return (f"  {row['model']} ({row['states']} states, {row['types']} types), budget "
+            f"{row['budget_s']:g} s: [{row['lower']:.4f}, {row['upper']:.4f}] gap "
+            f"{row['gap']:.4f} ({'converged' if row['converged'] else 'NOT converged'}) in "
+            f"{row['wall_s']:.1f} s wall, {row['cpu_s']:.1f} s CPU, {row['vectors']} vectors; "
+            f"gap {reached}; {sarsop}")
+
+
+def against_sarsop(runs: int, rocksample_seconds: Optional[float],
+                   types_seconds: Optional[float]) -> dict:
     """Print and return the solver's figures against SARSOP's (module docstring)."""
     print(f"Offline solver against SARSOP (precision 1e-3; load average {load_average()}):",
           flush=True)
@@ -320,9 +377,29 @@ def against_sarsop(runs: int, rocksample_seconds: Optional[float]) -> dict:
                   f"{GAP_FACTOR:g}x), memory {rock['memory_over_sarsop']}x (target <= "
                   f"{MEMORY_FACTOR:g}x): {'met' if rock['target_met'] else 'NOT met'}",
                   flush=True)
+    types = None
+    if types_seconds:
+        types = types_solve(types_seconds)
+        print(types_line(types), flush=True)
     print(f"  load average after: {load_average()}", flush=True)
     return {"load_average_before_after": load_average(), "robot_models": rows,
-            "rocksample_7_8": rock}
+            "rocksample_7_8": rock, "robot_types": types}
+
+
+def types_only(seconds: float, results: Path) -> int:
+    """The model of human types alone against SARSOP: prints it, writes pomdp_types.json."""
+    print(f"Offline solver on the robot model of human types (precision 1e-3; load average "
+          f"{load_average()}):", flush=True)
+    row = types_solve(seconds)
+    print(types_line(row), flush=True)
+    print(f"  load average after: {load_average()}", flush=True)
+    results.mkdir(parents=True, exist_ok=True)
+    (results / "pomdp_types.json").write_text(json.dumps(
+        {"benchmark": "pomdp: the robot model of human types against SARSOP",
+         "when": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "load_average_after": load_average(),
+         **row}, indent=2) + "\n")
+    print(f"wrote {results / 'pomdp_types.json'}")
+    return 0
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -336,10 +413,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="only the offline solver against SARSOP's figures (issue #24)")
     parser.add_argument("--solver-runs", type=int, default=3,
                         help="runs per robot model of the solver's timing (default 3)")
+    parser.add_argument("--types-only", action="store_true",
+                        help=f"only the solver on {TYPES_MODEL} (issue #31)")
+    parser.add_argument("--types-seconds", type=float, default=None,
+                        help="the solver's wall-time budget on the model of human types "
+                             "(default 120, 20 with --quick)")
     args = parser.parse_args(argv)
     results = ROOT / "bench" / "results"
+    types_seconds = args.types_seconds or (20.0 if args.quick else 120.0)
+    if args.types_only:
+        return types_only(types_seconds, results)
     sarsop = against_sarsop(1 if args.quick else args.solver_runs,
-                            None if args.no_rocksample else (5.0 if args.quick else 30.0))
+                            None if args.no_rocksample else (5.0 if args.quick else 30.0),
+                            types_seconds)
     if args.sarsop_only:
         results.mkdir(parents=True, exist_ok=True)
         (results / "pomdp_sarsop.json").write_text(json.dumps(

@@ -27,6 +27,14 @@ with one machine-readable ``# hrc-fitted-on: {...}`` line per human model
 (:mod:`ros_hrc.experiment.provenance`): ``hrc_experiment`` refuses to evaluate the model on
 those streams unless ``--allow-in-sample``.
 
+With ``--types`` each human model is a type (:mod:`ros_hrc.pomdp.typed`): T and O are fitted
+on each human model's episodes alone (the same episodes, the same ``--prior`` and
+``--strength``) and the fitted models are composed into one POMDP whose hidden state is (type,
+state), states ``<state>@<type>``, with a uniform prior over the types: a robot that plans on
+it infers which human it works with. Its header keeps one ``# hrc-fitted-on:`` line per human
+model, as the pooled fit's. ``make fit-types`` regenerates the shipped
+``models/robot/robot_types.pomdp`` (``ARGS="--task fabric"``: ``models/fabric/robot/``).
+
 The episodes are kept in ``--runs`` (a results directory as ``hrc_experiment`` writes, with a
 ``fit.json`` naming the configuration), so running the same command again reuses them and
 only refits; a ``--runs`` holding another configuration (or steps labelled by other labelling
@@ -45,11 +53,12 @@ import os
 import shlex
 import sys
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Dict, Iterable, List, Optional, Sequence, Tuple
+from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 from ros_hrc.command_line import own_arguments
-from ros_hrc.errors import HrcError
+from ros_hrc.errors import HrcError, ModelError
 from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
                                           file_error_line, names_argument, say_one_line)
 from ros_hrc.experiment.zoo import zoo_argument
@@ -65,6 +74,7 @@ from ros_hrc.experiment.rows import EpisodeRow, StepRow
 from ros_hrc.experiment.store import ResultsStore
 from ros_hrc import settings
 from ros_hrc.tasks import seed as task
+from ros_hrc.tasks.schedule import type_name
 from ros_hrc.settings import SettingError
 from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
                                  shown_path)
@@ -72,12 +82,15 @@ from ros_hrc.model_files import user_path
 from ros_hrc.pomdp.output import check_writable, write_text_atomically
 from ros_hrc.pomdp.fit import ExperienceCounts, fit_model, support_lines, write_fitted
 from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.typed import check_type_name, compose
 
 NAME = "hrc_fit"
 POLICY = "explore"
 #: hrc_fit fits on the zoo's fit set; hrc_experiment evaluates on the held-out humans.
 DEFAULT_HUMANS = zoo_argument("fit")
 CONFIG_FILE = "fit.json"
+#: The files written by default, in the task's robot models folder.
+POOLED_FILE, TYPES_FILE = "robot_fitted.pomdp", "robot_types.pomdp"
 
 
 class FitError(HrcError):
@@ -109,10 +122,17 @@ def build_parser() -> argparse.ArgumentParser:
                         "ros_hrc slot of the cluster)")
     add_cluster_argument(p)
     settings.add_argument(p, "task")     # (#22) the task the episodes and the prior are of
-    p.add_argument("--runs", default="results/fit",
-                   help="where the episodes are kept, and found again (results/fit)")
-    p.add_argument("--out", default="models/robot/robot_fitted.pomdp",
-                   help="the .pomdp to write (models/robot/robot_fitted.pomdp)")
+    p.add_argument("--types", action="store_true",
+                   help="fit T and O per human model, each a type, and compose them into one "
+                        "model whose hidden state is (type, state), a uniform prior over the "
+                        "types (the same episodes as without --types)")
+    p.add_argument("--runs", default=None,
+                   help="where the episodes are kept, and found again (results/fit for the "
+                        "seed, results/fit_TASK for another task)")
+    p.add_argument("--out", default=None,
+                   help=f"the .pomdp to write (in the task's robot models folder: "
+                        f"{POOLED_FILE}, with --types {TYPES_FILE}; the seed's: "
+                        f"models/robot/)")
     return p
 
 
@@ -151,21 +171,35 @@ def configuration(args: argparse.Namespace) -> dict:
             "labels": labels_fingerprint(task_of(args))}
 
 
+def default_out(which: tasks.Task, types: bool) -> Path:
+    """The file written when ``--out`` is not given: in the task's robot models folder."""
+    return Path(which.model_dirs["robot"]) / (TYPES_FILE if types else POOLED_FILE)
+
+
+def default_runs(which: tasks.Task) -> str:
+    """Where the episodes are kept when ``--runs`` is not given: one folder per task (a
+    folder holds the episodes of one configuration)."""
+    return "results/fit" if which.name == tasks.DEFAULT_TASK else f"results/fit_{which.name}"
+
+
 def check_arguments(args: argparse.Namespace) -> Model:
-    """The models load and fit the task; the output is a .pomdp that can be written. Every
-    file argument is made absolute here, once, against the directory the command runs in
-    (``args.prior``, ``args.out``, ``args.runs``, ``args.human_files``: the stacks run
-    elsewhere). Returns the prior."""
+    """The models load and fit the task; the output is a .pomdp that can be written; with
+    ``--types``, every human model names a type of its own. Every file argument is made
+    absolute here, once, against the directory the command runs in (``args.prior``,
+    ``args.out``, ``args.runs``, ``args.human_files``: the stacks run elsewhere). Returns the
+    prior."""
+    which = task_of(args)
+    if args.out is None:
+        args.out = str(default_out(which, args.types))
     if Path(args.out).suffix != ".pomdp":
         raise FitError(f"--out {args.out}: the fitted model is written as a Cassandra .pomdp")
     args.out = str(user_path(args.out))
-    args.runs = str(user_path(args.runs))
+    args.runs = str(user_path(args.runs or default_runs(which)))
     try:
         check_writable(args.out)        # not after hours of episodes
     except OSError as exc:
         raise FitError(f"--out {file_error_line(exc)}") from None
     try:
-        which = task_of(args)
         # Not given: the task's own robot, humans and step limit.
         if args.prior is None:
             args.prior = which.default_robot_model
@@ -184,7 +218,25 @@ def check_arguments(args: argparse.Namespace) -> Model:
             load_human_model(args.human_files[human], task_of(args))
         except ModelNotFound as exc:
             raise FitError(f"--human-models: {exc}") from None
+    if args.types:
+        check_types(args.human_models)
     return prior
+
+
+def check_types(human_models: Sequence[str]) -> None:
+    """FitError unless each human model names a type of its own (its scenario name or its
+    file's stem) that a composed model's state names can carry."""
+    seen: Dict[str, str] = {}
+    for human in dict.fromkeys(human_models):
+        name = type_name(human)
+        try:
+            check_type_name(name)
+        except ModelError as exc:
+            raise FitError(f"--human-models {human}: {exc}") from None
+        if name in seen:
+            raise FitError(f"--human-models: {seen[name]} and {human} are both type {name} "
+                           "(--types names each type by its scenario name or file stem)")
+        seen[name] = human
 
 
 def plan_cells(args: argparse.Namespace, done: set) -> List[CellSpec]:
@@ -226,24 +278,98 @@ def count_experience(model: Model, episodes: Iterable[EpisodeRow],
     return counts
 
 
+@dataclass
+class TypeExperience:
+    """What one type (``--types``: one human model) contributed: its episodes, its steps and
+    their counts."""
+    human_model: str
+    episodes: int
+    steps: int
+    counts: ExperienceCounts
+
+
+def count_types(model: Model, human_models: Sequence[str], episodes: Iterable[EpisodeRow],
+                steps: Iterable[StepRow]) -> Dict[str, TypeExperience]:
+    """Each human model's experience on its own (:func:`count_experience`), by type name, in
+    the order of ``human_models``."""
+    episodes_of: Dict[str, List[EpisodeRow]] = defaultdict(list)
+    steps_of: Dict[str, List[StepRow]] = defaultdict(list)
+    for row in episodes:
+        episodes_of[row.human_model].append(row)
+    for step in steps:
+        steps_of[step.human_model].append(step)
+    return {type_name(human): TypeExperience(human, len(episodes_of[human]),
+                                             len(steps_of[human]),
+                                             count_experience(model, episodes_of[human],
+                                                              steps_of[human]))
+            for human in dict.fromkeys(human_models)}
+
+
+def fit_types(prior: Model, experience: Mapping[str, TypeExperience], strength: float,
+              name: str) -> Model:
+    """One model per type fitted to that type's counts alone (:func:`fit_model`, the same
+    prior and strength), composed into one model of types with a uniform prior over them."""
+    return compose({t: fit_model(prior, e.counts, strength, name=t)
+                    for t, e in experience.items()}, name=name)
+
+
 def header_lines(args: argparse.Namespace, prior_path: str, episodes: int, steps: int,
                  counts: ExperienceCounts) -> List[str]:
-    which = task_of(args)
-    tracker = type(which.new_tracker(which.default_human_model))
-    labels = ("ros_hrc.loop.task.RobotStateTracker" if tracker is task.RobotStateTracker
-              else f"{tracker.__module__}.{tracker.__qualname__}")
     return [
         f"The robot model fitted to the world by hrc_fit: T and O are Dirichlet posterior "
         f"means of {prior_path} (strength {args.strength:g} pseudo-counts per row) and "
         f"{episodes} episodes of the stack;",
         "rewards, discount, start, names: the prior's. Regenerate with `make fit`:",
+        *how_lines(args),
+        f"experience: {steps} steps; {counts.n_transitions} transitions, "
+        f"{counts.n_observations_counted} observations",
+        *provenance_lines(args),
+    ]
+
+
+def types_header_lines(args: argparse.Namespace, prior_path: str, model: Model,
+                       experience: Mapping[str, TypeExperience]) -> List[str]:
+    which = task_of(args)
+    make = "make fit-types" + ("" if which.name == tasks.DEFAULT_TASK
+                               else f' ARGS="--task {which.name}"')
+    n = len(experience)
+    return [
+        f"A robot model of {n} human types, fitted to the world by hrc_fit --types: one model "
+        f"per human model (a type), whose T and O are Dirichlet posterior means of "
+        f"{prior_path} (strength {args.strength:g} pseudo-counts per row) and that human "
+        f"model's episodes of the stack alone,",
+        f"composed (ros_hrc.pomdp.typed) into one POMDP whose hidden state is (type, state): "
+        f"states <state>@<type>, {n} types x {model.n_states // n} states = {model.n_states}, "
+        "a uniform prior over the types, no transition between types;",
+        f"rewards, discount, start, names: the prior's, in every type. Regenerate with "
+        f"`{make}`:",
+        *how_lines(args),
+        f"types: {', '.join(experience)}",
+        *[f"experience of type {t}: {e.episodes} episodes, {e.steps} steps; "
+          f"{e.counts.n_transitions} transitions, {e.counts.n_observations_counted} "
+          f"observations" for t, e in experience.items()],
+        *provenance_lines(args),
+    ]
+
+
+def how_lines(args: argparse.Namespace) -> List[str]:
+    """The header's command, episodes and robot: how the episodes were made."""
+    which = task_of(args)
+    tracker = type(which.new_tracker(which.default_human_model))
+    labels = ("ros_hrc.loop.task.RobotStateTracker" if tracker is task.RobotStateTracker
+              else f"{tracker.__module__}.{tracker.__qualname__}")
+    return [
         f"  hrc_fit {shlex.join(args.words)}" if args.words else "  hrc_fit",
         f"human models: {', '.join(args.human_models)}; episodes per model: {args.episodes}; "
         f"step limit: {args.step_limit}; seed: {args.seed}",
         "robot: planner:=explore (a uniformly random action each step); true states: the "
         f"observer's labels ({labels})",
-        f"experience: {steps} steps; {counts.n_transitions} transitions, "
-        f"{counts.n_observations_counted} observations",
+    ]
+
+
+def provenance_lines(args: argparse.Namespace) -> List[str]:
+    """The header's last lines: the streams fitted on, for people and for hrc_experiment."""
+    return [
         "the streams fitted on, one line per human model (hrc_experiment refuses to evaluate "
         "this model on them unless --allow-in-sample):",
         *fitted_on_lines(args),
@@ -326,14 +452,25 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
     steps = [s for s in store.steps() if wanted_row(s)]
     if len(episodes) < wanted:
         raise FitError(f"only {len(episodes)} of {wanted} episodes are in {runs}; run again")
-    counts = count_experience(prior, episodes, steps)
-    fitted = fit_model(prior, counts, args.strength, name=Path(args.out).stem)
     prior_path = shown_path(args.prior)
     out = Path(args.out)
-    write_fitted(fitted, out, header_lines(args, prior_path, len(episodes), len(steps), counts))
-    for line in support_lines(prior, counts):
-        print(f"{NAME}: {line}")
-    print(f"{NAME}: wrote {out} ({len(episodes)} episodes, {len(steps)} steps, prior "
+    if args.types:
+        experience = count_types(prior, args.human_models, episodes, steps)
+        fitted = fit_types(prior, experience, args.strength, name=out.stem)
+        write_fitted(fitted, out, types_header_lines(args, prior_path, fitted, experience))
+        for name, share in experience.items():
+            for line in support_lines(prior, share.counts):
+                print(f"{NAME}: type {name}: {line}")
+        kind = f"{len(experience)} types, {fitted.n_states} states"
+    else:
+        counts = count_experience(prior, episodes, steps)
+        fitted = fit_model(prior, counts, args.strength, name=out.stem)
+        write_fitted(fitted, out, header_lines(args, prior_path, len(episodes), len(steps),
+                                               counts))
+        for line in support_lines(prior, counts):
+            print(f"{NAME}: {line}")
+        kind = f"{fitted.n_states} states"
+    print(f"{NAME}: wrote {out} ({kind}; {len(episodes)} episodes, {len(steps)} steps, prior "
           f"{prior_path}, strength {args.strength:g})", flush=True)
     return 0
 

@@ -46,6 +46,14 @@ def split_state(name: str) -> Optional[Tuple[str, str]]:
     return state, type_name
 
 
+def check_type_name(name: str) -> str:
+    """``name``, or ModelError when it cannot name a type in a composed model's state names."""
+    if not name or TYPE_SEPARATOR in name or any(ch.isspace() for ch in name):
+        raise ModelError(f"type name {name!r} must be non-empty, without spaces or "
+                         f"{TYPE_SEPARATOR!r}")
+    return name
+
+
 @dataclass(frozen=True)
 class TypeLayout:
     """Where each (type, state) sits in a composed model: state ``s`` of type ``t`` is at
@@ -132,9 +140,7 @@ def compose(models: Mapping[str, Model], prior: Optional[Sequence[float]] = None
         raise ModelError("no types to compose")
     types = list(models)
     for t in types:
-        if not t or TYPE_SEPARATOR in t or any(ch.isspace() for ch in t):
-            raise ModelError(f"type name {t!r} must be non-empty, without spaces or "
-                             f"{TYPE_SEPARATOR!r}")
+        check_type_name(t)
     first = models[types[0]]
     for t in types:
         m = models[t]

@@ -9,19 +9,20 @@ import pytest
 from ros_hrc.experiment import fit
 from ros_hrc.experiment.rows import EpisodeRow, StepRow
 from ros_hrc.models import load_robot_model
+from ros_hrc.pomdp.typed import TypeLayout
 
 
-def episode(number, end_reason="success", succeeded_by="robot", steps=3):
+def episode(number, end_reason="success", succeeded_by="robot", steps=3, human="beginner"):
     success = end_reason == "success"
-    return EpisodeRow(human_model="beginner", robot_policy="explore", seed=0, episode=number,
+    return EpisodeRow(human_model=human, robot_policy="explore", seed=0, episode=number,
                       success=int(success), succeeded_by=succeeded_by if success else "none",
                       end_reason=end_reason, steps=steps, sim_seconds=1.0,
                       robot_discounted_reward=0.0, intrusive_actions=0, warnings=0,
                       zero_probability_observations=0, mean_decision_ms=0.1, wall_seconds=1.0)
 
 
-def step(number, index, state, action, observation):
-    return StepRow("beginner", "explore", 0, number, index, "idle", "evaluating", state, action,
+def step(number, index, state, action, observation, human="beginner"):
+    return StepRow(human, "explore", 0, number, index, "idle", "evaluating", state, action,
                    observation, 0.5, int(state in ("S2", "S3", "S4", "S5")), 0)
 
 
@@ -142,3 +143,107 @@ def test_a_fabric_episode_that_succeeds_ends_in_fabric_s_success_state():
     counts = fit.count_experience(model, [row], [step])
     assert counts.n_transitions == 2     # TaskHuman -idle-> NeedsHelp -grasp-> GlobalSuccess
     assert fit.labels_fingerprint(fabric) != fit.labels_fingerprint(tasks.get("seed"))
+
+
+# ------------------------------------------------------------------ --types: one model per human
+
+def two_humans_recorded(runs):
+    """Two episodes each of beginner and tired in ``runs``, as the stacks would have left
+    them: beginner's robot grasps from S3 and succeeds, tired's is where the human walked
+    away (S3, O0) and the belt ends the episode."""
+    from ros_hrc.experiment.store import ResultsStore
+    store = ResultsStore(runs)
+    for e in range(2):
+        store.add(episode(e, steps=1), [step(e, 0, "S3", "rGrasp_obj", "O7")])
+        store.add(episode(e, "object_left_belt", steps=2, human="tired"),
+                  [step(e, 0, "S0", "rIdle", "O35", human="tired"),
+                   step(e, 1, "S3", "rPoint_obj", "O0", human="tired")])
+
+
+def test_types_fits_each_human_model_on_its_own_episodes_and_composes_them(robot):
+    beginner = [step(e, 0, "S3", "rGrasp_obj", "O7") for e in range(40)]
+    tired = [step(e, 0, "S3", "rGrasp_obj", "O0", human="tired") for e in range(40)]
+    episodes = [episode(e, steps=1) for e in range(40)] + \
+        [episode(e, "step_limit", steps=1, human="tired") for e in range(40)]
+    experience = fit.count_types(robot, ["beginner", "tired"], episodes, tired + beginner)
+    assert list(experience) == ["beginner", "tired"]
+    assert [(e.episodes, e.steps) for e in experience.values()] == [(40, 40), (40, 40)]
+    model = fit.fit_types(robot, experience, 5, name="types")
+    layout = TypeLayout.of(model)
+    assert layout.types == ("beginner", "tired") and list(layout.states) == robot.states
+    assert layout.type_marginal(model.initial_belief) == pytest.approx([0.5, 0.5])
+    grasp, s3 = idx(robot, "action", "rGrasp_obj"), idx(robot, "state", "S3")
+    S, T = robot.n_states, model.dense_T[grasp]
+    # beginner's grasps from S3 all succeeded; tired's episodes failed, so his S3 row is the
+    # prior's (nothing says where the grasp led)
+    assert T[s3, idx(robot, "state", "S1")] == pytest.approx((5 * 0.6 + 40) / 45)
+    assert T[S + s3, S:] == pytest.approx(robot.dense_T[grasp][s3])
+    # what each type shows in S3 after the robot's first rIdle: its own observations
+    O = model.dense_O[idx(robot, "action", "rIdle")]
+    o7, o0 = idx(robot, "observation", "O7"), idx(robot, "observation", "O0")
+    assert O[s3, o7] > 0.8 > O[S + s3, o7] and O[S + s3, o0] > 0.8
+    for name, share in experience.items():     # each type's block is its own fit, alone
+        alone = fit.fit_model(robot, share.counts, 5)
+        b = layout.types.index(name) * S
+        for a in range(robot.n_actions):
+            assert model.dense_T[a][b:b + S, b:b + S] == pytest.approx(alone.dense_T[a])
+            assert model.dense_O[a][b:b + S] == pytest.approx(alone.dense_O[a])
+
+
+def test_types_from_recorded_runs_writes_a_model_hrc_experiment_holds_out(tmp_path, capsys):
+    """No stack runs: every episode is already in --runs (the pooled fit's, reused)."""
+    from ros_hrc.experiment.cli import build_parser as grid_parser, validate_grid
+    from ros_hrc.experiment.grid import GridError
+    from ros_hrc.experiment.provenance import read_fitted_on
+    runs, out = tmp_path / "runs", tmp_path / "types.pomdp"
+    two_humans_recorded(runs)
+    words = ["--human-models", "beginner,tired", "--episodes", "2", "--runs", str(runs)]
+    assert fit.main(words + ["--out", str(tmp_path / "pooled.pomdp")]) == 0
+    assert fit.main(["--types", *words, "--out", str(out)]) == 0   # the same runs serve
+    printed = capsys.readouterr().out
+    assert "0 to run" in printed and "type tired: 4 transitions, 4 observations" in printed
+    model = load_robot_model(str(out))
+    assert model.n_states == 2 * 7 and model.states[-1] == "S6@tired"
+    header = [line for line in out.read_text().splitlines() if line.startswith("#")]
+    assert header[0].startswith("# A robot model of 2 human types, fitted to the world by "
+                                "hrc_fit --types")
+    assert "# types: beginner, tired" in header
+    assert "# experience of type beginner: 2 episodes, 2 steps; 4 transitions, " \
+           "2 observations" in header
+    assert [f.human_model for f in read_fitted_on(out)] == ["beginner", "tired"]
+    evaluate = ["--robot-model", str(out), "--human-models", "tired", "--policies", "pomdp",
+                "--episodes", "4", "--out", str(tmp_path / "study")]
+    with pytest.raises(GridError, match="fitted on human model tired, seed 0, episodes 0-1"):
+        validate_grid(grid_parser().parse_args(evaluate + ["--seeds", "0"]))
+    validate_grid(grid_parser().parse_args(evaluate + ["--seeds", "1"]))     # held out
+
+
+def test_types_refuses_human_models_that_name_one_type_twice(tmp_path, capsys):
+    from pathlib import Path
+    tired = Path(__file__).resolve().parents[3] / "models" / "human" / "tired.pomdpx"
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "tired.pomdpx").write_text(tired.read_text())
+    code = fit.main(["--types", "--human-models", f"tired,{tmp_path / 'mine' / 'tired.pomdpx'}",
+                     "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "t.pomdp")])
+    assert code == 2
+    assert capsys.readouterr().err == (
+        f"hrc_fit: --human-models: tired and {tmp_path / 'mine' / 'tired.pomdpx'} are both "
+        "type tired (--types names each type by its scenario name or file stem)\n")
+    assert not (tmp_path / "runs").exists()
+
+
+def test_types_writes_into_the_tasks_robot_models_by_default():
+    from ros_hrc.model_files import MODELS_DIR
+    for words, out, runs in (([], "robot/robot_fitted.pomdp", "results/fit"),
+                             (["--types"], "robot/robot_types.pomdp", "results/fit"),
+                             (["--types", "--task", "fabric"], "fabric/robot/robot_types.pomdp",
+                              "results/fit_fabric")):
+        args = fit.build_parser().parse_args(words)
+        fit.check_arguments(args)
+        assert args.out == str(MODELS_DIR / out), words
+        assert args.runs.endswith(runs), words
+    # the pooled fit's episodes are --types' too: one configuration
+    pooled, types = (fit.build_parser().parse_args(w) for w in ([], ["--types"]))
+    for args in (pooled, types):
+        fit.check_arguments(args)
+    assert fit.configuration(types) == fit.configuration(pooled)

@@ -356,6 +356,36 @@ def test_fitted_robot_says_how_it_was_made_and_keeps_the_authors_rewards():
     assert fitted.dense_T[2][3, 1] < 0.5
 
 
+# -- robot_types: one fit per human model of the fit set, composed (make fit-types, #31) ---------
+@pytest.mark.parametrize("task, prior, n_types, n_states", [
+    ("seed", "robot_considerate", 8, 7), ("fabric", "base", 10, 11)])
+def test_a_robot_model_of_types_is_one_fit_per_human_model_of_the_fit_set(task, prior, n_types,
+                                                                          n_states):
+    from ros_hrc import tasks
+    from ros_hrc.experiment.grid import training_humans
+    from ros_hrc.experiment.provenance import read_fitted_on
+    from ros_hrc.models import load_robot_model
+    from ros_hrc.pomdp.typed import TypeLayout
+    which = tasks.get(task)
+    path = Path(which.model_dirs["robot"]) / "robot_types.pomdp"
+    model, authors = load_robot_model(str(path), which), load_robot_model(prior, which)
+    layout = TypeLayout.of(model)
+    assert list(layout.types) == training_humans(which) and len(layout.types) == n_types
+    assert list(layout.states) == authors.states and model.n_states == n_types * n_states
+    assert layout.type_marginal(model.initial_belief) == pytest.approx([1 / n_types] * n_types)
+    assert [f.human_model for f in read_fitted_on(path)] == training_humans(which)
+    header = [line for line in path.read_text().splitlines() if line.startswith("#")]
+    for word in ("hrc_fit --types", "make fit-types", "episodes per model: 100", "seed: 0",
+                 "strength 5", f"{n_types} types x {n_states} states"):
+        assert any(word in line for line in header), word
+    assert sum(line.startswith("# experience of type ") for line in header) == n_types
+    S = n_states      # each type keeps the prior's rewards
+    for a in range(model.n_actions):
+        R = model.R[a].toarray()
+        for t in range(n_types):
+            assert np.array_equal(R[t * S:(t + 1) * S, t * S:(t + 1) * S], authors.R[a].toarray())
+
+
 # -- the human zoo (models/README.md, "The human zoo") ---------------------------------------------
 #: Each zoo human's action in each state (states in STATES order) and its probability of
 #: succeeding alone within 15 steps (hrc_experiment's default step limit), as README states.

@@ -65,6 +65,9 @@ PINNED = [
 #: no bracket to pin; DESPOT plans on them online.
 UNPINNED = {f"models/fabric/robot/{name}.pomdpx"
             for name in ("base", *(f"policy{n}" for n in (1, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)))}
+#: The robot models of human types (issue #31, hrc_fit --types): the solver does not close
+#: their gap to 1e-3 in minutes either (the seed's: 0.065 after 300 s; docs/performance.md).
+UNPINNED |= {"models/robot/robot_types.pomdp", "models/fabric/robot/robot_types.pomdp"}
 
 
 def test_every_shipped_model_is_pinned():
