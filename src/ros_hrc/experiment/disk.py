@@ -104,10 +104,11 @@ class DiskWatch:
 
 
 def full_disk_line(program: str, full: DiskFull, kept: int, out: Union[str, os.PathLike],
-                   command: str) -> str:
-    """The one line a run that stopped on a full disk ends with: which disk, what was kept,
-    and how to go on (``command``: the run's own, which resumes it)."""
-    episodes = "1 whole episode" if kept == 1 else f"{kept} whole episodes"
-    return (f"{program}: {full}: {episodes} kept in {out}; resume with: {command} "
+                   command: str, unit: str = "episodes") -> str:
+    """The one line a run that stopped on a full disk ends with: which disk, what was kept
+    (``kept`` whole ``unit``: a store's rows, episodes or sequences), and how to go on
+    (``command``: the run's own, which resumes it)."""
+    whole = f"1 whole {unit[:-1]}" if kept == 1 else f"{kept} whole {unit}"
+    return (f"{program}: {full}: {whole} kept in {out}; resume with: {command} "
             f"once there is room on {full.mount} (or copy {out} to another disk and give "
             "--out that copy)")

@@ -332,10 +332,11 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
         return figures, None
     command = shlex.join([program] + list(words))
     if stopper.disk_full is not None:
-        say_last(full_disk_line(program, stopper.disk_full, len(store.done()), out, command))
+        say_last(full_disk_line(program, stopper.disk_full, len(store.done()), out, command,
+                                store.UNIT))
         return None, 1
     name = signal.Signals(stopper.signum).name  # type: ignore[arg-type]
-    unit = getattr(store, "UNIT", "episodes")
+    unit = store.UNIT
     print(f"\n{program}: stopped by {name}; {len(store.done())} {unit} are kept in {out}. "
           f"Resume with: {command}", file=sys.stderr, flush=True)
     return None, 128 + int(stopper.signum)  # type: ignore[arg-type]
@@ -356,7 +357,7 @@ def finish_run(program: str, figures: Optional[dict], store, out: Path, words: S
             raise
         # Each file is whole or not there (written beside, then renamed).
         say_last(full_disk_line(program, DiskFull.of_error(exc), len(store.done()), out,
-                                shlex.join([program] + list(words))))
+                                shlex.join([program] + list(words)), store.UNIT))
         return 1
     if figures and figures["failed_cells"]:
         print(f"{program}: {len(figures['failed_cells'])} cells failed (logs in "

@@ -84,6 +84,8 @@ class PairedRecorder:
     (:class:`AloneEpisodes`); any other is set against it (:func:`episode.pair`), marked
     ``in_sample`` when its robot model was fitted on that stream, and stored."""
 
+    UNIT = ResultsStore.UNIT    # what a row is, in the run's messages (as its store's)
+
     def __init__(self, store: ResultsStore, alone: AloneEpisodes,
                  in_sample: Optional[Dict[Tuple[str, str, int], Set[int]]] = None) -> None:
         self.store = store

@@ -246,3 +246,16 @@ def test_the_watch_names_the_disk_that_has_no_room_left(tmp_path):
         assert str(full) == f"the disk at {disk} is full (0 KiB left)"
     finally:
         release_disk(disk)
+
+
+def test_the_full_disk_line_counts_what_the_run_keeps_in_its_own_unit(tmp_path):
+    """A sequence study keeps whole sequences, not episodes: the line says which."""
+    from ros_hrc.experiment.disk import DiskFull, full_disk_line
+    from ros_hrc.experiment.sequence_rows import SequenceStore
+    full = DiskFull(tmp_path, "12 KiB left")
+    assert "3 whole sequences kept in" in full_disk_line(
+        "hrc_experiment", full, 3, tmp_path / "out", "hrc_experiment ...", SequenceStore.UNIT)
+    assert "1 whole sequence kept in" in full_disk_line(
+        "hrc_experiment", full, 1, tmp_path / "out", "hrc_experiment ...", SequenceStore.UNIT)
+    assert "1 whole episode kept in" in full_disk_line(
+        "hrc_experiment", full, 1, tmp_path / "out", "hrc_experiment ...", ResultsStore.UNIT)

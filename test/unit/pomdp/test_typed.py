@@ -98,3 +98,30 @@ def test_models_that_do_not_share_their_names_are_refused(listeners):
         compose({"sharp": listeners["sharp"], "odd": other})
     with pytest.raises(ModelError, match="type name 'a@b'"):
         compose({"a@b": build_tiger()})
+
+
+@pytest.mark.parametrize("true_type", ["early_warner", "tired", "distracted", "beginner"])
+def test_the_shipped_seed_model_of_types_finds_a_type_from_its_observations(true_type):
+    """A pinned seeded case on the real composed model (models/robot/robot_types.pomdp, the
+    zoo's fit set): a human of ``true_type`` (its own fitted block: its start, its T and O),
+    the robot idle; within five observations the belief puts most of its weight on that type,
+    from a uniform 1/8."""
+    from ros_hrc.models import load_robot_model
+    model = load_robot_model("robot_types", "seed")
+    layout = TypeLayout.of(model)
+    k = layout.types.index(true_type)
+    n = len(layout.states)
+    T, O = model.dense_T, model.dense_O
+    idle = model.index("action", "rIdle")
+    rng = np.random.default_rng(0)
+    state = k * n + int(np.argmax(layout.blocks(model.initial_belief)[k]))
+    b = model.initial_belief.copy()
+    history = []
+    for _ in range(5):
+        state = int(rng.choice(model.n_states, p=T[idle, state]))
+        assert state // n == k                                  # the human stays his type
+        o = int(rng.choice(model.n_observations, p=O[idle, state]))
+        b, _ = update(model, b, idle, o)
+        history.append(round(float(layout.type_marginal(b)[k]), 3))
+    assert history[-1] > 0.5, history
+    assert int(np.argmax(layout.type_marginal(b))) == k, history
