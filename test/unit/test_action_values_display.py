@@ -68,3 +68,18 @@ def test_many_actions_stay_on_one_readable_line():
     assert text.startswith("rMove_12 12 (chosen) > rMove_11 11 > ")
     shown = text.count(" > ") + 1
     assert text.endswith(f" (+{13 - shown} more)")
+
+
+def test_a_robot_model_of_types_shows_its_belief_over_the_types_under_the_state_belief():
+    """Issue #31: the composed model's belief over the human types is printed each step, the
+    most likely first, the first five and '...' for the rest; a robot of no types has no line."""
+    types = ["humanModel", "distracted", "walker", "slow_steady", "early_warner",
+             "confident_novice", "beginner", "tired"]
+    belief = [0.32, 0.04, 0.04, 0.01, 0.04, 0.54, 0.005, 0.005]
+    block = format_step(grasp_at_low_need(type_names=types, type_belief=belief)).splitlines()
+    at = block.index(next(line for line in block if line.startswith("robot types")))
+    assert block[at - 1].startswith("robot belief      : S0 0.970")
+    assert block[at] == ("robot types       : confident_novice 0.54, humanModel 0.32, "
+                         "distracted 0.04, walker 0.04, early_warner 0.04 ...")
+    assert not any(line.startswith("robot types")
+                   for line in format_step(grasp_at_low_need()).splitlines())

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc import tasks
+from ros_hrc.pomdp.typed import ranked_types
 from ros_hrc.tasks.definition import Task
 
 
@@ -264,6 +265,8 @@ def _words(action: str) -> str:
 
 #: How many of the selector's types the task's line names (the most likely first).
 TASK_LINE_TYPES = 3
+#: How many of a robot model of types' types a step block's "robot types" line names.
+STEP_BLOCK_TYPES = 5
 
 
 def task_line(status) -> str:
@@ -280,9 +283,6 @@ def task_line(status) -> str:
                  f"{counted(status.preemptions, 'pre-emption')}")
     if status.policy:
         line += f"; policy {status.policy}"
-    ranked = sorted(zip(status.type_names, status.type_belief), key=lambda item: -item[1])
-    if ranked:
-        shown = ", ".join(f"{name} {p:.2f}" for name, p in ranked[:TASK_LINE_TYPES])
-        more = " ..." if len(ranked) > TASK_LINE_TYPES else ""
-        line += f"; belief: {shown}{more}"
+    if status.type_names:
+        line += f"; belief: {ranked_types(status.type_names, status.type_belief, TASK_LINE_TYPES)}"
     return line

@@ -93,7 +93,8 @@ from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import settings, tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
                                       WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig)
-from ros_hrc.loop.display import action_values_text, task_line
+from ros_hrc.loop.display import STEP_BLOCK_TYPES, action_values_text, task_line
+from ros_hrc.pomdp.typed import ranked_types
 from ros_hrc.loop.effects import (DECISION_IN_REPORT, ReactionRequest, STEP_TIMINGS, StepReport,
                                   StepRequest, TaskStatusReport)
 from ros_hrc.loop.runner import LoopRunner, ReportPort
@@ -197,6 +198,9 @@ def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
     values = action_values_text(status)
     if values:   # why the robot chose its action (a baseline robot sends no values)
         lines.insert(-1, f"robot values      : {values}")
+    if status.type_names:   # a robot model of human types: whom it believes it works with
+        lines.append(f"robot types       : "
+                     f"{ranked_types(status.type_names, status.type_belief, STEP_BLOCK_TYPES)}")
     if status.fault:
         lines.append(f"STEP FAILED       : {status.fault}")
     else:

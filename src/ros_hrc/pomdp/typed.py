@@ -46,6 +46,15 @@ def split_state(name: str) -> Optional[Tuple[str, str]]:
     return state, type_name
 
 
+def ranked_types(names: Sequence[str], belief: Sequence[float],
+                 limit: Optional[int] = None) -> str:
+    """A belief over types as one line, the most likely first: ``tired 0.62, beginner 0.21``;
+    with ``limit``, the first ``limit`` and `` ...`` when more were left out."""
+    ranked = sorted(zip(names, belief), key=lambda item: -item[1])
+    shown = ", ".join(f"{name} {p:.2f}" for name, p in ranked[:limit])
+    return shown + (" ..." if limit is not None and len(ranked) > limit else "")
+
+
 def check_type_name(name: str) -> str:
     """``name``, or ModelError when it cannot name a type in a composed model's state names."""
     if not name or TYPE_SEPARATOR in name or any(ch.isspace() for ch in name):

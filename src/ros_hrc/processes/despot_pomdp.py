@@ -80,7 +80,7 @@ from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
-from ros_hrc.pomdp.typed import TypeLayout
+from ros_hrc.pomdp.typed import TypeLayout, ranked_types
 from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
@@ -401,14 +401,6 @@ class PomdpProcess:
         if type_belief is not None:
             lines.append(f"- Type belief: {ranked_types(self.agent.layout.types, type_belief)}")
         return "\n".join(lines)
-
-
-def ranked_types(names: Sequence[str], belief: Sequence[float],
-                 limit: Optional[int] = None) -> str:
-    """A belief over types as one line, the most likely first: ``tired 0.62, beginner 0.21``
-    (the first ``limit`` only, when given)."""
-    ranked = sorted(zip(names, belief), key=lambda item: -item[1])[:limit]
-    return ", ".join(f"{name} {p:.2f}" for name, p in ranked)
 
 
 def build_planner(model: Model, args: argparse.Namespace) -> Planner:
