@@ -117,8 +117,7 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
     given = given or {}
 
     def typed(name: str) -> str:
-        text = str(given.get(name) or "").strip()
-        return str(config[name]).strip() if text in ("", settings.AUTO_WORD) else text
+        return typed_value(config, given, name)
 
     from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model,
                                      positional_mapping_line)
@@ -144,15 +143,27 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
             raise CheckError(f"policy_file:={typed('policy_file')}: {text}") from None
 
 
-def check_sequence(config: Mapping[str, object]) -> None:
+def typed_value(config: Mapping[str, object], given: Mapping[str, str], name: str) -> str:
+    """Setting ``name`` as the user typed it (``given``: the words' values), or its resolved
+    value when it was not typed or typed as ``auto``."""
+    text = str(given.get(name) or "").strip()
+    return str(config[name]).strip() if text in ("", settings.AUTO_WORD) else text
+
+
+def check_sequence(config: Mapping[str, object],
+                   given: Optional[Mapping[str, str]] = None) -> None:
     """A sequence's library and selector model, loaded as the robot process will load them
-    (nothing for ``selector:=fixed``: the launch's one robot, checked with the models)."""
+    (nothing for ``selector:=fixed``: the launch's one robot, checked with the models). As
+    typed (this runs where they were typed, so the same files), so a refusal names the
+    argument as the user wrote it and the file it looked for."""
     from ros_hrc import tasks
     from ros_hrc.processes.selection import load_selection, uses_library
 
+    given = given or {}
     if uses_library(str(config["selector"])):
-        load_selection(str(config["selector"]), str(config["library"]),
-                       str(config["selector_model"]), tasks.get(str(config["task"])))
+        load_selection(str(config["selector"]), typed_value(config, given, "library"),
+                       typed_value(config, given, "selector_model"),
+                       tasks.get(str(config["task"])))
 
 
 def ports_to_bind(config: Mapping[str, object]) -> List[str]:
@@ -241,7 +252,7 @@ def check(words: Sequence[str], port_check: bool = True,
     given = parse_words(words)
     config = settings.resolve(given)
     check_models(config, notes, given)
-    check_sequence(config)
+    check_sequence(config, given)
     check_display(config)
     if port_check:
         check_ports(config)

@@ -67,7 +67,9 @@ def load_selection(selector: str, library: str, selector_model: str, task: Task)
     try:
         loaded = load_library(library, task)
     except HrcError as exc:
-        raise SelectionError(f"library:={library}: {exc}") from None
+        text = str(exc)     # the library's own errors begin with the name they were given
+        text = text[len(library) + 2:] if text.startswith(f"{library}: ") else text
+        raise SelectionError(f"library:={library}: {text}") from None
     if policy and policy not in loaded.names():
         raise SelectionError(f"selector:={selector}: no policy {policy!r} in the library "
                              f"{shown_path(loaded.manifest)} (its policies: "

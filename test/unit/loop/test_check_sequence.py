@@ -75,3 +75,14 @@ def test_the_launch_stops_before_anything_starts(words, line):
     assert len(ours) == 1 and ours[0].startswith(line), done.stderr
     assert "process[" not in done.stdout, "a process was started"
     assert not master_up
+
+
+def test_a_refused_library_is_named_as_typed_and_the_file_it_looked_for_in_full(tmp_path,
+                                                                                   monkeypatch):
+    """Before: `library:=/abs/nolib.toml: /abs/nolib.toml: no such manifest ...` for a user who
+    typed ./nolib.toml; the path as typed, once, then where it looked."""
+    monkeypatch.chdir(tmp_path)
+    assert refusal("task:=fabric", "tasks:=3", "selector:=random", "library:=./nolib.toml") == (
+        f"library:=./nolib.toml: no such manifest or folder (looked for {tmp_path / 'nolib.toml'})")
+    line = refusal("task:=fabric", "tasks:=3", "selector:=bpr", "selector_model:=./none.json")
+    assert line.startswith(f"selector_model:=./none.json: {tmp_path / 'none.json'}: ")
