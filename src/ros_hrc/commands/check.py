@@ -67,6 +67,7 @@ configuration as ``token_file``. When a solver is left to be run by hand (``star
 from __future__ import annotations
 
 import errno
+import functools
 import io
 import os
 import shlex
@@ -114,10 +115,7 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
     the robot model for planner:=policy. The start-up line of each model named by position
     is appended to ``notes``. An error names the argument as typed (``given``, the words'
     values) and the file it looked for."""
-    given = given or {}
-
-    def typed(name: str) -> str:
-        return typed_value(config, given, name)
+    typed = functools.partial(typed_value, config, given or {})
 
     from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model,
                                      positional_mapping_line)
