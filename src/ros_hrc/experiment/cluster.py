@@ -55,6 +55,7 @@ from ros_hrc.errors import HrcError
 from ros_hrc.experiment.attempts import CellAttempts
 from ros_hrc.experiment.cluster_task import STOP_WAIT, run_cell_on_node
 from ros_hrc.experiment.ray_node import RESOURCE, RayNode, RayNodeError
+from ros_hrc.experiment.shipped_files import ShippedFiles, cell_files
 from ros_hrc.experiment.stack import CellSpec, decode_episode
 from ros_hrc.process_tree import processes_naming
 
@@ -204,7 +205,7 @@ class ClusterRun:
         self.dropped_duplicates = 0
         self.connect_seconds = 0.0
         self._lock = threading.Lock()
-        self._files: Dict[str, Tuple[str, bytes]] = {}
+        self._files: Dict[Tuple[str, str], ShippedFiles] = {}   # what cells' files were read
         self._private: Optional[RayNode] = None
         self._ray = None
         self._remote = None
@@ -323,17 +324,10 @@ class ClusterRun:
 
     # -- one cell -----------------------------------------------------------------------------
 
-    def _model_files(self, cell: CellSpec) -> Dict[str, Tuple[str, bytes]]:
-        """The cell's model files (name and contents), sent with it: the nodes need not have
-        them at the same path, or at all (a model given as a path on this machine)."""
-        files = {}
-        for field_name in ("robot_model", "human_model_file"):
-            path = getattr(cell, field_name)
-            if path:
-                if path not in self._files:
-                    self._files[path] = (Path(path).name, Path(path).read_bytes())
-                files[field_name] = self._files[path]
-        return files
+    def _model_files(self, cell: CellSpec) -> ShippedFiles:
+        """The files the cell names on this machine, sent with it: the nodes need not have
+        them at the same path, or at all (:mod:`ros_hrc.experiment.shipped_files`)."""
+        return cell_files(cell, self._files)
 
     def _started(self, where: Dict[str, Any]) -> NodeFigures:
         with self._lock:
@@ -367,7 +361,7 @@ class ClusterRun:
         with self._lock:
             self.retried_cells += 1
 
-    def _attempt(self, number: int, spec: CellSpec, files: Dict[str, Tuple[str, bytes]],
+    def _attempt(self, number: int, spec: CellSpec, files: ShippedFiles,
                  attempts: CellAttempts, stopper) -> Tuple[str, Sequence[str]]:
         """One attempt at ``spec``'s episodes as a Ray task: (why it ended short, its worker's
         last lines). RuntimeError when no living node offers the resource for

@@ -1,7 +1,8 @@
 """A cell's Ray task, on the node it lands on (``--cluster``): one attempt at the cell.
 
-The task (:func:`run_cell_on_node`) writes the cell's model files and spec into the node's own
-directory, runs the same worker command as the local pool
+The task (:func:`run_cell_on_node`) writes the cell's files (its models, and a sequence's
+selector model, schedule and library: :mod:`ros_hrc.experiment.shipped_files`) and spec into
+the node's own directory, runs the same worker command as the local pool
 (:func:`ros_hrc.experiment.stack.worker_command`: the cell's whole stack, with a roscore and
 free ports of its own on that machine) and streams each episode's line back to the driver
 (:mod:`ros_hrc.experiment.cluster`) as the worker prints it (a Ray generator task). A cancelled
@@ -21,8 +22,9 @@ import sys
 import tempfile
 import threading
 from pathlib import Path
-from typing import Any, Dict, Iterator, List, Optional, Tuple
+from typing import Any, Iterator, List, Optional, Tuple
 
+from ros_hrc.experiment.shipped_files import ShippedFiles, place_cell_files
 from ros_hrc.experiment.stack import (EPISODE_LINE, CellSpec, cell_name, log_tail, stack_log,
                                       worker_command, write_spec)
 
@@ -69,10 +71,10 @@ def _guarded(command: List[str]) -> List[str]:
             setpriv, "--pdeathsig", "TERM", "--"] + command
 
 
-def run_cell_on_node(spec_json: str, files: Dict[str, Tuple[str, bytes]], run_id: str,
+def run_cell_on_node(spec_json: str, files: ShippedFiles, run_id: str,
                      attempt: int, here: Optional[str] = None) -> Iterator[Tuple[str, Any]]:
     """The body of a cell's Ray task (a generator; it runs on the node). Writes the cell's
-    model files and spec into the node's own directory (``here``, a directory of the node's,
+    files and spec into the node's own directory (``here``, a directory of the node's,
     instead: ``--cluster local``), runs the worker command there and
     yields ``("start", where)``, then ``("episode", line)`` per episode as the worker prints it,
     and, unless every episode was delivered (the task then ends while the stack shuts down,
@@ -84,14 +86,9 @@ def run_cell_on_node(spec_json: str, files: Dict[str, Tuple[str, bytes]], run_id
     spec = CellSpec.from_json(spec_json)
     name = cell_name(spec)
     directory = Path(here or node_directory()) / run_id / f"{name}.attempt{attempt}"
-    models = directory / "models"
-    models.mkdir(parents=True, exist_ok=True)
-    changes: Dict[str, str] = {}
-    for field_name, (base, data) in files.items():
-        path = models / base
-        path.write_bytes(data)
-        changes[field_name] = str(path)
-    spec = dataclasses.replace(spec, log_dir=str(directory), **changes)
+    directory.mkdir(parents=True, exist_ok=True)
+    spec = dataclasses.replace(place_cell_files(spec, files, directory / "models"),
+                               log_dir=str(directory))
     context = ray.get_runtime_context()
     where = {"node_id": context.get_node_id(), "ip": ray.util.get_node_ip_address(),
              "host": socket.gethostname(), "directory": str(directory), "pid": None}
