@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any, Iterator, List, Optional, Tuple
 
 from ros_hrc.experiment.shipped_files import ShippedFiles, place_cell_files
-from ros_hrc.experiment.stack import (EPISODE_LINE, CellSpec, cell_name, log_tail, stack_log,
+from ros_hrc.experiment.stack import (RESULT_LINES, CellSpec, cell_name, log_tail, stack_log,
                                       worker_command, write_spec)
 
 #: Lines of a failed cell's logs brought back from its node.
@@ -133,7 +133,8 @@ def run_cell_on_node(spec_json: str, files: ShippedFiles, run_id: str,
                 continue
             if line is None:
                 break
-            if line.startswith(EPISODE_LINE):
+            # An episode's line, or a sequence cell's line (one per whole sequence).
+            if line.startswith(RESULT_LINES):
                 yield "episode", line
                 delivered += 1
                 if delivered == len(spec.episodes):

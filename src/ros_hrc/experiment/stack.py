@@ -464,6 +464,10 @@ def encode_sequence(row: SequenceRow, tasks: Sequence[TaskRow]) -> str:
                                        "tasks": [t.as_dict() for t in tasks]})
 
 
+#: The prefixes of the lines that carry a cell's results (:func:`decode_episode` reads them).
+RESULT_LINES = (EPISODE_LINE, SEQUENCE_LINE)
+
+
 def decode_episode(line: str):
     """(EpisodeRow, [StepRow]) from a worker's episode line, (SequenceRow, [TaskRow]) from a
     sequence cell's line, or None for any other line."""
