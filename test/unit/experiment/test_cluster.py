@@ -283,3 +283,33 @@ def _fail_without_a_node(tmp_path: Path, other, address: str) -> None:
             failed[0] and "run again to resume" in failed[0], failed[0]
     finally:
         _kill(driver)
+
+
+@pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
+def test_a_sequence_cell_runs_on_the_cluster_with_the_driver_s_library(tmp_path):
+    """A sequence cell on the cluster: its whole-sequence line reaches the driver, and the
+    stack plays the --library and --selector-model the driver was given, from the node's
+    copies (test_shipped_files.py checks the copies load without the driver's folder)."""
+    from ros_hrc.agents.library import library_manifest
+    driver_models = tmp_path / "mine"
+    shutil.copytree(library_manifest("fabric").parent, driver_models)
+    out = tmp_path / "out"
+    done = subprocess.run(
+        experiment("--task", "fabric", "--sequence", "2", "--episodes", "1", "--seeds", "7",
+                   "--human-models", "expert_tired_noncollaborative", "--selectors", "bpr",
+                   "--library", str(driver_models / "library.toml"),
+                   "--selector-model", str(driver_models / "selector_model.json"),
+                   "--max-trials", "100", "--no-plots", "--cluster", "local", "--jobs", "1",
+                   "--out", str(out)),
+        capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL,
+        env=dict(os.environ, TMPDIR="/tmp"))
+    said = done.stdout[-3000:] + done.stderr[-3000:]
+    assert done.returncode == 0, said
+    tasks = rows_of(out / "tasks.csv", ())
+    assert [int(t["task_index"]) for t in tasks] == [1, 2], said
+    assert all(t["selector"] == "bpr" and t["policy"] for t in tasks), tasks
+    specs = list((out / "logs").glob("*/*.attempt1/*.spec.json"))
+    assert len(specs) == 1, list((out / "logs").rglob("*"))
+    given = dict(word.split(":=", 1) for word in json.loads(specs[0].read_text())["extra_args"])
+    for name in ("library", "selector_model"):
+        assert Path(given[name]).is_relative_to(specs[0].parent / "models"), given
