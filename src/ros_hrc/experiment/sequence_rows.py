@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, ClassVar, Sequence, Tuple
 
 import numpy as np
@@ -240,8 +239,8 @@ def task_row(status: Any, schedule: str, selector: str, seed: int, sequence: int
     belief = [float(v) for v in status.type_belief]
     return TaskRow(
         schedule=schedule, selector=selector, seed=seed, episode=sequence,
-        task_index=int(status.task_index), human_model=model_name(status.human_model),
-        true_type=status.true_type or model_name(status.human_model), policy=status.policy,
+        task_index=int(status.task_index), human_model=status.human_model,
+        true_type=status.true_type or status.human_model, policy=status.policy,
         success=int(status.outcome == "success"), utility=float(status.utility),
         outcome=status.outcome, who_succeeded=status.who_succeeded,
         belief_argmax=belief_argmax(names, belief),
@@ -252,14 +251,6 @@ def task_row(status: Any, schedule: str, selector: str, seed: int, sequence: int
         task_episode=int(status.episode), type_names=" ".join(names),
         type_belief=" ".join(repr(v) for v in belief),
         signature=" ".join(str(c) for c in signature_codes(status.signature)))
-
-
-def model_name(model: str) -> str:
-    """A human model as the rows name it: a file's stem (a stack may report the file it
-    loaded), a name as it is."""
-    if "/" in model or model.endswith((".pomdp", ".pomdpx")):
-        return Path(model).stem
-    return model
 
 
 def signature_codes(signature: Any) -> Tuple[int, ...]:

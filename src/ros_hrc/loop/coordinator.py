@@ -93,7 +93,7 @@ from ros_hrc.loop.effects import (BUSY, DECISION_IN_REPORT, EPISODE_IS_OVER, FAI
 from ros_hrc import settings
 from ros_hrc.streams import EpisodeSchedule, generator
 from ros_hrc.tasks.definition import Task
-from ros_hrc.tasks.schedule import Schedule, TaskPlay
+from ros_hrc.tasks.schedule import Schedule, TaskPlay, type_name
 from ros_hrc.tasks.seed import SEED
 from ros_hrc.tasks.utility import TaskOutcome, task_utility
 
@@ -813,7 +813,7 @@ class Coordinator:
         self.phase = EPISODE_OVER      # the MDP was told: it waits for the next reset
         status = TaskStatusReport(
             task_index=self.task_index, tasks=self.config.tasks, episode=self.episode,
-            epoch=self.epoch, human_model=self.play.human_model,
+            epoch=self.epoch, human_model=type_name(self.play.human_model),
             true_type=self.play.true_type, outcome=outcome, who_succeeded=who,
             warnings=measured.warnings, preemptions=measured.preemptions,
             steps=report.step + 1, duration=duration, utility=utility, end_reason=reason)

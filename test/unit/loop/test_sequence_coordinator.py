@@ -73,6 +73,19 @@ def test_a_success_is_the_human_or_the_robot_taking_the_object():
     assert status.total_disc_reward == 4.5 and not status.robot_problem
 
 
+def test_a_human_given_as_a_file_is_named_by_its_stem_in_the_task_status():
+    # The MDP is told the file (it loads it); the task's status names the model as
+    # msg/TaskStatus.msg says, by its file's stem, as FABRIC's human_model names a model.
+    path = str(SEED.model_dirs["human"] / "tired.pomdpx")
+    d = Driver(CoordinatorConfig(tasks=2, human_model=path, schedule=parse_schedule(
+        "", model_names(SEED.model_dirs["human"]), path)))
+    first = d.ready()
+    assert first.human_model == path
+    _, end = end_task(d, snap("is_ho", holder="human", sim_time=START + 4.0))
+    status = one(d.answer(end, REPORT), PublishTask).report
+    assert (status.human_model, status.true_type) == ("tired", "tired")
+
+
 def test_a_failure_is_the_object_leaving_the_belt():
     d, _ = sequence()
     _, end = end_task(d, snap(left_belt=True, sim_time=START + 69.0))
