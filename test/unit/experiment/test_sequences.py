@@ -104,9 +104,8 @@ def status(**fields):
 
 
 def test_a_task_row_is_the_task_status_message_with_the_cells_names():
-    # A stack may report the human model's file: the rows name it by its stem.
-    row = task_row(status(human_model="/models/fabric/human/expert_tired.pomdpx"),
-                   "per-type-label", "bpr", 4, 1)
+    # The stack names a human given as a file by its stem (test_sequence_coordinator.py).
+    row = task_row(status(human_model="expert_tired"), "per-type-label", "bpr", 4, 1)
     assert row.key == ("per-type-label", "bpr", 4, 1)
     assert (row.task_index, row.task_episode, row.policy, row.true_type, row.human_model) == \
         (2, 6, "policy3", "expert_tired", "expert_tired")
