@@ -324,11 +324,6 @@ class ClusterRun:
 
     # -- one cell -----------------------------------------------------------------------------
 
-    def _model_files(self, cell: CellSpec) -> ShippedFiles:
-        """The files the cell names on this machine, sent with it: the nodes need not have
-        them at the same path, or at all (:mod:`ros_hrc.experiment.shipped_files`)."""
-        return cell_files(cell, self._files)
-
     def _started(self, where: Dict[str, Any]) -> NodeFigures:
         with self._lock:
             node = self.nodes.get(where["node_id"])
@@ -349,7 +344,9 @@ class ClusterRun:
         (:class:`~ros_hrc.experiment.attempts.CellAttempts`); then RuntimeError with the last
         lines of its logs."""
         attempts = CellAttempts(cell, deliver, log, self.program, on_all_delivered)
-        files = self._model_files(cell)
+        # The files the cell names here travel with it: a node needs none of this machine's
+        # paths (ros_hrc.experiment.shipped_files).
+        files = cell_files(cell, self._files)
 
         def attempt(number: int, spec: CellSpec) -> Tuple[str, Sequence[str]]:
             return self._attempt(number, spec, files, attempts, stopper)

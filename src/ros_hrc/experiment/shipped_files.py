@@ -92,13 +92,11 @@ def _library_files(manifest: Path, task: str) -> ShippedFiles:
     from ros_hrc.agents.library import load_library
 
     library = load_library(manifest, task)
-    members = []
-    for policy in library.policies:
-        if policy.robot_model is not None:
-            members.append(Path(policy.robot_model))
-        members += [Path(value) for key, value in policy.options.items()
-                    if settings.SETTINGS[key].kind == "file" and value]
-    members = sorted(set(members) - {library.manifest})
+    # Every setting of a policy that names a file: its robot model and any file option.
+    members = sorted({Path(value) for policy in library.policies
+                      for key, value in policy.settings().items()
+                      if settings.SETTINGS[key].kind in ("model", "file") and value}
+                     - {library.manifest})
     root = Path(os.path.commonpath([library.manifest.parent] + [m.parent for m in members]))
     files = {f"{_ARGUMENT}library": _read(library.manifest, _under_library(library.manifest,
                                                                             root))}
