@@ -21,7 +21,10 @@ six bits. The performance model is Gaussian, N(mean[τ, π], std[τ, π]) of the
 and the signature model a distribution over the 64 codes per (policy, type): both come from
 the selector model file (:mod:`ros_hrc.agents.selector_model`).
 
-No ROS. numpy and scipy; the bandit imports MABWiser when one is made.
+No ROS. numpy and scipy; the bandit imports MABWiser when one is made, and the Gaussian
+scores import scipy.stats when first computed (0.4 s of a process's start that the launch's
+pre-flight and every robot process whose selector scores nothing need not pay:
+docs/performance.md, "Stack start-up").
 """
 from __future__ import annotations
 
@@ -31,7 +34,6 @@ from typing import Dict, Optional, Protocol, Sequence, Tuple
 
 import numpy as np
 from scipy.special import logsumexp
-from scipy.stats import norm
 
 from ros_hrc.agents.selector_model import SIGNATURE_CODES, SelectorModel
 from ros_hrc.tasks.utility import UTILITY_MAX
@@ -215,6 +217,7 @@ def probability_of_improvement(belief: np.ndarray, mean: np.ndarray, std: np.nda
                                u_plus: float) -> np.ndarray:
     """BPR-PI's score (Rosman et al. 2016, Sect. 4, probability of improvement):
     Σ_τ β(τ) P(U ≥ U⁺ | τ, π) for each policy π, with U | τ, π ~ N(mean, std)."""
+    from scipy.stats import norm     # only when a selector scores (the module's docstring)
     return np.asarray(belief, dtype=float) @ norm.sf(u_plus, loc=mean, scale=std)
 
 
@@ -223,6 +226,7 @@ def _tail_integral(u: float, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
     z = (u - μ)/σ; 0 at u = +inf."""
     if math.isinf(u) and u > 0:
         return np.zeros(np.broadcast(mean, std).shape)
+    from scipy.stats import norm     # only when a selector scores (the module's docstring)
     z = (u - mean) / std
     return (u - mean) * norm.sf(z) - std * norm.pdf(z)
 
@@ -276,6 +280,7 @@ def fabric_scores(belief: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.n
     u_bar = float(np.max(expected_utilities(belief, mean)))
     top = float(mean.max() + std.max())
     grid = u_bar + np.arange(FABRIC_GRID_POINTS) * (top - u_bar) / FABRIC_GRID_POINTS
+    from scipy.stats import norm     # only when a selector scores (the module's docstring)
     density = norm.pdf(grid[:, None, None], loc=mean[None], scale=std[None] + FABRIC_STD_WIDENING)
     return np.einsum("kti,t->i", density, belief)
 
