@@ -336,6 +336,10 @@ _WINDOW_SCRIPT = textwrap.dedent("""\
     """)
 
 
+#: What PyBullet prints when its window cannot reach the X server.
+X_REFUSED = "cannot connect to X server"
+
+
 def _start_xvfb():
     """An Xvfb of the test's own, once it accepts clients: (process, display number). It picks
     a free display itself and writes the number to -displayfd only when it is ready (the
@@ -360,8 +364,14 @@ def test_the_window_under_xvfb_closes_with_esc_and_the_world_says_so():
     server, number = _start_xvfb()
     try:
         env = dict(os.environ, DISPLAY=f":{number}")
-        run = subprocess.run([sys.executable, "-c", _WINDOW_SCRIPT], env=env, capture_output=True,
-                             text=True, timeout=60)
+        for _ in range(2):
+            run = subprocess.run([sys.executable, "-c", _WINDOW_SCRIPT], env=env,
+                                 capture_output=True, text=True, timeout=60)
+            # PyBullet's own X connection is now and then refused on a loaded machine (about
+            # 1 in 25 under two busy cores, with the server up and serving other clients:
+            # docs/watching.md); once more is what a user does. Anything else counts.
+            if X_REFUSED not in run.stderr:
+                break
     finally:
         server.terminate()
         server.wait(timeout=10)
