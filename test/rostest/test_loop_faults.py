@@ -163,8 +163,14 @@ class TestLoopFaults(unittest.TestCase):
         answers = []
         rospy.wait_for_service("/hrc/reset", WAIT)
 
+        # All fifty start together: a thread still being started under load called seconds
+        # after the others once (a CI run), and a reset that late is rightly a second one.
+        start = threading.Barrier(50)
+
         def reset():
-            answers.append(rospy.ServiceProxy("/hrc/reset", Trigger)())
+            proxy = rospy.ServiceProxy("/hrc/reset", Trigger)
+            start.wait(WAIT)
+            answers.append(proxy())
 
         threads = [threading.Thread(target=reset) for _ in range(50)]
         for t in threads:
