@@ -54,7 +54,7 @@ from .png import write_png
 from .stage import build_stage
 from .tickets import ActionQueues, Channel, Ticket
 from .window import View, Window, WindowClosed, window_options
-from .x11 import bullet_windows
+from .x11 import WindowNamer
 
 LOG = logging.getLogger(__name__)
 
@@ -96,15 +96,23 @@ class World:
         self._thread: Optional[threading.Thread] = None
         self._listeners: List[Callable[[float], None]] = []
         cfg = self.config
-        # The windows PyBullet had open before this one: the new one is ours, to be named.
-        others = bullet_windows() if cfg.gui else set()
+        # Made before PyBullet's window opens, closed once it is named (WindowNamer says why).
+        namer = WindowNamer() if cfg.gui else None
         options = window_options(cfg.window.width, cfg.window.height, cfg.window.background)
-        self.client = PhysicsClient(cfg.gui, options)   # the scene: never stepped
+        try:
+            self.client = PhysicsClient(cfg.gui, options)   # the scene: never stepped
+        except BaseException:
+            if namer is not None:
+                namer.close()
+            raise
         self._window = Window(self.client, cfg.window)   # used with gui only
         self._window.add_closed_listener(self._abandon_actions)   # first: then the others
         try:
-            if cfg.gui:
-                self._window.open(others)
+            if namer is not None:
+                try:
+                    self._window.open(namer)
+                finally:
+                    namer.close()
             self.physics = PhysicsClient(False)
             stage = build_stage(self.client, self.physics, cfg, self.model_dir, self.control_period,
                                 self.rng, self._predicted_object, self._window if cfg.gui else None)

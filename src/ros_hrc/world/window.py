@@ -5,7 +5,7 @@ What PyBullet 3.2.x offers and what it does not:
 
 * **Title.** The example browser that draws the window takes ``--width``, ``--height``,
   ``--background_color_red/green/blue`` (and ``--mp4``, ``--opengl2`` ...) as connect
-  ``options`` (:func:`window_options`), but no title: :func:`~.x11.name_window` renames the
+  ``options`` (:func:`window_options`), but no title: :class:`~.x11.WindowNamer` renames the
   window through Xlib.
 * **Opening.** The window draws from the moment it opens, before connect() returns: its first
   frames show PyBullet's default scene and panels. Then, with rendering off, it shows the last
@@ -36,7 +36,7 @@ import logging
 import time
 from dataclasses import dataclass
 from contextlib import contextmanager
-from typing import Callable, Iterator, List, Sequence, Set, Tuple
+from typing import Callable, Iterator, List, Sequence, Tuple
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from ..errors import SimulationError
 from .client import PhysicsClient
 from .visuals import MATT_SPECULAR
 from .wrap import wrap_lines
-from .x11 import name_window
+from .x11 import WindowNamer
 
 LOG = logging.getLogger(__name__)
 
@@ -162,11 +162,11 @@ class Window:
         self._closed_listeners: List[Callable[[], None]] = []
 
     # --- opening -----------------------------------------------------------------------------------
-    def open(self, others: Set[int]) -> None:
-        """Right after the window opened: its title (``others``: the example browser's windows
-        that were open before, not ours), PyBullet's panels off, light and camera."""
+    def open(self, namer: WindowNamer) -> None:
+        """Right after the window opened: its title (``namer``, made before it opened),
+        PyBullet's panels off, light and camera."""
         c = self.client
-        if not name_window(WINDOW_TITLE, others):
+        if not namer.name(WINDOW_TITLE):
             LOG.info("PyBullet's window keeps PyBullet's title (no X11 window found to rename)")
         for flag in (c.COV_ENABLE_GUI, c.COV_ENABLE_RGB_BUFFER_PREVIEW, c.COV_ENABLE_DEPTH_BUFFER_PREVIEW,
                      c.COV_ENABLE_SEGMENTATION_MARK_PREVIEW, c.COV_ENABLE_MOUSE_PICKING):

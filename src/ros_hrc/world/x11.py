@@ -2,8 +2,17 @@
 
 PyBullet 3.2.x takes the window's size and sky colour as connect options, but no title
 ("Bullet Physics ExampleBrowser using OpenGL3+ [btgl] Release build" is fixed in the library).
-:func:`name_window` renames it (``XStoreName`` and ``_NET_WM_NAME``) from an Xlib connection
+:class:`WindowNamer` renames it (``XStoreName`` and ``_NET_WM_NAME``) from an Xlib connection
 of its own, once, right after the window opened: X11 only, best effort (no X11, no rename).
+
+That connection is opened *before* PyBullet connects and held until the window is named. An X
+server resets when its last client leaves (Xvfb and Xorg do, unless started with ``-noreset``)
+and cuts a connection that arrives while it resets. On a display nobody else uses (a headless
+Xvfb), a connection that listed the windows and closed just before PyBullet connected made the
+server reset under PyBullet's window: PyBullet printed "cannot connect to X server" and ended
+the process (3 of 40 starts under two busy cores, measured 2026-11-29, against 0 of 40 without
+the listing; strace showed the server resetting the new connection after its set-up request;
+0 of 60 with the connection held).
 """
 from __future__ import annotations
 
@@ -13,7 +22,8 @@ import logging
 import os
 import sys
 import time
-from typing import Optional, Set
+from contextlib import contextmanager
+from typing import Iterator, Optional, Set
 
 LOG = logging.getLogger(__name__)
 
@@ -76,58 +86,78 @@ def _windows(x: ctypes.CDLL, display: int, prefix: str) -> Set[int]:
 
 
 class _Display:
-    """An Xlib connection of our own, X errors ignored while it is open (a window may vanish
-    between two calls; Xlib's default handler would end the process)."""
+    """An Xlib connection of our own. X errors are ignored only inside :meth:`ignoring_errors`
+    (a window may vanish between two calls, and Xlib's default handler would end the
+    process); the handler is process-wide, so PyBullet's own connection keeps Xlib's outside."""
 
     def __init__(self) -> None:
         self.x = _xlib()
         self.display = self.x.XOpenDisplay(None) if self.x is not None else None
-        self._previous = None
 
-    def __enter__(self) -> "_Display":
-        if self.display:
-            self._previous = self.x.XSetErrorHandler(ctypes.cast(_ignore_errors, ctypes.c_void_p))
-        return self
+    @contextmanager
+    def ignoring_errors(self) -> Iterator[None]:
+        previous = self.x.XSetErrorHandler(ctypes.cast(_ignore_errors, ctypes.c_void_p))
+        try:
+            yield
+        finally:
+            self.x.XSync(self.display, 0)   # errors of our calls arrive before the handler goes
+            self.x.XSetErrorHandler(previous)
 
-    def __exit__(self, *exc: object) -> None:
+    def close(self) -> None:
         if self.display:
-            self.x.XSync(self.display, 0)
-            self.x.XSetErrorHandler(self._previous)
             self.x.XCloseDisplay(self.display)
+            self.display = None
 
 
-def bullet_windows() -> Set[int]:
-    """X ids of the windows PyBullet's example browser has named (empty without X11)."""
-    try:
-        with _Display() as d:
-            return _windows(d.x, d.display, BULLET_TITLE) if d.display else set()
-    except Exception:  # best effort: never stop a world for its title
-        LOG.debug("could not list the X windows", exc_info=True)
-        return set()
+class WindowNamer:
+    """Names the PyBullet window this process is about to open. Make it before PyBullet
+    connects (it notes the example browser's windows already open, not ours, and holds the X
+    server from resetting under PyBullet's window: the module docstring says why), call
+    :meth:`name` once the window opened, then :meth:`close`. Best effort: without X11 it does
+    nothing, and it never stops a world for its title."""
 
+    def __init__(self) -> None:
+        self._display: Optional[_Display] = None
+        self._before: Set[int] = set()
+        try:
+            self._display = _Display()
+            if self._display.display:
+                with self._display.ignoring_errors():
+                    self._before = _windows(self._display.x, self._display.display, BULLET_TITLE)
+        except Exception:
+            LOG.debug("could not list the X windows", exc_info=True)
 
-def name_window(title: str, before: Optional[Set[int]] = None, wait: float = 2.0) -> bool:
-    """Give PyBullet's window ``title``: the example-browser windows not in ``before`` (those
-    that were there before this process opened its own), waiting up to ``wait`` s for one to
-    appear. True if a window was renamed."""
-    before = before or set()
-    deadline = time.monotonic() + wait
-    try:
-        with _Display() as d:
-            if not d.display:
-                return False
-            while True:
-                mine = _windows(d.x, d.display, BULLET_TITLE) - before
-                if mine or time.monotonic() > deadline:
-                    break
-                time.sleep(0.05)
-            encoded = title.encode("utf-8")
-            utf8 = d.x.XInternAtom(d.display, b"UTF8_STRING", 0)
-            net_name = d.x.XInternAtom(d.display, b"_NET_WM_NAME", 0)
-            for window in mine:
-                d.x.XStoreName(d.display, window, encoded)
-                d.x.XChangeProperty(d.display, window, net_name, utf8, 8, 0, encoded, len(encoded))
-            return bool(mine)
-    except Exception:
-        LOG.debug("could not name the PyBullet window", exc_info=True)
-        return False
+    def name(self, title: str, wait: float = 2.0) -> bool:
+        """Give the window that opened since ``title``, waiting up to ``wait`` s for it to
+        appear. True if a window was renamed."""
+        d = self._display
+        if d is None or not d.display:
+            return False
+        deadline = time.monotonic() + wait
+        try:
+            with d.ignoring_errors():
+                while True:
+                    mine = _windows(d.x, d.display, BULLET_TITLE) - self._before
+                    if mine or time.monotonic() > deadline:
+                        break
+                    time.sleep(0.05)
+                encoded = title.encode("utf-8")
+                utf8 = d.x.XInternAtom(d.display, b"UTF8_STRING", 0)
+                net_name = d.x.XInternAtom(d.display, b"_NET_WM_NAME", 0)
+                for window in mine:
+                    d.x.XStoreName(d.display, window, encoded)
+                    d.x.XChangeProperty(d.display, window, net_name, utf8, 8, 0, encoded,
+                                        len(encoded))
+                return bool(mine)
+        except Exception:
+            LOG.debug("could not name the PyBullet window", exc_info=True)
+            return False
+
+    def close(self) -> None:
+        """Close the connection (safe to call twice)."""
+        if self._display is not None:
+            try:
+                self._display.close()
+            except Exception:
+                LOG.debug("could not close the X connection", exc_info=True)
+            self._display = None
