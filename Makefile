@@ -16,7 +16,10 @@ test: setup
 	@bash tools/run_tests.sh
 
 unit: setup
-	@source env.sh && python -m pytest test/unit -q
+	@bash tools/run_tests.sh unit
+
+rostest: setup
+	@bash tools/run_tests.sh rostest
 
 bench: setup
 	@source env.sh && python bench/run_all.py $(ARGS)
