@@ -3,10 +3,10 @@
 # test/rostest/*.test under rostest. Fails when any test fails or when nothing ran.
 # Usage: run_tests.sh [all|unit|rostest]   (make test, make unit, make rostest)
 set -uo pipefail
-which=${1:-all}
-case "$which" in
+part=${1:-all}
+case "$part" in
   all|unit|rostest) ;;
-  *) echo "run_tests.sh: unknown part '$which' (one of: all, unit, rostest)" >&2; exit 2 ;;
+  *) echo "run_tests.sh: unknown part '$part' (one of: all, unit, rostest)" >&2; exit 2 ;;
 esac
 if (($# > 1)); then echo "run_tests.sh: one part only, got: $*" >&2; exit 2; fi
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -16,14 +16,14 @@ set +u; source env.sh; set -u
 export ROS_LOG_DIR="$repo/.ws/log"
 
 status=0
-if [[ $which != rostest ]]; then
+if [[ $part != rostest ]]; then
   echo "=== unit tests (pytest) ==="
   python -m pytest test/unit -q -p no:cacheprovider
   rc=$?
   if [[ $rc -eq 5 ]]; then echo "pytest collected no tests: failing"; status=1
   elif [[ $rc -ne 0 ]]; then status=1; fi
 fi
-if [[ $which == unit ]]; then exit $status; fi
+if [[ $part == unit ]]; then exit $status; fi
 
 echo "=== integration tests (rostest) ==="
 passed=0; failed=0; failed_names=()

@@ -207,6 +207,12 @@ def utility_ceiling(mean: np.ndarray, std: np.ndarray, top: float = UTILITY_MAX)
     return float(min(np.max(np.asarray(mean) + 3.0 * np.asarray(std)), top))
 
 
+def _norm():
+    """scipy.stats.norm, imported when a selector first scores (the module's docstring)."""
+    from scipy.stats import norm
+    return norm
+
+
 def improvement_target(u_bar: float, u_max: float) -> float:
     """BPR-PI's U⁺ (Ū < U⁺ ≤ U_max): halfway from Ū to U_max. Our choice (docs/selectors.md):
     the paper leaves U⁺ to the user; halfway asks for a clear improvement, not a tie."""
@@ -217,8 +223,7 @@ def probability_of_improvement(belief: np.ndarray, mean: np.ndarray, std: np.nda
                                u_plus: float) -> np.ndarray:
     """BPR-PI's score (Rosman et al. 2016, Sect. 4, probability of improvement):
     Σ_τ β(τ) P(U ≥ U⁺ | τ, π) for each policy π, with U | τ, π ~ N(mean, std)."""
-    from scipy.stats import norm     # only when a selector scores (the module's docstring)
-    return np.asarray(belief, dtype=float) @ norm.sf(u_plus, loc=mean, scale=std)
+    return np.asarray(belief, dtype=float) @ _norm().sf(u_plus, loc=mean, scale=std)
 
 
 def _tail_integral(u: float, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
@@ -226,8 +231,8 @@ def _tail_integral(u: float, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
     z = (u - μ)/σ; 0 at u = +inf."""
     if math.isinf(u) and u > 0:
         return np.zeros(np.broadcast(mean, std).shape)
-    from scipy.stats import norm     # only when a selector scores (the module's docstring)
     z = (u - mean) / std
+    norm = _norm()
     return (u - mean) * norm.sf(z) - std * norm.pdf(z)
 
 
@@ -280,8 +285,7 @@ def fabric_scores(belief: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.n
     u_bar = float(np.max(expected_utilities(belief, mean)))
     top = float(mean.max() + std.max())
     grid = u_bar + np.arange(FABRIC_GRID_POINTS) * (top - u_bar) / FABRIC_GRID_POINTS
-    from scipy.stats import norm     # only when a selector scores (the module's docstring)
-    density = norm.pdf(grid[:, None, None], loc=mean[None], scale=std[None] + FABRIC_STD_WIDENING)
+    density = _norm().pdf(grid[:, None, None], loc=mean[None], scale=std[None] + FABRIC_STD_WIDENING)
     return np.einsum("kti,t->i", density, belief)
 
 

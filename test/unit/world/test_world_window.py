@@ -355,43 +355,30 @@ def _start_xvfb():
     return server, int(line)
 
 
-#: A client of its own that makes (or, with ``--ask``, looks up) an atom on the display and
-#: leaves. Atoms live until the X server resets, which it does when its last client leaves: an
-#: atom still there after its maker left tells that another client held the server.
-_ATOM_SCRIPT = textwrap.dedent("""\
-    import ctypes, ctypes.util, sys, time
-    x = ctypes.CDLL(ctypes.util.find_library("X11") or "libX11.so.6")
-    x.XOpenDisplay.restype = ctypes.c_void_p
-    x.XInternAtom.restype = ctypes.c_ulong
-    x.XInternAtom.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int]
-    x.XSync.argtypes = [ctypes.c_void_p, ctypes.c_int]
-    x.XCloseDisplay.argtypes = [ctypes.c_void_p]
+def _atom(ask=False):
+    """Make (or, with ``ask``, look up) an atom on the display from a client that then leaves:
+    "there" or "gone". Atoms live until the X server resets, which it does when its last client
+    leaves: an atom still there after its maker left tells that another client held the
+    server."""
+    from ros_hrc.world.x11 import _Display
+
     deadline = time.monotonic() + 20
-    display = x.XOpenDisplay(None)
-    while not display and time.monotonic() < deadline:   # cut while the server resets
+    d = _Display()
+    while not d.display and time.monotonic() < deadline:   # cut while the server resets
         time.sleep(0.1)
-        display = x.XOpenDisplay(None)
-    if not display:
-        sys.exit("no display")
-    atom = x.XInternAtom(display, b"_ROS_HRC_PROBE", 1 if "--ask" in sys.argv else 0)
-    x.XSync(display, 0)
-    x.XCloseDisplay(display)
-    print("there" if atom else "gone")
-    """)
+        d = _Display()
+    assert d.display, "no display"
+    try:
+        return "there" if d.x.XInternAtom(d.display, b"_ROS_HRC_PROBE", int(ask)) else "gone"
+    finally:
+        d.close()
 
 
-def _atom(env, *args):
-    run = subprocess.run([sys.executable, "-c", _ATOM_SCRIPT, *args], env=env,
-                         capture_output=True, text=True, timeout=60)
-    assert run.returncode == 0, run.stderr
-    return run.stdout.strip()
-
-
-def _atom_goes(env, within=10.0):
+def _atom_goes(within=10.0):
     """True once the atom is gone (the server reset), polled: the reset follows the last
     client's leaving, not at once on a loaded machine."""
     deadline = time.monotonic() + within
-    while _atom(env, "--ask") != "gone":
+    while _atom(ask=True) != "gone":
         if time.monotonic() > deadline:
             return False
         time.sleep(0.2)
@@ -408,21 +395,20 @@ def test_the_window_namer_holds_the_x_server_from_resetting_under_the_window(mon
 
     server, number = _start_xvfb()
     try:
-        env = dict(os.environ, DISPLAY=f":{number}")
         monkeypatch.setenv("DISPLAY", f":{number}")
         # The control: alone, a leaving client resets the server and its atom is gone.
-        _atom(env)
-        assert _atom_goes(env)
+        _atom()
+        assert _atom_goes()
         namer = WindowNamer()
         try:
-            assert _atom(env) == "there"
+            assert _atom() == "there"
             time.sleep(0.5)   # a reset, if one came, would be over
-            assert _atom(env, "--ask") == "there"
+            assert _atom(ask=True) == "there"
             assert namer.name("nothing to name", wait=0.2) is False   # no PyBullet window here
         finally:
             namer.close()
         namer.close()   # twice is safe
-        assert _atom_goes(env)   # the namer was the server's last client
+        assert _atom_goes()   # the namer was the server's last client
     finally:
         server.terminate()
         server.wait(timeout=10)
