@@ -258,7 +258,7 @@ def check_robot_model(model: Model, path: Optional[str] = None,
     """ModelError (one line naming ``path`` and the names) unless the robot POMDP fits the
     task: its states, actions and observations are the task's (the seed's: S0..S6, its four
     actions, observations O<bits> of the legal bits). A model of human types
-    (:mod:`ros_hrc.pomdp.typed`: states ``<state>@<type>``, every type over the task's states)
+    (:mod:`ros_hrc.pomdp.typed`: states ``<state>__<type>``, every type over the task's states)
     fits when each type's states are the task's."""
     which = _task(task)
     whose = _whose(which)

@@ -30,7 +30,7 @@ those streams unless ``--allow-in-sample``.
 With ``--types`` each human model is a type (:mod:`ros_hrc.pomdp.typed`): T and O are fitted
 on each human model's episodes alone (the same episodes, the same ``--prior`` and
 ``--strength``) and the fitted models are composed into one POMDP whose hidden state is (type,
-state), states ``<state>@<type>``, with a uniform prior over the types: a robot that plans on
+state), states ``<state>__<type>``, with a uniform prior over the types: a robot that plans on
 it infers which human it works with. Its header keeps one ``# hrc-fitted-on:`` line per human
 model, as the pooled fit's. ``make fit-types`` regenerates the shipped
 ``models/robot/robot_types.pomdp`` (``ARGS="--task fabric"``: ``models/fabric/robot/``).
@@ -339,7 +339,7 @@ def types_header_lines(args: argparse.Namespace, prior_path: str, model: Model,
         f"{prior_path} (strength {args.strength:g} pseudo-counts per row) and that human "
         f"model's episodes of the stack alone,",
         f"composed (ros_hrc.pomdp.typed) into one POMDP whose hidden state is (type, state): "
-        f"states <state>@<type>, {n} types x {model.n_states // n} states = {model.n_states}, "
+        f"states <state>__<type>, {n} types x {model.n_states // n} states = {model.n_states}, "
         "a uniform prior over the types, no transition between types;",
         f"rewards, discount, start, names: the prior's, in every type. Regenerate with "
         f"`{make}`:",

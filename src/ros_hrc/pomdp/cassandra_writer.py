@@ -13,7 +13,8 @@ from typing import List, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from ros_hrc.pomdp.fileformat import (check_writable_model_names, format_number,
+from ros_hrc.pomdp.fileformat import (CASSANDRA_NAME, CASSANDRA_NAME_RULE,
+                                      check_writable_model_names, format_number,
                                       stored_entries, written_as_matrix)
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.output import write_text_atomically
@@ -51,7 +52,7 @@ def _table_lines(key: str, action: str, matrix: sp.csr_matrix, rows: Sequence[st
 
 def dump(model: Model) -> str:
     """The model as Cassandra ``.pomdp`` text; ``loads`` reads it back to identical tables."""
-    check_writable_model_names(model, ":#")
+    check_writable_model_names(model, CASSANDRA_NAME, CASSANDRA_NAME_RULE)
     lines = [f"# {model.name or 'model'}: written by ros_hrc (Cassandra .pomdp format)",
              f"# {model.n_states} states, {model.n_actions} actions, "
              f"{model.n_observations} observations", "",

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import stat
 from pathlib import Path
 from typing import Dict, Iterator, List, Optional, Sequence, Tuple
@@ -20,6 +21,7 @@ from ros_hrc.pomdp.model import PROBABILITY_TOLERANCE, Model
 
 __all__ = ["PROBABILITY_TOLERANCE", "FULL_REWARD_STATES", "MATRIX_LIMIT", "format_number",
            "name_lookup", "resolve_token", "check_writable_names", "check_writable_model_names",
+           "CASSANDRA_NAME", "CASSANDRA_NAME_RULE", "POMDPX_NAME", "POMDPX_NAME_RULE",
            "default_names", "joint_names", "is_identity", "read_file", "decode_text", "strip_bom",
            "check_set_size", "first_non_number", "discount_problem", "model_name",
            "validated", "written_as_matrix", "stored_entries"]
@@ -109,27 +111,41 @@ def resolve_token(token: str, lookup: Dict[str, int], size: int) -> Optional[int
     return None
 
 
-def check_writable_names(kind: str, names: Sequence[str], forbidden: str, source: str) -> None:
-    """Refuse names a writer cannot put in a file and read back unchanged."""
+#: A name in Cassandra's ``.pomdp`` grammar (its lexer's STRING): a letter, then letters,
+#: digits, ``_`` or ``-``. SARSOP's ``pomdpsol`` refuses any other character ("Illegal
+#: character @ in input"), though this package's reader is more lenient.
+CASSANDRA_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]*")
+CASSANDRA_NAME_RULE = "a letter, then letters, digits, '_' or '-'"
+
+#: A value's name in POMDPX: a ``<ValueEnum>`` lists names separated by white space, and an
+#: ``<Instance>`` reserves ``*`` and ``-`` alone as wildcards; ``<``, ``>`` and ``&`` are kept
+#: out too, so the names read the same in every XML reader (SARSOP's, DESPOT's) unescaped.
+POMDPX_NAME = re.compile(r"(?![*-]\Z)[^\s<>&]+")
+POMDPX_NAME_RULE = "no white space, '<', '>' or '&', and not '*' or '-' alone"
+
+
+def check_writable_names(kind: str, names: Sequence[str], rule: "re.Pattern[str]",
+                         rule_text: str, source: str) -> None:
+    """Refuse names a writer cannot put in a file of its format (``rule``, described by
+    ``rule_text``) and read back unchanged."""
     seen = set()
     for name in names:
-        if not name or any(ch.isspace() for ch in name) or any(ch in forbidden for ch in name) \
-                or name in ("*", "-"):
+        if not rule.fullmatch(name):
             raise ModelFormatError(source, None,
-                                   f"the {kind} name {name!r} cannot be written (empty, "
-                                   f"whitespace, '*', '-' or one of {forbidden!r})")
+                                   f"the {kind} name {name!r} cannot be written in this format "
+                                   f"(a name is {rule_text})")
         if name in seen:
             raise ModelFormatError(source, None, f"the {kind} name {name!r} appears twice")
         seen.add(name)
 
 
-def check_writable_model_names(model: Model, forbidden: str) -> None:
+def check_writable_model_names(model: Model, rule: "re.Pattern[str]", rule_text: str) -> None:
     """Refuse a model whose state, action or observation names a writer cannot put in a file
-    (names holding one of ``forbidden``) and read back unchanged."""
+    of its format (names outside ``rule``) and read back unchanged."""
     source = model.source or model.name or "<model>"
     for kind, names in (("state", model.states), ("action", model.actions),
                         ("observation", model.observations)):
-        check_writable_names(kind, names, forbidden, source)
+        check_writable_names(kind, names, rule, rule_text, source)
 
 
 def default_names(prefix: str, count: int) -> List[str]:

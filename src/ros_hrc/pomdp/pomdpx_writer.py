@@ -20,8 +20,9 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 import scipy.sparse as sp
 
-from ros_hrc.pomdp.fileformat import (check_writable_model_names, format_number, is_identity,
-                                      stored_entries, written_as_matrix)
+from ros_hrc.pomdp.fileformat import (POMDPX_NAME, POMDPX_NAME_RULE, check_writable_model_names,
+                                      format_number, is_identity, stored_entries,
+                                      written_as_matrix)
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.output import write_text_atomically
 from ros_hrc.pomdp.pomdpx_xml import COST_MARK
@@ -85,7 +86,7 @@ def _entries(tag: str, model_actions: Sequence[str], tables: Sequence[sp.csr_mat
 
 def dump(model: Model) -> str:
     """The model as one-variable POMDPX text; ``loads`` reads it back to identical tables."""
-    check_writable_model_names(model, "<>&")
+    check_writable_model_names(model, POMDPX_NAME, POMDPX_NAME_RULE)
     names = _names(model)
     mdp = model.fully_observable and list(model.observations) == list(model.states) and \
         all(is_identity(o) for o in model.O)

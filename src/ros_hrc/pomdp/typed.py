@@ -3,7 +3,7 @@
 Nikolaidis et al. (HRI 2015) put the human's type into the robot's model as a hidden variable
 inferred online. Here each type has a POMDP of its own over the same states, actions and
 observations (e.g. T and O fitted to the humans of that type); :func:`compose` makes one POMDP
-whose states are every (type, state) pair, named ``<state>@<type>``, in type-major order:
+whose states are every (type, state) pair, named ``<state>__<type>``, in type-major order:
 
 * T((s', t) | (s, t), a) = T_t(s' | s, a), and no transition leaves a type;
 * O(o | (s', t), a) = O_t(o | s', a);
@@ -22,15 +22,25 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence, Tuple
 
+import re
+
 import numpy as np
 import scipy.sparse as sp
 
 from ros_hrc.errors import ModelError
 from ros_hrc.pomdp.model import Model
 
-#: Between a state's and its type's name in a composed model's state names (``S3@tired``):
-#: a character no Cassandra, POMDPX or task name here uses.
-TYPE_SEPARATOR = "@"
+#: Between a state's and its type's name in a composed model's state names (``S3__tired``).
+#: Cassandra's grammar allows only letters, digits, ``_`` and ``-`` in a name (SARSOP refuses
+#: ``S3@tired``), so the separator is made of those; a single ``-`` or ``_`` would not do,
+#: since ordinary names hold them (Tiger's ``tiger-left``, a type ``expert_tired``) and a model
+#: of no type would then read as one. A name splits at its last ``__``.
+TYPE_SEPARATOR = "__"
+
+#: What a type name may be: words of letters and digits joined by single ``_`` (a human
+#: model's file stem), so that ``<state>__<type>`` is a name every model file format allows and
+#: splits back unchanged.
+TYPE_NAME = re.compile(r"[A-Za-z0-9]+(?:_[A-Za-z0-9]+)*")
 
 
 def typed_state(state: str, type_name: str) -> str:
@@ -57,9 +67,9 @@ def ranked_types(names: Sequence[str], belief: Sequence[float],
 
 def check_type_name(name: str) -> str:
     """``name``, or ModelError when it cannot name a type in a composed model's state names."""
-    if not name or TYPE_SEPARATOR in name or any(ch.isspace() for ch in name):
-        raise ModelError(f"type name {name!r} must be non-empty, without spaces or "
-                         f"{TYPE_SEPARATOR!r}")
+    if not TYPE_NAME.fullmatch(name):
+        raise ModelError(f"type name {name!r} must be letters and digits joined by single '_' (it ends a "
+                         f"composed state's name, <state>{TYPE_SEPARATOR}<type>, in model files)")
     return name
 
 

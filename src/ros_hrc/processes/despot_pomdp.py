@@ -22,7 +22,7 @@ run it so (``ros_hrc.experiment.stack``), live launches keep the 0.1 s budget.
 An observation of zero probability under the belief cannot be explained by the model: the
 belief keeps the prediction through T without it, the step goes on, and the terminal says so.
 
-**A robot model of human types** (:mod:`ros_hrc.pomdp.typed`: states ``<state>@<type>``) is
+**A robot model of human types** (:mod:`ros_hrc.pomdp.typed`: states ``<state>__<type>``) is
 planned on like any model. Its decisions still carry the belief over the task's states (the
 types summed out), so every reader of a decision's belief works unchanged, and with it the
 belief over the types (``type_names``, ``type_belief``); the terminal prints both each step.

@@ -203,7 +203,7 @@ def test_types_from_recorded_runs_writes_a_model_hrc_experiment_holds_out(tmp_pa
     printed = capsys.readouterr().out
     assert "0 to run" in printed and "type tired: 4 transitions, 4 observations" in printed
     model = load_robot_model(str(out))
-    assert model.n_states == 2 * 7 and model.states[-1] == "S6@tired"
+    assert model.n_states == 2 * 7 and model.states[-1] == "S6__tired"
     header = [line for line in out.read_text().splitlines() if line.startswith("#")]
     assert header[0].startswith("# A robot model of 2 human types, fitted to the world by "
                                 "hrc_fit --types")

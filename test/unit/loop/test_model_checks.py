@@ -74,8 +74,8 @@ def test_a_model_of_human_types_fits_when_each_types_states_are_the_tasks(tmp_pa
     robot = load_robot_model("robot")
     path = tmp_path / "types.pomdp"
     write_fitted(compose({"tired": robot, "expert": robot}), path)
-    assert load_robot_model(str(path)).states[:2] == ["S0@tired", "S1@tired"]
-    bad = edited_copy(path, tmp_path / "s.pomdp", r"\bS6@expert\b", "S7@expert")
+    assert load_robot_model(str(path)).states[:2] == ["S0__tired", "S1__tired"]
+    bad = edited_copy(path, tmp_path / "s.pomdp", r"\bS6__expert\b", "S7__expert")
     assert refusal(load_robot_model, bad).startswith(f"{bad}: states ")
 
 def test_a_human_model_with_a_renamed_state_is_refused(tmp_path):

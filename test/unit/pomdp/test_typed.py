@@ -1,6 +1,7 @@
 """The type-augmented POMDP (ros_hrc.pomdp.typed): one model per type composed into one whose
 hidden state is (type, state)."""
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -32,8 +33,8 @@ def test_every_row_of_the_composed_model_sums_to_one(listeners):
         assert np.allclose(np.asarray(model.T[a].sum(axis=1)).ravel(), 1.0)
         assert np.allclose(np.asarray(model.O[a].sum(axis=1)).ravel(), 1.0)
     assert model.initial_belief.sum() == pytest.approx(1.0)
-    assert model.states == ["tiger-left@sharp", "tiger-right@sharp",
-                            "tiger-left@deaf", "tiger-right@deaf"]
+    assert model.states == ["tiger-left__sharp", "tiger-right__sharp",
+                            "tiger-left__deaf", "tiger-right__deaf"]
     assert TypeLayout.of(model).type_marginal(model.initial_belief) == pytest.approx([0.25, 0.75])
 
 
@@ -86,18 +87,27 @@ def test_a_prior_carried_over_keeps_each_types_start(listeners):
 
 
 def test_names_split_and_models_of_no_type_have_no_layout():
-    assert split_state("S3@tired") == ("S3", "tired")
-    assert split_state("S3") is None and split_state("@x") is None
+    assert split_state("S3__tired") == ("S3", "tired")
+    assert split_state("S3") is None and split_state("__x") is None
     assert TypeLayout.of(build_tiger()) is None
-    assert TypeLayout.of_names(["a@x", "b@x", "a@y"]) is None     # not every pair
+    assert TypeLayout.of_names(["a__x", "b__x", "a__y"]) is None     # not every pair
 
 
 def test_models_that_do_not_share_their_names_are_refused(listeners):
     other = dataclasses.replace(build_tiger(), actions=["listen", "left", "right"])
     with pytest.raises(ModelError, match="type odd: its actions are not type sharp's"):
         compose({"sharp": listeners["sharp"], "odd": other})
-    with pytest.raises(ModelError, match="type name 'a@b'"):
-        compose({"a@b": build_tiger()})
+    for bad in ("a@b", "a__b", "_a", "a-b", ""):     # the separator, or outside a file's names
+        with pytest.raises(ModelError, match=f"type name '{bad}' must be letters and digits"):
+            compose({bad: build_tiger()})
+
+
+def test_composed_names_are_names_cassandras_grammar_allows(listeners):
+    """SARSOP's pomdpsol reads only [a-zA-Z][a-zA-Z0-9_-]* (it refused S3@tired)."""
+    model = compose({"expert_tired": listeners["sharp"], "deaf2": listeners["deaf"]})
+    assert all(re.fullmatch(r"[a-zA-Z][a-zA-Z0-9_-]*", s) for s in model.states)
+    assert split_state("tiger-left__expert_tired") == ("tiger-left", "expert_tired")
+    assert TypeLayout.of(model).types == ("expert_tired", "deaf2")
 
 
 @pytest.mark.parametrize("true_type", ["early_warner", "tired", "distracted", "beginner"])

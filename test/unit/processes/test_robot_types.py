@@ -145,7 +145,7 @@ def test_the_task_s_reward_is_the_one_expected_under_the_type_belief():
     play(process, 1, epoch=1, steps=0)
     decision = observe(process, 1, 0, "O35", state="S3")
     action = model.actions.index(decision.action)
-    expected = sum(p * model.R_sa[action, model.states.index(f"S3@{t}")]
+    expected = sum(p * model.R_sa[action, model.states.index(f"S3__{t}")]
                    for t, p in zip(TYPES, decision.type_belief))
     assert process.sequence.record.reward == pytest.approx(expected)
 
