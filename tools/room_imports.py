@@ -7,7 +7,7 @@
 
 A room is a direct child of ros_hrc (a package such as ``pomdp`` or a module such as
 ``settings``); the floors are read from .importlinter's layers contract, top floor first, so the
-table reads as the contract does. test/unit/test_architecture.py runs --check.
+table reads as the contract does. test/integration/test_architecture.py runs --check.
 """
 import argparse
 import configparser

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Runs every test of the package: pytest on test/unit, then each launched test in
-# test/rostest/*.test under rostest. Fails when any test fails or when nothing ran.
+# Runs every test of the package: pytest on the folders of pytest.ini (test/unit, test/nodes,
+# test/integration) on both cores, then each launched test in test/rostest/*.test under
+# rostest. Fails when any test fails or when nothing ran. Says how long the tests took.
 # Usage: run_tests.sh [all|unit|rostest]   (make test, make unit, make rostest)
 set -uo pipefail
 part=${1:-all}
@@ -15,15 +16,19 @@ cd "$repo"
 set +u; source env.sh; set -u
 export ROS_LOG_DIR="$repo/.ws/log"
 
+started=$SECONDS
 status=0
 if [[ $part != rostest ]]; then
-  echo "=== unit tests (pytest) ==="
-  python -m pytest test/unit -q -p no:cacheprovider
+  echo "=== unit and integration tests (pytest, both cores) ==="
+  # -n 2: a worker per core (xdist); --dist loadgroup: tests marked with one xdist_group
+  # (those that share something only one may use at a time) run on one worker, in turn.
+  python -m pytest -q -p no:cacheprovider -n 2 --dist loadgroup
   rc=$?
   if [[ $rc -eq 5 ]]; then echo "pytest collected no tests: failing"; status=1
   elif [[ $rc -ne 0 ]]; then status=1; fi
 fi
-if [[ $part == unit ]]; then exit $status; fi
+pytest_took=$((SECONDS - started))
+if [[ $part == unit ]]; then echo "wall time: tests ${pytest_took} s"; exit $status; fi
 
 echo "=== integration tests (rostest) ==="
 passed=0; failed=0; failed_names=()
@@ -49,5 +54,6 @@ for t in "${failed_names[@]}"; do
   grep -E "FAIL|Error|assert|Traceback|\[failed\]" "$rostest_out/$(basename "$t").txt" | tail -15
 done
 rm -rf "$rostest_out"
+echo "wall time: tests $((SECONDS - started)) s (pytest ${pytest_took} s, rostest $((SECONDS - started - pytest_took)) s)"
 echo "rostest: $passed passed, $failed failed${failed_names[*]:+: ${failed_names[*]}}"
 exit $status

@@ -112,4 +112,5 @@ if ! stamp_ok build "$build_key" || [[ ! -f .ws/devel/setup.bash ]]; then
       -DCMAKE_BUILD_TYPE=Release > build.log 2>&1) || { tail -40 .ws/build.log; exit 1; }
   echo "$build_key" > "$stamps/build"
 fi
+say "wall time: setup $SECONDS s"
 say "ready: source env.sh to use roslaunch, rosrun, rostopic and rosservice by hand"

@@ -33,7 +33,7 @@ the belt, above it, the human on the left and the robot on the right) they sit i
 above the bodies, where no body hides them whatever the agents do (a human who walks away
 comes towards that view, on its left; the human's raised arm reaches 2.13 m):
 the caption at the top, the belief's bars under it on the left (high enough for a human who
-walked away), the holder's label under it over the object. ``test/unit/test_viz_layout.py`` checks every text's line of sight
+walked away), the holder's label under it over the object. ``test/nodes/test_viz_layout.py`` checks every text's line of sight
 against the world's bodies through every action of both agents.
 """
 from __future__ import annotations

@@ -4,10 +4,9 @@ Memory must be bounded by the model's non-zeros: no S x S (or S x S x Z) array o
 through info, solve, simulate or convert. Models too large for ``--memory-limit`` are refused in
 one line before anything large is allocated, and ``--timeout`` counts from the start, the
 building of the solver's tables included. The 50,000-state model is a factored POMDPX of a few
-kilobytes (large_models.py); its CLI runs are child processes under RLIMIT_AS (cli_process.py),
-so a regression that makes a dense 50,000 x 50,000 array (20 GB) fails instead of swapping.
+kilobytes (large_models.py). Its runs of ``hrc_pomdp`` in a child process under RLIMIT_AS are
+test/integration/pomdp/test_hostile_memory_cli.py's.
 """
-import json
 import time
 import tracemalloc
 
@@ -19,56 +18,7 @@ from ros_hrc.pomdp import cassandra, mdp
 from ros_hrc.commands.pomdp import run
 from ros_hrc.pomdp.model import Model
 
-from cli_process import GiB, run_hrc_pomdp
-from large_models import torus_pomdpx
-
-#: 250 x 200 cells: 50,000 states, 250,000 non-zeros in T.
-NX, NY = 250, 200
-
-
-@pytest.fixture(scope="module")
-def torus(tmp_path_factory):
-    path = tmp_path_factory.mktemp("large") / "torus.pomdpx"
-    path.write_text(torus_pomdpx(NX, NY))
-    return path
-
-
-def _one_json(result):
-    assert result.returncode == 0, result.stderr
-    assert "Traceback" not in result.stderr
-    facts = json.loads(result.stdout)
-    assert np.isfinite(facts["lower"]) and np.isfinite(facts["upper"])
-    assert facts["lower"] <= facts["upper"]
-    return facts
-
-
-def test_solve_on_50000_states_makes_no_state_by_state_array(torus):
-    # In a process that may not map more than 1 GiB in all (the interpreter, numpy and scipy
-    # map about 250 MB before any model is read); an identity matrix of 50,000 states is 20 GB.
-    facts = _one_json(run_hrc_pomdp(["solve", str(torus), "--timeout", "3", "--json"],
-                                    address_space=1 * GiB))
-    assert facts["stats"]["backups"] > 0                 # it did solve, not just start
-
-
-def test_solve_stops_at_its_memory_limit_and_still_reports_its_bounds(torus):
-    from ros_hrc.pomdp import hsvi, io
-    model = io.load_model(torus)
-    # The solver's tables and working arrays, and room for about 100 stored vectors.
-    limit_mib = (hsvi.memory_needed(model) + 100 * 8 * model.n_states) // (1 << 20) + 1
-    facts = _one_json(run_hrc_pomdp(["solve", str(torus), "--timeout", "30",
-                                     "--memory-limit", f"{limit_mib}M", "--json"],
-                                    address_space=1 * GiB))
-    assert facts["stats"]["memory_limit_reached"] and not facts["converged"]
-
-
-def test_a_timeout_of_zero_still_reports_valid_bounds_of_a_large_model(torus):
-    # The clock starts with the command: the tables and MDP bounds are cut short (one
-    # iteration each), no trial runs, and the bounds are reported as at any timeout.
-    result = run_hrc_pomdp(["solve", str(torus), "--timeout", "0", "--json"],
-                           address_space=1 * GiB)
-    facts = _one_json(result)
-    assert facts["stats"]["trials"] == 0 and facts["stats"]["sweeps"] == 0
-    assert not facts["converged"]
+from large_models import torus  # noqa: F401  (the 50,000-state model, a fixture)
 
 
 def test_the_mdp_bounds_stop_at_a_deadline_after_one_iteration(tiger):
@@ -88,18 +38,6 @@ def test_a_model_too_large_for_the_memory_limit_is_refused_in_one_line(torus, ca
     assert err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith(f"hrc_pomdp: {torus}: ") and "needs about" in err
     assert "--memory-limit" in err and "64 MiB" in err
-
-
-def test_uniform_transitions_on_50000_states_are_refused_before_allocation(tmp_path):
-    # T: * uniform is 2.5e9 non-zeros per action: refused from the statements alone.
-    path = tmp_path / "dense.pomdp"
-    path.write_text("discount: 0.95\nstates: 50000\nactions: 2\nobservations: 2\n"
-                    "T: * uniform\nO: * uniform\nR: * : * : * : * 1\n")
-    result = run_hrc_pomdp(["info", str(path)], address_space=1 * GiB)
-    assert result.returncode == 1, result.stderr
-    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
-    assert f"hrc_pomdp: {path}: building T, O and R" in result.stderr
-    assert "GiB" in result.stderr and "--memory-limit" in result.stderr
 
 
 def test_a_state_count_too_large_to_name_is_refused_at_its_line(tmp_path):

@@ -5,8 +5,10 @@ the flat model has nx·ny states while the file stays small and reads in a momen
 ``stay``; ``east`` and ``north`` move one cell with probability 0.9 (else stay). One observation
 variable, ``beacon``: ``near`` with probability 0.8 in column x0, ``far`` everywhere else. Reward
 1 for acting in column x0. T has at most 2 non-zeros per row, so 50,000 states are 250,000
-non-zeros: a solver that makes an S x S array (20 GB) is caught at once.
+non-zeros: a solver that makes an S x S array (20 GB) is caught at once. ``torus``: the
+fixture of the memory tests, that model at 50,000 states in a file.
 """
+import pytest
 
 
 def _moves(var: str, action: str, n: int) -> str:
@@ -62,3 +64,15 @@ def torus_pomdpx(nx: int, ny: int, discount: float = 0.95) -> str:
 </RewardFunction>
 </pomdpx>
 """
+
+
+#: 250 x 200 cells: 50,000 states, 250,000 non-zeros in T.
+NX, NY = 250, 200
+
+
+@pytest.fixture(scope="module")
+def torus(tmp_path_factory):
+    """The 50,000-state torus as a POMDPX file, written once per test module."""
+    path = tmp_path_factory.mktemp("large") / "torus.pomdpx"
+    path.write_text(torus_pomdpx(NX, NY))
+    return path

@@ -17,7 +17,7 @@ def library_without_model(tmp_path):
     """fabric's library in a folder of its own, without a selector model beside it (the
     shipped one is beside models/fabric/library.toml): its manifest's path."""
     from pathlib import Path
-    manifest = Path(__file__).resolve().parents[2] / "models" / "fabric" / "library.toml"
+    manifest = Path(__file__).resolve().parents[1] / "models" / "fabric" / "library.toml"
     folder = tmp_path / "library"
     folder.mkdir()
     (folder / "library.toml").write_text(
