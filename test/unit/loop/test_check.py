@@ -1,9 +1,9 @@
 """hrc_check, the launch's pre-flight: good arguments give the whole configuration as YAML and
 exit 0; any bad one gives exactly one line on stderr naming the argument or the file, exit 2,
 and never a traceback."""
+import contextlib
+import io
 import socket
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -17,10 +17,14 @@ ROOT = Path(__file__).resolve().parents[3]
 SCRIPT = ROOT / "scripts" / "hrc_check"
 
 
-def run(*words, script=False):
-    command = [sys.executable, str(SCRIPT)] if script else [sys.executable, "-m",
-                                                            "ros_hrc.commands.check"]
-    return subprocess.run(command + list(words), capture_output=True, text=True, timeout=60)
+def run(*words):
+    """hrc_check's ``main`` on ``words``, in-process: (exit status, stdout, stderr). Its script
+    and roslaunch's run of it: test/integration/loop/test_launch_arguments.py and
+    test_launch_refuses.py."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main(list(words))
+    return status, out.getvalue(), err.getvalue()
 
 
 def free_ports():
@@ -32,23 +36,23 @@ def free_ports():
 
 def refused(*words):
     """The one stderr line of a refused check."""
-    done = run(*words)
-    assert done.returncode == 2, done.stderr
-    assert done.stdout == ""
-    lines = done.stderr.splitlines()
-    assert len(lines) == 1, done.stderr
+    status, out, err = run(*words)
+    assert status == 2, err
+    assert out == ""
+    lines = err.splitlines()
+    assert len(lines) == 1, err
     assert lines[0].startswith("hrc.launch: ")
-    assert "Traceback" not in done.stderr
+    assert "Traceback" not in err
     return lines[0]
 
 
 def test_good_arguments_give_the_whole_configuration_as_yaml():
     ports = free_ports()
-    done = run("human_model:=tired", "seed:=3", "real_time_factor:=0",
-               *(f"{k}:={v}" for k, v in ports.items()), script=True)
-    assert done.returncode == 0, done.stderr
-    assert done.stderr == ""
-    config = yaml.safe_load(done.stdout)
+    status, out, err = run("human_model:=tired", "seed:=3", "real_time_factor:=0",
+                           *(f"{k}:={v}" for k, v in ports.items()))
+    assert status == 0, err
+    assert err == ""
+    config = yaml.safe_load(out)
     assert list(config) == list(settings.SETTINGS)
     assert config["human_model"] == "tired" and config["seed"] == 3
     assert config["pause_when_idle"] is True            # automatic with real_time_factor 0
@@ -134,7 +138,7 @@ def test_the_pomdp_port_may_be_served_already_when_the_pomdp_process_runs_by_han
         busy.listen(1)
         ports["pomdp_port"] = busy.getsockname()[1]
         words = [f"{k}:={v}" for k, v in ports.items()]
-        assert run(*words, "start_pomdp:=false").returncode == 0
+        assert run(*words, "start_pomdp:=false")[0] == 0
         assert refused(*words).startswith(f"hrc.launch: pomdp_port:={ports['pomdp_port']}: ")
 
 
@@ -180,6 +184,26 @@ def test_world_mode_checks_and_prints_only_the_world_s_arguments(capsys):
     assert main(["--world", "seed:=-1"]) == 2
     assert capsys.readouterr().err == ("world.launch: seed:=-1: must be an integer from 0 to "
                                        "2147483647\n")
+
+
+@pytest.mark.parametrize("word, line", [
+    (f"seed:={2**31}", f"world.launch: seed:={2**31}: must be an integer from 0 to 2147483647"),
+    ("real_time_factor:=-1",
+     "world.launch: real_time_factor:=-1: must be 0 or a number from 0.001 to 1000"),
+    ("camera_rate:=nan", "world.launch: camera_rate:=nan: must be a number from 0 to 30"),
+    ("belt_speed:=fast", "world.launch: belt_speed:=fast"),
+])
+def test_world_mode_refuses_a_bad_world_argument_in_one_line(word, line, capsys):
+    assert main(["--world", word]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(line), err
+
+
+def test_world_mode_needs_a_display_that_answers_for_rviz(monkeypatch, capsys):
+    number = next(n for n in range(190, 290) if not Path(f"/tmp/.X11-unix/X{n}").exists())
+    monkeypatch.setenv("DISPLAY", f":{number}")
+    assert main(["--world", "rviz:=true"]) == 2
+    assert capsys.readouterr().err.startswith("world.launch: rviz:=true: needs a display")
 
 
 def test_world_mode_decides_pause_when_idle_from_the_loop_s_mode(capsys):

@@ -139,6 +139,7 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("real_time_factor", "1e-300",
      "real_time_factor:=1e-300: must be 0 or a number from 0.001 to 1000"),
     ("temperature", "0", "temperature:=0: must be a number > 0"),
+    ("temperature", "nan", "temperature:=nan: must be a number > 0, got 'nan'"),
     ("manual_share", "0", "manual_share:=0: must be a number > 0 and <= 1"),
     ("manual_share", "1.5", "manual_share:=1.5: must be a number > 0 and <= 1"),
     ("mode", "semi", "mode:=semi: must be one of auto, manual"),
