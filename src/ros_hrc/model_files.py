@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import List, Optional
+from typing import List, Sequence
 
 #: models/ of the package (the source tree; the devel space uses it in place).
 MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
@@ -29,24 +29,42 @@ def names_a_file(name_or_path: str) -> bool:
             or str(name_or_path).startswith("~"))
 
 
-def resolve_model(name_or_path: str, kind: str, folder: Optional[Path] = None) -> Path:
+def resolve_model(name_or_path: str, kind: str,
+                  folder: "Path | Sequence[Path] | None" = None) -> Path:
     """The absolute model file for a scenario name or a path (see :func:`user_path`); a name
     is looked up in ``folder`` (default ``models/<kind>``: the seed task's; a task names its
-    own, :attr:`ros_hrc.tasks.definition.Task.model_dirs`). FileNotFoundError lists what
-    exists."""
+    own, :attr:`ros_hrc.tasks.definition.Task.model_dirs`), or in several folders in turn, the
+    first that holds it winning. FileNotFoundError lists what exists, in one line."""
     candidate = user_path(name_or_path)
     if names_a_file(name_or_path):
         if candidate.is_file():
             return candidate
         raise FileNotFoundError(f"no model file {name_or_path} (looked for {candidate})")
-    folder = Path(folder) if folder is not None else MODELS_DIR / kind
-    for suffix in (".pomdpx", ".pomdp"):
-        path = folder / f"{name_or_path}{suffix}"
-        if path.is_file():
-            return path
-    known = model_names(folder)
-    raise FileNotFoundError(f"no {kind} model named {name_or_path!r} in {folder}; "
-                            f"known: {', '.join(known) or 'none'}")
+    if folder is None:
+        folders = [MODELS_DIR / kind]
+    elif isinstance(folder, (str, os.PathLike)):
+        folders = [Path(folder)]
+    else:
+        folders = [Path(f) for f in folder]
+    for place in folders:
+        for suffix in (".pomdpx", ".pomdp"):
+            path = place / f"{name_or_path}{suffix}"
+            if path.is_file():
+                return path
+    known = sorted({name for place in folders for name in model_names(place)})
+    where = ", ".join(shown_path(place) for place in folders) if len(folders) > 1 \
+        else str(folders[0])
+    raise FileNotFoundError(f"no {kind + ' ' if kind else ''}model named {name_or_path!r} in "
+                            f"{where}; known: {', '.join(known) or 'none'}")
+
+
+def shown_path(path) -> str:
+    """A file or folder as the messages show it: relative to the package for its own models."""
+    path = Path(str(path))
+    try:
+        return str(path.resolve().relative_to(MODELS_DIR.parent))
+    except ValueError:
+        return str(path)
 
 
 def model_names(folder: Path) -> List[str]:

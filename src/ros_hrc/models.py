@@ -43,7 +43,7 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 from ros_hrc import tasks
 from ros_hrc.errors import ModelError
 from ros_hrc.tasks import seed as task
-from ros_hrc.model_files import MODELS_DIR, resolve_model
+from ros_hrc.model_files import resolve_model, shown_path
 from ros_hrc.pomdp.fileformat import default_names
 from ros_hrc.pomdp.io import load_model
 from ros_hrc.pomdp.typed import TypeLayout
@@ -92,15 +92,6 @@ def model_path(name_or_path: str, kind: str, task: "Task | str | None" = None) -
         return resolve_model(str(name_or_path), kind, folder)
     except FileNotFoundError as exc:
         raise ModelNotFound(str(exc)) from None
-
-
-def shown_path(path) -> str:
-    """The file as the messages show it: relative to the package for its own models."""
-    path = Path(str(path))
-    try:
-        return str(path.resolve().relative_to(MODELS_DIR.parent))
-    except ValueError:
-        return str(path)
 
 
 def _load(name_or_path: str, kind: str, task: "Task | str | None" = None) -> Model:

@@ -30,43 +30,10 @@ from ros_hrc import settings, tasks
 from ros_hrc.tasks import seed as task
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.model import Model
+from ros_hrc.agents.policy_sequences import DEFAULT_TRIALS, SEQUENCES, ObservationSequence
 
-#: Trials per decision (the robot's online default K, D, lambda otherwise): enough for the
-#: decisions on the robot models to settle (the same actions at 2x and 4x the trials).
-DEFAULT_TRIALS = 300
 #: A time budget that never binds: the trials alone bound the search.
 UNBOUNDED_SECONDS = 1e6
-
-
-@dataclass(frozen=True)
-class ObservationSequence:
-    """A named sequence of observations and what it shows of the human."""
-
-    name: str
-    observations: Tuple[str, ...]
-    what: str
-
-
-#: The typical sequences: the first few are what a considerate robot must get right.
-SEQUENCES: Tuple[ObservationSequence, ...] = (
-    ObservationSequence("warning", ("O19",),
-                        "the human warns the robot off (object visible and in range)"),
-    ObservationSequence("warning_unseen", ("O16",),
-                        "a warning while the object is neither visible nor in range"),
-    ObservationSequence("failed_then_warning", ("O7", "O7", "O19"),
-                        "two failed grasps, then a warning"),
-    ObservationSequence("failed_grasp", ("O7",), "one failed grasp (object in view and range)"),
-    ObservationSequence("failed_grasps", ("O7", "O7", "O7", "O7"),
-                        "four failed grasps in a row"),
-    ObservationSequence("idle_once", ("O35",), "the human idles once, object in view and range"),
-    ObservationSequence("idle_streak", ("O35",) * 6, "six idle steps in a row"),
-    ObservationSequence("looks_away", ("O2", "O2", "O2"),
-                        "object in range but not seen, three steps (attention lost)"),
-    ObservationSequence("human_away", ("O0", "O0", "O0"),
-                        "nothing seen, nothing in range, three steps (walked away)"),
-    ObservationSequence("holds_object", ("O7", "O11"),
-                        "a failed grasp, then the human holds the object"),
-)
 
 
 @dataclass
@@ -159,19 +126,6 @@ def policy_table(model: Model, sequences: Sequence[ObservationSequence] = SEQUEN
     tables = DespotTables(model, config.upper, config.lower)
     with _quiet_planner_log():
         return [run_sequence(model, seq, config, seed, tables) for seq in sequences]
-
-
-def parse_sequence(text: str) -> ObservationSequence:
-    """A sequence a user names on the command line, ``NAME=O7,O7,O19`` (commas or spaces);
-    ValueError saying what is wrong. Its observations are checked against the model later
-    (:func:`check_sequences`)."""
-    name, sep, observations = text.partition("=")
-    name = name.strip()
-    words = observations.replace(",", " ").split()
-    if not sep or not name or not words:
-        raise ValueError(f"sequence {text!r}: expected NAME=OBS,OBS,... (e.g. "
-                         f"fails_after_warning=O7,O19,O7,O7)")
-    return ObservationSequence(name, tuple(words), "given on the command line")
 
 
 def format_belief(belief: Dict[str, float], smallest: float = 0.005) -> str:

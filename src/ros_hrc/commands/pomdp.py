@@ -33,29 +33,30 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from typing import Callable, List, Optional, Sequence, TextIO, Tuple
-
-import numpy as np
+from typing import TYPE_CHECKING, Callable, List, Optional, Sequence, TextIO, Tuple
 
 from ros_hrc.command_line import ranged_number
-from ros_hrc.commands.pomdp_common import (MAX_SECONDS, MAX_TRIALS, PROG, add_memory_limit,
-                                           emit, load_with_progress, one_line, precision_arg,
-                                           progress, require_finite, seconds_arg, seed_arg,
-                                           solver_errors_exit_2)
+from ros_hrc.commands.pomdp_common import (MAX_SECONDS, MAX_TRIALS, MODEL_HELP, PROG,
+                                           add_memory_limit, emit, load_with_progress, model_file,
+                                           one_line, precision_arg, progress, require_finite,
+                                           seconds_arg, seed_arg, solver_errors_exit_2)
 from ros_hrc.commands.pomdp_simulate import register_simulate
 from ros_hrc.errors import HrcError, ModelError, ModelFormatError
-from ros_hrc.pomdp import io, memory
 from ros_hrc.pomdp.memory import MemoryLimitError
-from ros_hrc.pomdp.model import MAX_VALUE, PROBABILITY_TOLERANCE, Model
-from ros_hrc.pomdp.output import check_writable
 
-#: What every model that loads has passed (the parsers and Model.validate check them).
-CHECKS = ["names known and unique", "table sizes agree", "discount in [0, 1)",
-          f"no negative probability; rows of T and O sum to 1 (within {PROBABILITY_TOLERANCE:g})",
-          "initial belief sums to 1",
-          f"every number finite; |R| / (1 - discount) <= {MAX_VALUE:g}"]
+if TYPE_CHECKING:
+    from ros_hrc.pomdp.model import Model
 
-def model_kind(model: Model) -> str:
+def checks() -> List[str]:
+    """What every model that loads has passed (the parsers and Model.validate check them)."""
+    from ros_hrc.pomdp.model import MAX_VALUE, PROBABILITY_TOLERANCE
+    return ["names known and unique", "table sizes agree", "discount in [0, 1)",
+            f"no negative probability; rows of T and O sum to 1 (within "
+            f"{PROBABILITY_TOLERANCE:g})", "initial belief sums to 1",
+            f"every number finite; |R| / (1 - discount) <= {MAX_VALUE:g}"]
+
+
+def model_kind(model: "Model") -> str:
     """``MDP``, ``MOMDP`` (POMDPX with fully and partially observable variables) or ``POMDP``."""
     if model.fully_observable:
         return "MDP"
@@ -65,8 +66,10 @@ def model_kind(model: Model) -> str:
     return "POMDP"
 
 
-def describe(model: Model, path: str, seconds: float) -> dict:
+def describe(model: "Model", path: str, seconds: float) -> dict:
     """The facts ``info`` prints, as a JSON-ready dict."""
+    import numpy as np
+    from ros_hrc.pomdp import io
     b = np.asarray(model.initial_belief)
     support = np.flatnonzero(b)
     r = model.R_sa
@@ -82,7 +85,7 @@ def describe(model: Model, path: str, seconds: float) -> dict:
         "initial_states": [model.states[i] for i in support[:10]],
         "reward_range": [float(r.min()), float(r.max())] if r.size else [0.0, 0.0],
         "action_names": list(model.actions),
-        "checks": list(CHECKS), "checks_passed": True, "seconds": round(seconds, 4),
+        "checks": checks(), "checks_passed": True, "seconds": round(seconds, 4),
     }
 
 
@@ -118,7 +121,7 @@ def _register_info(subparsers) -> None:
     p = subparsers.add_parser("info", help="sizes, discount, kind and checks of a model file",
                               description="Read a .pomdp or .pomdpx file, check it and "
                                           "describe it.")
-    p.add_argument("model", help="a .pomdp (Cassandra) or .pomdpx (POMDPX) file")
+    p.add_argument("model", help=MODEL_HELP)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_memory_limit(p)
     p.set_defaults(func=cmd_info)
@@ -127,8 +130,9 @@ def _register_info(subparsers) -> None:
 def cmd_info(args: argparse.Namespace) -> int:
     """``hrc_pomdp info MODEL [--json]``."""
     start = time.perf_counter()
-    model = load_with_progress(args.model, args.memory_limit)
-    facts = describe(model, args.model, time.perf_counter() - start)
+    path = model_file(args.model)
+    model = load_with_progress(path, args.memory_limit)
+    facts = describe(model, path, time.perf_counter() - start)
     return emit(facts, args.json, _print_info)
 
 
@@ -149,6 +153,8 @@ WRITE_BYTES_PER_NONZERO = 200
 
 def cmd_convert(args: argparse.Namespace) -> int:
     """``hrc_pomdp convert IN OUT``."""
+    from ros_hrc.pomdp import io, memory
+    from ros_hrc.pomdp.output import check_writable
     io.format_of(args.output)           # a bad target is refused before any work
     check_writable(args.output)
     model = load_with_progress(args.input, args.memory_limit)
@@ -167,7 +173,7 @@ def cmd_convert(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------------------------
 
 
-def _in_model_terms(model: Model, lower: float, upper: float) -> Tuple[float, float]:
+def _in_model_terms(model: "Model", lower: float, upper: float) -> Tuple[float, float]:
     """Reward bounds as the model states its values: a cost model ("values: cost") gets costs,
     so the lower cost bound is minus the upper reward bound."""
     return (-upper, -lower) if model.minimise else (lower, upper)
@@ -187,7 +193,7 @@ def _register_solve(subparsers) -> None:
                     "known from the first step, as in SARSOP: the value from the initial belief "
                     "is the average, over the start values of those variables, of the value "
                     "given them (an MDP: the average over start states of their values).")
-    p.add_argument("model", help="a .pomdp or .pomdpx file")
+    p.add_argument("model", help=MODEL_HELP)
     p.add_argument("--timeout", type=seconds_arg, default=60.0, metavar="S",
                    help=f"stop after S seconds, 0 to {MAX_SECONDS:g} (default 60)")
     p.add_argument("--precision", type=precision_arg, default=1e-3, metavar="E",
@@ -204,6 +210,7 @@ def _register_solve(subparsers) -> None:
 def cmd_solve(args: argparse.Namespace) -> int:
     """``hrc_pomdp solve MODEL [--timeout S] [--precision E] [-o POLICY] [--json]``."""
     from ros_hrc.pomdp import offline
+    from ros_hrc.pomdp.output import check_writable
 
     began = getattr(args, "started", None)          # when run() began (None: called directly)
     if began is None:
@@ -255,7 +262,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 
 def _register_policy(subparsers) -> None:
-    from ros_hrc.agents.policy_table import DEFAULT_TRIALS, SEQUENCES
+    from ros_hrc.agents.policy_sequences import DEFAULT_TRIALS, SEQUENCES
     p = subparsers.add_parser(
         "policy", help="the robot planner's actions after typical observation sequences",
         description="Step the robot's online planner (DESPOT, the robot's K, D and lambda) "
@@ -281,7 +288,7 @@ def _register_policy(subparsers) -> None:
 
 
 def _policy_sequence(text: str):
-    from ros_hrc.agents.policy_table import parse_sequence
+    from ros_hrc.agents.policy_sequences import parse_sequence
     try:
         return parse_sequence(text)
     except ValueError as exc:

@@ -2,21 +2,33 @@
 the memory limit, progress on a terminal, printing a result (strict JSON or text, never a
 number that is not finite) and one-line errors. The subcommands are in
 :mod:`ros_hrc.commands.pomdp` and, for ``simulate``, :mod:`ros_hrc.commands.pomdp_simulate`.
+
+On a small model ``hrc_pomdp``'s wall time is mostly start-up, so the command modules import
+at their top only what parsing the command line needs (nothing of numpy or scipy): a verb
+imports the toolkit's modules it uses inside its handler, and ``io`` only the parser of the
+file's format.
 """
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
-from typing import Callable, Optional, TextIO
+from typing import TYPE_CHECKING, Callable, Optional, TextIO
 
 from ros_hrc.command_line import ranged_number
-from ros_hrc.errors import HrcError, SolverError
-from ros_hrc.pomdp import io, memory
-from ros_hrc.pomdp.model import MAX_VALUE, Model
+from ros_hrc.errors import HrcError, ModelError, SolverError
+from ros_hrc.model_files import names_a_file, resolve_model
+from ros_hrc.pomdp import memory
+
+if TYPE_CHECKING:
+    from ros_hrc.pomdp.model import Model
 
 PROG = "hrc_pomdp"
+
+#: What a MODEL argument may be (every verb but ``policy``, whose names are robot models).
+MODEL_HELP = ("a .pomdp or .pomdpx file, or a shipped model's name (robot, humanModel, "
+              "robot_types, ...: looked up in the seed task's models/robot and models/human, "
+              "then in the other tasks')")
 
 #: Upper limits of the numeric options: beyond them a run could not finish or fit in memory.
 MAX_SECONDS = 1e6                  # --timeout, --time-per-step: 11.6 days
@@ -39,8 +51,28 @@ def progress(message: str, stream: Optional[TextIO] = None) -> None:
         print(f"{PROG}: {message}", file=stream, flush=True)
 
 
-def load_with_progress(path: str, memory_limit: Optional[int] = None) -> Model:
-    """Load a model file, saying so on a terminal (large models take a moment)."""
+def model_file(name_or_path: str) -> str:
+    """The file a MODEL argument names: a path as typed (a relative one is relative to where
+    the command runs), or the name of a shipped model (``robot``, ``humanModel``,
+    ``robot_types``) looked up in each task's robot and human folders, the default task's
+    first, as ``hrc_pomdp policy`` and the launch look names up. ModelError lists the known
+    names when none is found."""
+    if names_a_file(name_or_path):
+        return name_or_path
+    from ros_hrc import tasks           # only for a name: its folders
+    order = [tasks.DEFAULT_TASK] + [n for n in tasks.TASK_NAMES if n != tasks.DEFAULT_TASK]
+    folders = [tasks.get(n).model_dirs[kind] for n in order for kind in ("robot", "human")]
+    try:
+        return str(resolve_model(name_or_path, "", folders))
+    except FileNotFoundError as exc:
+        raise ModelError(str(exc)) from None
+
+
+def load_with_progress(name_or_path: str, memory_limit: Optional[int] = None) -> "Model":
+    """Load a model file or a shipped model by name (:func:`model_file`), saying so on a
+    terminal (large models take a moment)."""
+    from ros_hrc.pomdp import io
+    path = model_file(name_or_path)
     progress(f"reading {path} ...")
     return io.load_model(path, memory_limit=memory_limit)
 
@@ -75,6 +107,7 @@ def emit(facts: dict, as_json: bool, print_text: Callable[[dict], None]) -> int:
     error (ResultError), whichever way the result would have been printed."""
     require_finite(facts)
     if as_json:
+        import json
         print(json.dumps(facts, allow_nan=False))
     else:
         print_text(facts)
@@ -87,10 +120,25 @@ def value_at(facts, path: str):
     return facts
 
 
+def largest_value() -> float:
+    """The largest value a model may reach (``model.MAX_VALUE``), read when an option that
+    it bounds is given: the model module imports numpy and scipy."""
+    from ros_hrc.pomdp.model import MAX_VALUE
+    return MAX_VALUE
+
+
+def precision_arg(text: str) -> float:
+    """An argparse type: a precision above 0, at most ``model.MAX_VALUE``."""
+    return ranged_number(float, 0.0, largest_value(), low_open=True)(text)
+
+
+def regularization_arg(text: str) -> float:
+    """An argparse type: a regularization of 0 or more, at most ``model.MAX_VALUE``."""
+    return ranged_number(float, 0.0, largest_value())(text)
+
+
 seconds_arg = ranged_number(float, 0.0, MAX_SECONDS)
-precision_arg = ranged_number(float, 0.0, MAX_VALUE, low_open=True)
 fraction_arg = ranged_number(float, 0.0, 1.0)
-regularization_arg = ranged_number(float, 0.0, MAX_VALUE)
 run_count_arg = ranged_number(int, 1, MAX_RUNS)
 scenario_count_arg = ranged_number(int, 1, MAX_SCENARIOS)
 depth_arg = ranged_number(int, 0, MAX_DEPTH)

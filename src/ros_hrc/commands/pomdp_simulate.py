@@ -6,16 +6,19 @@ from __future__ import annotations
 
 import argparse
 import time
-from typing import Optional, Tuple
+from typing import TYPE_CHECKING, Optional, Tuple
 
-from ros_hrc.commands.pomdp_common import (MAX_DEPTH, MAX_RUNS, MAX_SCENARIOS, add_memory_limit,
+from ros_hrc.commands.pomdp_common import (MAX_DEPTH, MAX_RUNS, MAX_SCENARIOS, MODEL_HELP,
+                                           add_memory_limit,
                                            depth_arg, emit, fraction_arg, load_with_progress,
                                            progress, regularization_arg, run_count_arg,
                                            scenario_count_arg, seconds_arg, seed_arg,
                                            solver_errors_exit_2, trial_count_arg)
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import memory
-from ros_hrc.pomdp.model import Model
+
+if TYPE_CHECKING:
+    from ros_hrc.pomdp.model import Model
 
 
 def register_simulate(subparsers) -> None:
@@ -31,7 +34,7 @@ def register_simulate(subparsers) -> None:
                     "(mean +/- 1.96 sd / sqrt(runs)), the reward estimator it used, and the "
                     "planner's time per step. A saved policy and --planner mdp run all runs "
                     "at once (their beliefs as one array); DESPOT runs them one by one.")
-    p.add_argument("model", help="a .pomdp or .pomdpx file")
+    p.add_argument("model", help=MODEL_HELP)
     how = p.add_mutually_exclusive_group(required=True)
     how.add_argument("--policy", metavar="POLICY", help="a policy file written by 'solve -o'")
     how.add_argument("--planner", choices=["despot", "mdp"],

@@ -7,6 +7,7 @@ A model is written whole or not at all (:mod:`ros_hrc.pomdp.output`).
 """
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 from types import ModuleType
 from typing import List, Optional
@@ -15,44 +16,49 @@ import numpy as np
 import scipy.sparse as sp
 
 from ros_hrc.errors import ModelFormatError
-from ros_hrc.pomdp import cassandra, pomdpx
 from ros_hrc.pomdp.model import Model
 
 __all__ = ["FORMATS", "format_of", "load_model", "save_model", "convert", "differences"]
 
-#: File extension -> (format name, module with load/loads/dump/save).
-FORMATS = {".pomdp": ("Cassandra", cassandra), ".pomdpx": ("POMDPX", pomdpx)}
+#: File extension -> (format name, the stem of its modules ``<stem>_reader``/``<stem>_writer``).
+#: A reader or writer is imported when a file of its format is read or written: a command on
+#: a small model spends more time importing than working.
+FORMATS = {".pomdp": ("Cassandra", "cassandra"), ".pomdpx": ("POMDPX", "pomdpx")}
 
 
-def _module(path) -> ModuleType:
+def _format(path) -> tuple:
     suffix = Path(str(path)).suffix.lower()
     if suffix not in FORMATS:
         raise ModelFormatError(str(path), None,
                                f"unknown model format {suffix or '(no extension)'!r}: "
                                "expected .pomdp (Cassandra) or .pomdpx (POMDPX)")
-    return FORMATS[suffix][1]
+    return FORMATS[suffix]
+
+
+def _module(path, role: str) -> ModuleType:
+    """The format's ``reader`` or ``writer`` module for ``path``'s extension."""
+    return importlib.import_module(f"ros_hrc.pomdp.{_format(path)[1]}_{role}")
 
 
 def format_of(path) -> str:
     """``"Cassandra"`` or ``"POMDPX"`` from the file's extension; ModelFormatError otherwise."""
-    _module(path)
-    return FORMATS[Path(str(path)).suffix.lower()][0]
+    return _format(path)[0]
 
 
 def load_model(path, memory_limit: Optional[int] = None) -> Model:
     """Read a model file, choosing the parser by extension (.pomdp or .pomdpx); with
     ``memory_limit`` (bytes), MemoryLimitError for a file too large to read within it."""
-    return _module(path).load(path, memory_limit=memory_limit)
+    return _module(path, "reader").load(path, memory_limit=memory_limit)
 
 
 def save_model(model: Model, path) -> None:
     """Write ``model`` in the format the extension of ``path`` names, whole or not at all."""
-    _module(path).save(model, path)
+    _module(path, "writer").save(model, path)
 
 
 def convert(source, target, memory_limit: Optional[int] = None) -> Model:
     """Read ``source`` and write it to ``target`` in the format of ``target``'s extension."""
-    _module(target)                    # refuse a bad target before reading anything
+    _format(target)                    # refuse a bad target before reading anything
     model = load_model(source, memory_limit)
     save_model(model, target)
     return model

@@ -17,7 +17,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ros_hrc.pomdp import hsvi, mdp, memory, momdp
+from ros_hrc.pomdp import mdp, memory
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.policy import Policy
 from ros_hrc.pomdp.search import SolveProgress
@@ -44,6 +44,9 @@ def solve(model: Model, timeout: Optional[float] = 60.0, precision: float = 1e-3
     deadline = start + timeout if timeout is not None else None
     if model.fully_observable:
         return solve_mdp(model, timeout=timeout, precision=precision, memory_limit=memory_limit)
+    # The point-based solvers are imported for a POMDP only: an MDP's solve is over before
+    # they would have loaded (hrc_pomdp solve on a human MDP is mostly start-up).
+    from ros_hrc.pomdp import hsvi, momdp
     if momdp.applies(model):
         return momdp.solve(model, timeout=timeout, precision=precision,
                            memory_limit=memory_limit, progress=progress)
