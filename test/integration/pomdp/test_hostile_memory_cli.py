@@ -59,3 +59,21 @@ def test_uniform_transitions_on_50000_states_are_refused_before_allocation(tmp_p
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert f"hrc_pomdp: {path}: building T, O and R" in result.stderr
     assert "GiB" in result.stderr and "--memory-limit" in result.stderr
+
+
+def test_a_state_count_too_large_to_name_is_refused_at_its_line(tmp_path):
+    path = tmp_path / "many.pomdp"
+    path.write_text("discount: 0.9\nstates: 99999999999\nactions: 1\nobservations: 1\n")
+    result = run_hrc_pomdp(["info", str(path)], address_space=1 * GiB)
+    assert result.returncode == 1, result.stderr
+    assert result.stderr.startswith(f"hrc_pomdp: {path}:2: 99999999999 states needs about")
+
+
+def test_despot_on_50000_states_stays_within_its_memory_limit(torus):
+    result = run_hrc_pomdp(["simulate", str(torus), "--planner", "despot", "--max-trials", "20",
+                            "--time-per-step", "5", "--sim-len", "2", "--sim-num", "1",
+                            "--memory-limit", "384M", "--json"],
+                           address_space=1 * GiB)
+    assert result.returncode == 0, result.stderr
+    facts = json.loads(result.stdout)
+    assert facts["steps"] == 2 and np.isfinite(facts["mean"])
