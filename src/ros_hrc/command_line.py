@@ -61,6 +61,27 @@ def parse_launch_options(parser: argparse.ArgumentParser,
     return parser.parse_args(words)
 
 
+def reread_launch_options(parser: argparse.ArgumentParser, argv: Optional[Sequence[str]],
+                          running: argparse.Namespace) -> argparse.Namespace:
+    """A running solver process's options read again, as :func:`parse_launch_options` read
+    them at its start (a ``configure``: the launch's settings file was rewritten for a warm
+    stack's next cell). Raises ValueError (one line, nothing changed) when they cannot be
+    read, or when a setting that a running process cannot take in place (one outside
+    :data:`ros_hrc.settings.IN_PLACE`: its port, its task) differs from ``running``'s."""
+    from ros_hrc import settings
+
+    try:
+        args = parse_launch_options(parser, argv)
+    except SystemExit:    # argparse said why on stderr
+        raise ValueError("the launch's settings cannot be read again") from None
+    moved = [name for name in settings.SETTINGS if name not in settings.IN_PLACE
+             and hasattr(running, name) and getattr(args, name) != getattr(running, name)]
+    if moved:
+        raise ValueError(f"{', '.join(moved)} changed: a running process takes "
+                         f"{'it' if len(moved) == 1 else 'them'} only from a new launch")
+    return args
+
+
 class WholeLines:
     """A text stream that passes text on to ``stream`` a whole line at a time, each in one
     write, flushed: ``print(text)`` (the text, then its newline) becomes one write, however

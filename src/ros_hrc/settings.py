@@ -36,7 +36,7 @@ import math
 import os
 import re
 from dataclasses import dataclass, replace
-from typing import Any, Dict, Mapping, Optional, Tuple
+from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.tasks import fabric_reactive
@@ -531,6 +531,26 @@ SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
 #: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
 SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
                               "oracle")
+
+#: The settings a running stack can take in place (``/hrc/configure``, a warm stack's next
+#: cell: docs/experiments.md, "Warm stacks"): what its solver processes and its loop are built
+#: from at start (models, planner, selector, seed, the episodes to play). Any other setting
+#: (the task, the world's, the ports, the windows, the terminal) needs a new launch: a
+#: reconfiguration that changes one is refused.
+IN_PLACE: FrozenSet[str] = frozenset((
+    "human_model", "robot_model", "seed", "human_choice", "temperature", "manual_share",
+    "step_delay", "max_steps", "on_episode_end", "end_on_goal", "episodes",
+    "wait_for_listener", "planner", "policy_file", "time_per_step", "scenarios", "depth",
+    "lambda", "max_trials", "reactive_budget", "reactive_wait", "tasks", "schedule",
+    "selector", "library", "selector_model", "task_timeout", "bpr_forgetting"))
+
+
+def needs_new_launch(running: Mapping[str, Any], wanted: Mapping[str, Any]) -> List[str]:
+    """The settings, resolved, that differ between a running launch's ``running`` and
+    ``wanted`` and cannot be taken in place (:data:`IN_PLACE`), in table order."""
+    return [name for name in SETTINGS if name not in IN_PLACE
+            and running.get(name) != wanted.get(name)]
+
 
 #: The websocket ports, which must differ.
 PORTS: Tuple[str, ...] = ("pomdp_port", "human_port")

@@ -35,7 +35,7 @@ from typing import Iterable, Optional, Tuple
 import numpy as np
 
 __all__ = ["ROLES", "MAX_SEED", "MAX_EPISODE", "stream", "generator", "stream_seed",
-           "EpisodeSchedule", "WORLD_EPISODE_PARAM"]
+           "EpisodeSchedule", "WORLD_EPISODE_PARAM", "WORLD_SEED_PARAM"]
 
 #: Who draws from a stream. Appending a role keeps every existing stream as it was; reordering
 #: or renaming one changes the streams of every recorded run, so don't.
@@ -44,6 +44,9 @@ ROLES: Tuple[str, ...] = ("human", "world", "planner", "observation", "selector"
 #: The ROS parameter the coordinator's node (hrc_human) sets to the episode that starts just
 #: before it resets the world (``/hrc/world/reset``, a Trigger); hrc_world reads it there.
 WORLD_EPISODE_PARAM = "/hrc/world/episode"
+#: The parameter holding the run's seed, set with :data:`WORLD_EPISODE_PARAM` (a warm stack's
+#: next cell plays another seed on the same world).
+WORLD_SEED_PARAM = "/hrc/world/seed"
 
 #: The seed and episode travel through ROS messages and parameters as uint32.
 MAX_SEED = 2 ** 32 - 1

@@ -97,7 +97,7 @@ WEIGHTS: Dict[str, float] = {
 #: The message types of the protocol.
 MESSAGE_TYPES: Tuple[str, ...] = ("hello", "step", "observation", "decision", "action", "reset",
                                   "next_state", "ack", "error", "reaction", "task_end",
-                                  "task_report")
+                                  "task_report", "configure")
 
 _HUMAN_ACTIONS = ("graspAttempt", "lookAround", "idle", "walkAway", "warnRobot")
 _HUMAN_STATES = ("task_assigned", "success", "failed_to_grasp", "no_attention", "evaluating",
@@ -454,6 +454,9 @@ class FrameGenerator:
                       ("human_model", r.choice(("tired", "/models/human/tired.pomdpx")))]
                 if r.random() < 0.5:
                     o += [("drift_to", "expert"), ("drift", r.choice((0.0, 0.5, 1.0)))]
+        elif t == "configure":
+            if r.random() < 0.6:
+                o.append(("reason", r.choice(("fuzz", "/hrc/configure called"))))
         elif t == "task_end":
             o += [("task_index", 1 + self._small_int()),
                   ("outcome", r.choice(("success", "fail", "timeout"))),
@@ -774,6 +777,7 @@ class FrameGenerator:
                             ("signature", [-1]), ("type_belief", [0.5, 0.6]),
                             ("total_disc_reward", 1e309)],
             "next_state": [("state", 256), ("state", 255), ("state", -1), ("state", 8)],
+            "configure": [("reason", ""), ("reason", "r" * 1025)],
             "reaction": [("step", -1), ("state", ""), ("state_index", 256), ("rule", "r" * 129),
                          ("reward", 1e309)],
             "ack": [("step", -1), ("of", ""), ("result", "r" * 1025), ("result", ""),

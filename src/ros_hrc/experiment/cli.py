@@ -53,7 +53,7 @@ from ros_hrc.experiment.grid import (DEFAULT_HUMANS, GridError, apply_task_defau
                                      plan_cells, resolve_files, task_of)
 from ros_hrc.experiment.plots import (NothingToPlot, plot_belief, plot_outcomes, plot_success,
                                       plot_time_gain)
-from ros_hrc.experiment.pool import finish_run, run_stoppable
+from ros_hrc.experiment.pool import add_stack_argument, finish_run, run_stoppable
 from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder, open_results
 from ros_hrc.experiment.stack import MAX_EPISODES, check_launch_settings
 from ros_hrc.experiment.statistics import summarize, write_summary
@@ -176,6 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "depth")
     settings.add_argument(p, "lambda", dest="lambda_")
     add_cluster_argument(p)
+    add_stack_argument(p)
     p.add_argument("--bag", action=argparse.BooleanOptionalAction, default=False,
                    help="also record /hrc/status as a rosbag (default: no)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
@@ -429,7 +430,8 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
         recorder = PairedRecorder(store, alone, args.in_sample)
         figures, stopped = run_stoppable(cells, recorder, args.jobs, words, out, program=NAME,
                                          gate=recorder.gate, cluster=args.cluster,
-                                         cluster_wait=args.cluster_wait)
+                                         cluster_wait=args.cluster_wait,
+                                         fresh_stacks=args.fresh_stacks)
         if stopped is not None:
             return stopped
         print(f"{NAME}: {figures['episodes']} episodes in {figures['wall_seconds']:.1f} s "

@@ -63,6 +63,7 @@ from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParse
                                           file_error_line, names_argument, say_one_line)
 from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
+from ros_hrc.experiment.pool import add_stack_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc import tasks
 from ros_hrc.experiment.grid import task_launch_args, task_of, training_humans
@@ -121,6 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stacks run side by side (0: one per core; with --cluster, one per "
                         "ros_hrc slot of the cluster)")
     add_cluster_argument(p)
+    add_stack_argument(p)
     settings.add_argument(p, "task")     # (#22) the task the episodes and the prior are of
     p.add_argument("--types", action="store_true",
                    help="fit T and O per human model, each a type, and compose them into one "
@@ -437,7 +439,8 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
                                                      f"{args.cluster}"), flush=True)
     if cells:
         figures, stopped = run_stoppable(cells, store, args.jobs, words, runs, program=NAME,
-                                         cluster=args.cluster, cluster_wait=args.cluster_wait)
+                                         cluster=args.cluster, cluster_wait=args.cluster_wait,
+                                         fresh_stacks=args.fresh_stacks)
         if stopped is not None:
             return stopped
         if figures and figures["failed_cells"]:

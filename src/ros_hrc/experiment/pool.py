@@ -1,18 +1,22 @@
-"""The local pool: an experiment grid's cells run side by side, one stack each, under SIGINT
-and SIGTERM (:func:`run_stoppable`; on a cluster, the same schedule with
-:class:`ros_hrc.experiment.cluster.ClusterRun` running each cell). No ROS here.
+"""The local pool: an experiment grid's cells played by ``jobs`` workers side by side, each a
+process that owns one stack and plays cell after cell on it (:class:`StackWorker`: a warm
+stack, handed each next cell through one reconfiguration and reset instead of a new
+roslaunch; ``--fresh-stacks``: a new stack per cell, as before), under SIGINT and SIGTERM
+(:func:`run_stoppable`; on a cluster, the same queue with
+:class:`ros_hrc.experiment.cluster.ClusterRun` playing each cell). No ROS here.
 
-``jobs`` cells step at a time; the human alone (``no_robot``) on a stream runs before the
-robots' episodes of that stream; a cell whose episodes are all in gives its place to the next
-one while its stack shuts down. Each cell runs in its own worker process
-(:func:`ros_hrc.experiment.stack.worker_command`), in up to three attempts
-(:mod:`ros_hrc.experiment.attempts`). SIGINT or SIGTERM stops every cell's stack
+A cell goes from the :class:`CellQueue` (the human alone, ``no_robot``, on a stream before the
+robots' episodes of that stream) to a lane's worker (:func:`run_grid`), which plays it in up
+to three attempts (:func:`play_cell`, :mod:`ros_hrc.experiment.attempts`): a stack that
+fails is replaced and the cell's missing episodes run again. SIGINT or SIGTERM stops every
+worker's stack
 (:class:`Stopper`), keeps what was recorded and says how to resume; so does a full disk under
 the run (:mod:`ros_hrc.experiment.disk`: the results' disk or ``$ROS_HOME``'s without room,
 or a write of the run's own that found none), in one line naming the disk.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import shlex
@@ -23,7 +27,7 @@ import threading
 from collections import defaultdict
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Sequence, Set, TextIO, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Set, TextIO, Tuple
 
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.attempts import CellAttempts, Deliver
@@ -31,8 +35,10 @@ from ros_hrc.experiment.disk import (CHECK_INTERVAL, DiskFull, DiskWatch, full_d
                                      is_full_disk)
 from ros_hrc.experiment.episode import ALONE_POLICY
 from ros_hrc.experiment.recording import Progress
-from ros_hrc.experiment.stack import (CellSpec, cell_name, decode_episode, worker_command,
+from ros_hrc.experiment.stack import (CellSpec, cell_name, check_launch_settings,
+                                      decode_cell_end, decode_episode, worker_command,
                                       write_spec)
+from ros_hrc import settings
 from ros_hrc.pomdp.output import write_text_atomically
 
 
@@ -115,183 +121,338 @@ class Stopper:
             self._workers.discard(proc)
 
 
-def _run_worker(cell: CellSpec, deliver: Deliver, log: TextIO,
-                stopper: Optional[Stopper] = None) -> None:
-    """Run one attempt at a cell in its own process; ``deliver(row, steps)`` per episode as it
-    ends. RuntimeError with the worker's last message when it fails (unless the run stops)."""
-    spec_file = write_spec(cell, Path(cell.log_dir))
-    proc = subprocess.Popen(worker_command(spec_file), stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    if stopper is not None:
-        stopper.add(proc)
+def add_stack_argument(parser) -> None:
+    """``--fresh-stacks`` (hrc_experiment and hrc_fit)."""
+    parser.add_argument("--fresh-stacks", action="store_true",
+                        help="start a new stack (roscore, roslaunch, every process) for each "
+                             "cell, as before warm stacks; by default each worker keeps its "
+                             "stack and hands it the next cell (docs/experiments.md, \"Warm "
+                             "stacks\"); the rows are the same either way")
+
+
+class CellRefused(RuntimeError):
+    """A cell's settings were refused before they reached a stack (a bad model): the cell
+    fails with the reason, at once; the worker's stack is as it was."""
+
+
+def stack_key(cell: CellSpec) -> Tuple[Tuple[str, Any], ...]:
+    """What a cell needs of a stack that a running one cannot take in place (the task, the
+    world's settings, the windows: every setting outside :data:`ros_hrc.settings.IN_PLACE`,
+    resolved): cells of one key can follow each other on one warm stack. A cell whose
+    settings do not resolve has a key of its own (it fails where it plays, with the
+    reason)."""
+    return _stack_key(dataclasses.replace(cell, episodes=()).to_json())
+
+
+@functools.lru_cache(maxsize=4096)
+def _stack_key(spec_json: str) -> Tuple[Tuple[str, Any], ...]:
     try:
-        errors: List[str] = []
-        reader = threading.Thread(target=lambda: errors.extend(proc.stderr), daemon=True)
-        reader.start()
-        for line in proc.stdout:
-            try:
-                episode = decode_episode(line)
-            except (ValueError, KeyError) as exc:   # a line cut short: the episode reruns
-                errors.append(f"unreadable episode line ({exc}): {line[:80]!r}\n")
-                continue
-            if episode is not None:
-                deliver(*episode)
+        config = check_launch_settings(CellSpec.from_json(spec_json))
+    except (HrcError, ValueError):
+        return (("unresolved", spec_json),)
+    return tuple((name, config[name]) for name in settings.SETTINGS
+                 if name not in settings.IN_PLACE)
+
+
+class StackWorker:
+    """A worker process that owns one stack (``python -m ros_hrc.nodes.experiment_cell
+    --serve``, :func:`~ros_hrc.experiment.stack.worker_command`) and plays the cells it is
+    handed one after another: the first starts the stack, each next is handed to the running
+    stack (docs/experiments.md, "Warm stacks"). A cell its stack cannot take in place (another
+    task, other world settings: :func:`stack_key`) gets a new worker, as does every cell with
+    ``fresh`` (``--fresh-stacks``: a stack per cell, the old one shutting down while the next
+    starts). A worker whose stack fails is gone: :meth:`play` raises, and the next cell starts
+    a new one. SIGTERM from ``stopper`` stops its stack."""
+
+    def __init__(self, stopper: "Stopper", fresh: bool = False) -> None:
+        self.stopper = stopper
+        self.fresh = fresh
+        self.proc: Optional[subprocess.Popen] = None
+        self.key: Optional[tuple] = None
+        self._errors: List[str] = []        # its stderr lines since its cell began
+        self._errors_lock = threading.Lock()
+        self._reader: Optional[threading.Thread] = None
+
+    def takes(self, cell: CellSpec) -> bool:
+        """Whether its running stack can play ``cell`` next (no stack yet: any cell)."""
+        return self.proc is None or (not self.fresh and self.key == stack_key(cell))
+
+    def _start(self, cell: CellSpec) -> None:
+        self.proc = subprocess.Popen(worker_command(), stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.stopper.add(self.proc)
+        self.key = stack_key(cell)
+        with self._errors_lock:
+            self._errors = []
+        proc = self.proc
+
+        def read_errors() -> None:
+            for line in proc.stderr:
+                with self._errors_lock:
+                    self._errors.append(line)
+        self._reader = threading.Thread(target=read_errors, name="worker-stderr", daemon=True)
+        self._reader.start()
+
+    def _take_errors(self) -> List[str]:
+        with self._errors_lock:
+            taken, self._errors = self._errors, []
+        return taken
+
+    def play(self, cell: CellSpec, deliver: Deliver, log: TextIO) -> None:
+        """Play ``cell`` (its episodes still to record) on this worker's stack, starting one
+        when there is none or this one cannot take it; ``deliver(row, steps)`` for each
+        episode or sequence as it ends; the worker's lines for the cell go into ``log``.
+        Raises CellRefused (the cell's settings were refused), RuntimeError with the worker's
+        last line when its stack failed (the worker is gone), or what ``deliver`` raised (a
+        full disk: the worker is stopped)."""
+        if not self.takes(cell):
+            self.close()
+        if self.proc is None:
+            self._start(cell)
+        proc = self.proc
+        try:
+            proc.stdin.write(f"{write_spec(cell, Path(cell.log_dir))}\n")
+            proc.stdin.flush()
+        except OSError:   # it died before it could read the cell: its reason is on stderr
+            pass
+        try:
+            for line in proc.stdout:
+                end = decode_cell_end(line)
+                if end is not None:
+                    log.writelines(self._take_errors())
+                    over, what = end
+                    if self.fresh:
+                        self.close(wait=False)
+                    if not over:
+                        raise CellRefused(what["reason"])
+                    return
+                try:
+                    episode = decode_episode(line)
+                except (ValueError, KeyError) as exc:   # a line cut short: the episode reruns
+                    with self._errors_lock:
+                        self._errors.append(f"unreadable episode line ({exc}): {line[:80]!r}\n")
+                    continue
+                if episode is not None:
+                    deliver(*episode)
+        except BaseException:
+            # An episode could not be recorded (a full disk): the worker must not run on, nor
+            # its stack: SIGTERM makes it stop the stack; the reason goes up.
+            if self.proc is proc:
+                self._terminate()
+            raise
+        # Its output ended before the cell did: the worker (and so its stack) is gone.
         proc.wait()
-        reader.join(5.0)
-    except BaseException:
-        # An episode could not be recorded (a full disk): the worker must not run on, nor
-        # its stack: SIGTERM makes it stop the stack; the reason goes up.
+        if self._reader is not None:
+            self._reader.join(5.0)
+        errors = self._take_errors()
+        log.writelines(errors)
+        self._forget()
+        if self.stopper.stopping:
+            return
+        raise RuntimeError(errors[-1].strip() if errors else f"exit code {proc.returncode}")
+
+    def _terminate(self) -> None:
+        proc = self.proc
         Stopper._terminate(proc)
         for _ in proc.stdout:       # drained, so that its last lines never block it
             pass
         proc.wait()
-        raise
-    finally:
-        if stopper is not None:
-            stopper.discard(proc)
-    if errors:
-        log.write("".join(errors))
-    if proc.returncode != 0 and not (stopper is not None and stopper.stopping):
-        last = errors[-1].strip() if errors else f"exit code {proc.returncode}"
-        raise RuntimeError(last)
+        self._forget()
+
+    def _forget(self) -> None:
+        if self.proc is not None:
+            self.stopper.discard(self.proc)
+        self.proc, self.key = None, None
+
+    def close(self, wait: bool = True) -> None:
+        """End the worker: its input closed, it stops its stack as Ctrl-C would and exits.
+        ``wait=False``: the stack shuts down in the background (the next cell's stack starts
+        meanwhile, with ports of its own)."""
+        proc = self.proc
+        if proc is None:
+            return
+        self.proc, self.key = None, None
+        try:
+            proc.stdin.close()
+        except OSError:
+            pass
+
+        def reap() -> None:
+            for _ in proc.stdout:
+                pass
+            proc.wait()
+            self.stopper.discard(proc)
+        if wait:
+            reap()
+        else:
+            threading.Thread(target=reap, name="worker-stop", daemon=True).start()
 
 
-def run_local_cell(cell: CellSpec, deliver: Deliver, log: TextIO,
-                   stopper: Optional[Stopper] = None,
-                   on_all_delivered: Optional[Callable[[], None]] = None, *,
-                   program: str) -> None:
-    """Run one cell on this machine, as :func:`_run_worker` does, in attempts
-    (:class:`~ros_hrc.experiment.attempts.CellAttempts`): a failed one (its stack failed: a
-    port taken by another program between its pick and its bind, a node that died) runs again
-    with the episodes still missing, on fresh ports, up to
-    :data:`~ros_hrc.experiment.attempts.MAX_ATTEMPTS` attempts, as on a cluster; then
-    RuntimeError with the last reason. Each attempt is written in the cell's worker log, a
-    retry said on stderr (``program`` names the command). An episode that cannot be recorded
-    (a full disk) is not retried: its OSError goes up at once."""
-    attempts = CellAttempts(cell, deliver, log, program, on_all_delivered)
+class CellQueue:
+    """The grid's cells, handed out in order as each becomes ready: a robot cell once every
+    ``no_robot`` cell of its stream (human model, seed) in the grid is over (the human alone
+    comes first); ``gate(cell)`` then gives the cell to run (fewer episodes, or None:
+    nothing left). :meth:`take` prefers a cell the asking worker's running stack can take."""
+
+    def __init__(self, cells: Sequence[CellSpec], lock: threading.Lock,
+                 gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None,
+                 stopper: Optional["Stopper"] = None) -> None:
+        self._waiting = list(cells)
+        self._gate = gate
+        self._stopper = stopper
+        self._ready = threading.Condition(lock)
+        self._alone_left: Dict[Tuple[str, int], int] = defaultdict(int)
+        for cell in cells:
+            if cell.robot_policy == ALONE_POLICY:
+                self._alone_left[(cell.human_model, cell.seed)] += 1
+
+    def _is_ready(self, cell: CellSpec) -> bool:
+        return cell.robot_policy == ALONE_POLICY or \
+            self._alone_left.get((cell.human_model, cell.seed), 0) == 0
+
+    def take(self, worker: Optional[StackWorker] = None) -> Optional[CellSpec]:
+        """The next cell to play (blocking until one is ready), or None when none is left or
+        the run stops."""
+        with self._ready:
+            while True:
+                if self._stopper is not None and self._stopper.stopping:
+                    return None
+                ready = [c for c in self._waiting if self._is_ready(c)]
+                if not ready and not self._waiting:
+                    return None
+                if ready:
+                    fits = [c for c in ready if worker is not None and worker.proc is not None
+                            and worker.takes(c)]
+                    cell = (fits or ready)[0]
+                    self._waiting.remove(cell)
+                    if cell.robot_policy != ALONE_POLICY and self._gate is not None:
+                        cell = self._gate(cell)
+                        if cell is None:
+                            continue
+                    return cell
+                self._ready.wait(1.0)    # a human-alone cell still plays
+
+    def done(self, cell: CellSpec) -> None:
+        """``cell`` is over (recorded, failed or stopped): the robot cells of its stream may
+        start once it was the last human-alone cell there."""
+        with self._ready:
+            if cell.robot_policy == ALONE_POLICY:
+                self._alone_left[(cell.human_model, cell.seed)] -= 1
+            self._ready.notify_all()
+
+
+def play_cell(worker: StackWorker, cell: CellSpec, deliver: Deliver, log: TextIO,
+              program: str) -> None:
+    """Play one cell on ``worker`` in attempts (:class:`~ros_hrc.experiment.attempts.CellAttempts`):
+    a stack that fails (a port taken by another program between its pick and its bind, a node
+    that died, a warm stack that did not take the cell) is replaced and the episodes still
+    missing run again on a new one, up to :data:`~ros_hrc.experiment.attempts.MAX_ATTEMPTS`
+    attempts, each said in one line; then RuntimeError with the last reason. A cell whose
+    settings were refused fails at once. An episode that cannot be recorded (a full disk) is
+    not retried: its OSError goes up at once."""
+    attempts = CellAttempts(cell, deliver, log, program)
 
     def attempt(number: int, spec: CellSpec) -> Tuple[str, Sequence[str]]:
         attempts.began(number, len(spec.episodes))
         try:
-            _run_worker(spec, attempts.take, log, stopper)
+            worker.play(spec, attempts.take, log)
+        except CellRefused as exc:
+            raise RuntimeError(f"refused: {exc}") from None
         except RuntimeError as exc:
-            if stopper is not None and stopper.check_disks():
+            if worker.stopper.check_disks():
                 return "", ()       # no retry: the run stops for the full disk
             return str(exc), ()
         return "", ()
 
-    attempts.run(attempt, stopper)
+    attempts.run(attempt, worker.stopper, again="run again on a new stack")
 
 
 def run_grid(cells: List[CellSpec], store, jobs: int,
              stopper: Optional[Stopper] = None, *, program: str,
              gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None,
-             worker: Optional[Callable[..., None]] = None,
+             remote=None, fresh_stacks: bool = False,
              status: Callable[[], str] = lambda: "") -> dict:
-    """Run the cells side by side; record episodes as they come (``store.add(row, steps)``).
-    Returns run figures. ``program`` names the progress bar and the messages (hrc_fit runs
-    grids too). A robot cell starts once the ``no_robot`` cells of its (human model, seed) in
-    ``cells`` are over (the human alone comes first); ``gate(cell)`` then gives the cell to
-    run (fewer episodes, or None: nothing to run). ``worker`` runs one cell (by default
-    :func:`run_local_cell`, local processes; on a cluster,
-    :meth:`ros_hrc.experiment.cluster.ClusterRun.run_cell`); ``status()`` leads the progress
-    bar's text."""
-    worker = worker or functools.partial(run_local_cell, program=program)
+    """Play the cells on ``jobs`` workers, each owning one stack that plays cell after cell
+    (:class:`StackWorker`; ``fresh_stacks``: a new stack per cell), and record episodes as
+    they come (``store.add(row, steps)``). Returns run figures. ``program`` names the
+    progress bar and the messages (hrc_fit runs grids too). Cells come from a
+    :class:`CellQueue` (the human alone first; ``gate``). ``remote``: a
+    :class:`ros_hrc.experiment.cluster.ClusterRun`, whose ``run_cell`` plays each cell on
+    the cluster instead; ``status()`` leads the progress bar's text."""
     stopper = stopper or Stopper()
     progress = Progress(store, sum(len(c.episodes) for c in cells), program, status,
                         unit="sequence" if cells[0].sequence else "episode")
-    lock = progress.lock   # the store, the bar and the schedule, from every worker's thread
-    Path(cells[0].log_dir).mkdir(parents=True, exist_ok=True)
-    with progress:
-        # `jobs` cells step at a time. A cell whose episodes are all in gives its place to the
-        # next one while its stack shuts down, so that start-up and shut-down overlap.
-        stepping = threading.BoundedSemaphore(max(1, jobs))
-        # The human alone first: a robot cell waits for the no_robot cells of its stream.
-        alone_over: Dict[Tuple[str, int], threading.Event] = {}
-        alone_left: Dict[Tuple[str, int], int] = defaultdict(int)
-        for cell in cells:
-            if cell.robot_policy == ALONE_POLICY:
-                alone_over.setdefault((cell.human_model, cell.seed), threading.Event())
-                alone_left[(cell.human_model, cell.seed)] += 1
+    queue = CellQueue(cells, progress.lock, gate, stopper)
 
-        def alone_cell_over(cell: CellSpec, counted: List[bool]) -> None:
-            key = (cell.human_model, cell.seed)
-            with lock:
-                if counted:
-                    return
-                counted.append(True)
-                alone_left[key] -= 1
-                if alone_left[key] == 0:
-                    alone_over[key].set()
-
-        def run(cell: CellSpec) -> None:
-            if cell.robot_policy == ALONE_POLICY:
-                counted: List[bool] = []
-                try:
-                    # Its robots may start once its episodes are in, while its stack stops.
-                    run_cell(cell, lambda: alone_cell_over(cell, counted))
-                finally:
-                    alone_cell_over(cell, counted)
-                return
-            over = alone_over.get((cell.human_model, cell.seed))
-            while over is not None and not over.wait(0.5):
-                if stopper.stopping:
-                    return
-            if gate is not None:
-                with lock:
-                    gated = gate(cell)
-                if gated is None:
-                    return
-                cell = gated
-            run_cell(cell)
-
-        def run_cell(cell: CellSpec, all_delivered: Callable[[], None] = lambda: None) -> None:
-            stepping.acquire()
-            released = threading.Event()
-
-            def release() -> None:
-                if not released.is_set():
-                    released.set()
-                    stepping.release()
-                    all_delivered()
-            try:
-                if stopper.stopping:
-                    return
-                name = cell_name(cell)
-                cell_logs = Path(cell.log_dir)
-                try:
-                    cell_logs.mkdir(parents=True, exist_ok=True)
-                    with open(cell_logs / f"{name}.worker.log", "a") as log:
-                        worker(cell, progress.deliver, log, stopper, on_all_delivered=release)
-                except (RuntimeError, OSError) as exc:
-                    # A full disk is no failure of this cell: the whole run stops for it.
-                    if not stopper.check_disks(exc):
-                        progress.cell_failed(name, exc)
-            finally:
-                release()
-
-        over = threading.Event()
-
-        def watch_disks() -> None:
-            while not over.wait(CHECK_INTERVAL) and not stopper.check_disks():
-                pass
-
-        watcher = threading.Thread(target=watch_disks, name="disk-watch", daemon=True)
-        watcher.start()
+    def record(cell: CellSpec, play: Callable[[TextIO], None]) -> None:
+        """Play ``cell`` (``play(log)``) with its worker log open; a failure is the cell's,
+        or the run's when a disk is full."""
+        name = cell_name(cell)
         try:
-            with ThreadPoolExecutor(max_workers=2 * max(1, jobs)) as pool:
-                list(pool.map(run, cells))
+            cell_logs = Path(cell.log_dir)
+            cell_logs.mkdir(parents=True, exist_ok=True)
+            with open(cell_logs / f"{name}.worker.log", "a") as log:
+                play(log)
+        except (RuntimeError, OSError) as exc:
+            if not stopper.check_disks(exc):
+                progress.cell_failed(name, exc)
+
+    def local_lane() -> None:
+        worker = StackWorker(stopper, fresh=fresh_stacks)
+        try:
+            while (cell := queue.take(worker)) is not None:
+                try:
+                    record(cell, lambda log: play_cell(worker, cell, progress.deliver, log,
+                                                       program))
+                finally:
+                    queue.done(cell)
         finally:
-            over.set()
-            watcher.join()
+            worker.close()
+
+    def cluster_lane() -> None:
+        while (cell := queue.take()) is not None:
+            try:
+                record(cell, lambda log: remote.run_cell(cell, progress.deliver, log, stopper))
+            finally:
+                queue.done(cell)
+
+    with progress:
+        watcher = DiskWatcher(stopper)
+        try:
+            lanes = remote.in_flight_limit if remote is not None else max(1, jobs)
+            lane = local_lane if remote is None else cluster_lane
+            with ThreadPoolExecutor(max_workers=lanes, thread_name_prefix="lane") as pool:
+                for future in [pool.submit(lane) for _ in range(lanes)]:
+                    future.result()
+        finally:
+            watcher.stop()
     return progress.figures(jobs)
+
+
+class DiskWatcher:
+    """Looks every :data:`~ros_hrc.experiment.disk.CHECK_INTERVAL` seconds whether a disk
+    under the run is full (``stopper.check_disks``), until :meth:`stop`."""
+
+    def __init__(self, stopper: Stopper) -> None:
+        self._over = threading.Event()
+        self._stopper = stopper
+        self._thread = threading.Thread(target=self._watch, name="disk-watch", daemon=True)
+        self._thread.start()
+
+    def _watch(self) -> None:
+        while not self._over.wait(CHECK_INTERVAL) and not self._stopper.check_disks():
+            pass
+
+    def stop(self) -> None:
+        self._over.set()
+        self._thread.join()
 
 
 def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
                   out: Path, *, program: str,
                   gate: Optional[Callable[[CellSpec], Optional[CellSpec]]] = None,
-                  cluster: Optional[str] = None, cluster_wait: Optional[float] = None
-                  ) -> Tuple[Optional[dict], Optional[int]]:
+                  cluster: Optional[str] = None, cluster_wait: Optional[float] = None,
+                  fresh_stacks: bool = False) -> Tuple[Optional[dict], Optional[int]]:
     """:func:`run_grid` under SIGINT and SIGTERM: ``(figures, None)``, or, when a signal
     stopped it, ``(None, 128 + signal)`` after saying what is kept and how to resume.
     ``cluster`` (``--cluster``): the cells run as Ray tasks there
@@ -315,10 +476,11 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
         stopper.install()
         try:
             if remote is None:
-                figures = run_grid(cells, store, jobs, stopper, program=program, gate=gate)
+                figures = run_grid(cells, store, jobs, stopper, program=program, gate=gate,
+                                   fresh_stacks=fresh_stacks)
             else:
                 figures = run_grid(cells, store, remote.in_flight_limit, stopper,
-                                   program=program, gate=gate, worker=remote.run_cell,
+                                   program=program, gate=gate, remote=remote,
                                    status=remote.status)
                 figures["cluster"] = remote.report()
         finally:

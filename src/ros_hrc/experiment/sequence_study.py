@@ -57,7 +57,8 @@ def run_sequences(args: argparse.Namespace, out: Path, words: Sequence[str], pro
     figures = None
     if cells:
         figures, stopped = run_stoppable(cells, store, args.jobs, words, out, program=program,
-                                         cluster=args.cluster, cluster_wait=args.cluster_wait)
+                                         cluster=args.cluster, cluster_wait=args.cluster_wait,
+                                         fresh_stacks=args.fresh_stacks)
         if stopped is not None:
             return stopped
         figures = sequence_figures(figures, args.sequence)

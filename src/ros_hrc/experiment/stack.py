@@ -464,8 +464,34 @@ def encode_sequence(row: SequenceRow, tasks: Sequence[TaskRow]) -> str:
                                        "tasks": [t.as_dict() for t in tasks]})
 
 
-#: The prefixes of the lines that carry a cell's results (:func:`decode_episode` reads them).
-RESULT_LINES = (EPISODE_LINE, SEQUENCE_LINE)
+#: Prefix of a worker's line saying that a cell is over: every one of its episodes (or
+#: sequences) was written; its stack goes on to the next cell.
+CELL_OVER_LINE = "CELL_OVER "
+#: Prefix of a worker's line saying that a cell's settings were refused before they reached
+#: the stack (a bad model): the cell fails with the reason; the stack is as it was.
+CELL_REFUSED_LINE = "CELL_REFUSED "
+
+
+def encode_cell_over(spec: CellSpec, delivered: int) -> str:
+    return CELL_OVER_LINE + json.dumps({"cell": cell_name(spec), "delivered": delivered})
+
+
+def encode_cell_refused(spec: CellSpec, reason: str) -> str:
+    return CELL_REFUSED_LINE + json.dumps({"cell": cell_name(spec), "reason": reason})
+
+
+def decode_cell_end(line: str) -> Optional[Tuple[bool, Dict[str, Any]]]:
+    """(True, what it says) for a cell-over line, (False, ...) for a refusal, None for any
+    other line."""
+    for prefix, over in ((CELL_OVER_LINE, True), (CELL_REFUSED_LINE, False)):
+        if line.startswith(prefix):
+            return over, json.loads(line[len(prefix):])
+    return None
+
+
+#: The prefixes of the lines that carry a cell's results (:func:`decode_episode` reads them)
+#: and its end.
+RESULT_LINES = (EPISODE_LINE, SEQUENCE_LINE, CELL_OVER_LINE, CELL_REFUSED_LINE)
 
 
 def decode_episode(line: str):
@@ -495,7 +521,11 @@ def read_spec(path: Union[str, Path]) -> CellSpec:
     return CellSpec.from_json(Path(path).read_text(encoding="utf-8"))
 
 
-def worker_command(spec_file: Union[str, Path]) -> List[str]:
+def worker_command(spec_file: Union[str, Path, None] = None) -> List[str]:
     """The command that runs the cell whose spec is in ``spec_file`` (:func:`write_spec`) in
-    a process of its own: a file, because a spec can be larger than a command line may be."""
-    return [sys.executable, "-m", WORKER_MODULE, str(spec_file)]
+    a process of its own, on a stack of its own: a file, because a spec can be larger than a
+    command line may be. Without ``spec_file``: a worker that owns one stack and plays the
+    cells whose spec files it reads on its standard input, one per line, each handed to the
+    stack the one before played on (a warm stack)."""
+    return [sys.executable, "-m", WORKER_MODULE,
+            "--serve" if spec_file is None else str(spec_file)]

@@ -28,6 +28,9 @@ Types and their fields (``?`` marks an optional field, left out of the JSON when
                  total_disc_reward?                        POMDP -> coordinator: answers
                                                            task_end
     next_state   state (int, or null: let the model choose)  human node -> MDP (9090)
+    configure    reason?                                   human node -> each solver process:
+                                                           take the launch's settings as they are
+                                                           now (a warm stack's next cell)
     ack          step, of?, action?, success?, result?, episode?, episode_over?, end_reason?
                                                            "done"; may carry what was done
     error        message, code?, in_reply_to?, step?       answer to a rejected or failed message
@@ -359,6 +362,24 @@ class Reset(Message):
 
 
 @dataclass(frozen=True)
+class Configure(Message):
+    """Human node -> a solver process: read the launch's resolved settings again (the
+    session's settings file, which the experiment worker rewrote for its next cell) and
+    start from them as a freshly started process would: models, planner or agent, selector,
+    seed. Settings a process cannot take in place (its port, its task: any setting outside
+    :data:`ros_hrc.settings.IN_PLACE`) must not change: it refuses. Answered with an
+    ``ack`` (``of: "configure"``) or an ``error`` saying why; a refused configure changes
+    nothing. ``reason`` is for the logs."""
+
+    TYPE: ClassVar[str] = "configure"
+    reason: Optional[str] = None
+
+    def _validate(self, check: Checker) -> None:
+        if self.reason is not None:
+            self._set("reason", check.prose("reason", self.reason))
+
+
+@dataclass(frozen=True)
 class TaskEnd(Message):
     """Coordinator -> POMDP process: task ``task_index`` of a sequence ended. How: its
     ``outcome`` (``success``, ``fail``, ``timeout``), ``who_succeeded`` (``human``,
@@ -501,7 +522,7 @@ class Error(Message):
 #: Wire name -> message class.
 MESSAGE_TYPES: Dict[str, Type[Message]] = {
     cls.TYPE: cls for cls in (Hello, Step, Reaction, Observation, Decision, Action, Reset,
-                              NextState, Ack, Error, TaskEnd, TaskReport)
+                              NextState, Ack, Error, TaskEnd, TaskReport, Configure)
 }
 #: The types that answer a request (what :func:`~ros_hrc.link.replies.is_reply_to` can match).
 REPLY_TYPES: Tuple[Type[Message], ...] = (Ack, Error, Decision, TaskReport)

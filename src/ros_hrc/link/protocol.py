@@ -15,7 +15,8 @@ files of one job each; this module gathers what a program speaking it imports:
 """
 from ros_hrc.link.codec import MAX_MESSAGE_BYTES, decode, encode, from_dict
 from ros_hrc.link.messages import (ENVELOPE_FIELDS, MESSAGE_TYPES, PROTOCOL_VERSION,
-                                   REPLY_TYPES, Ack, Action, Decision, Error, Hello, Message,
+                                   REPLY_TYPES, Ack, Action, Configure, Decision, Error, Hello,
+                                   Message,
                                    NextState, Observation, Reaction, Reset, Step, TaskEnd,
                                    TaskReport)
 from ros_hrc.link.refusals import (ERR_BUSY, ERR_EPISODE_OVER, ERR_FAILED, ERR_INVALID,
@@ -33,7 +34,7 @@ __all__ = [
     # messages
     "PROTOCOL_VERSION", "ENVELOPE_FIELDS", "MESSAGE_TYPES", "REPLY_TYPES", "Message", "Hello",
     "Step", "Reaction", "Observation", "Decision", "Action", "Reset", "NextState", "Ack",
-    "Error", "TaskEnd", "TaskReport",
+    "Error", "TaskEnd", "TaskReport", "Configure",
     # what a field may hold
     "BELIEF_TOLERANCE", "MAX_BITS", "MAX_ENVELOPE_INT", "MAX_UINT32", "MAX_STATE_INDEX",
     "MAX_SIGNATURE_CODE",

@@ -125,6 +125,28 @@ def write_session_settings(session: str, config: Mapping[str, Any],
     return path
 
 
+def replace_session_settings(session: str, config: Mapping[str, Any],
+                             environ: Optional[Mapping[str, str]] = None) -> Path:
+    """Replace the resolved settings of a running launch session (a warm stack's next cell:
+    its processes read them again on ``configure``): written beside, mode 0600, then
+    renamed over the old file, so that a reader sees the old settings or the new, whole.
+    Only a session whose settings exist is rewritten. Its path; raises :class:`TokenError`."""
+    path = session_settings_file(session, environ)
+    if not path.is_file():
+        raise TokenError(f"{path}: no settings for link session {session} to replace")
+    beside = path.with_name(f".{path.name}.{os.getpid()}.new")
+    text = json.dumps(dict(config), ensure_ascii=False, indent=1) + "\n"
+    remove_token(beside)     # a leftover of a process of this pid that died mid-write
+    _write_private_file(beside, text, "a settings file being written", "the launch's settings")
+    try:
+        os.replace(beside, path)
+    except OSError as exc:
+        remove_token(beside)
+        raise TokenError(f"{path}: cannot replace the launch's settings: "
+                         f"{exc.strerror or exc}") from None
+    return path
+
+
 def read_session_settings(session: str, environ: Optional[Mapping[str, str]] = None
                           ) -> Dict[str, Any]:
     """The resolved settings the pre-flight of launch session ``session`` wrote (setting name

@@ -33,22 +33,26 @@ import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, List, Optional
+from typing import Callable, Dict, Iterable, List, Optional
 
 import rosgraph
 import rospy
 
+from ros_hrc import settings
+from ros_hrc.commands.check import check
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import score_episode, step_rows
-from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch,
-                                      cell_name, encode_episode, encode_sequence, pick_ports,
-                                      read_spec, stack_environment, stack_log, start_stack,
-                                      stop_launched, stop_stack)
+from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch, cell_name,
+                                      encode_cell_over, encode_cell_refused, encode_episode,
+                                      encode_sequence, launch_arguments, pick_ports, read_spec,
+                                      stack_environment, stack_log, start_stack, stop_launched,
+                                      stop_stack)
+from ros_hrc.link.token import replace_session_settings
 from ros_hrc.experiment.rows import EpisodeRow
 from ros_hrc.experiment.sequence_rows import SequenceRow, sequence_row, task_episode, task_row
-from ros_hrc.models import load_robot_model, positional_mapping_line
+from ros_hrc.models import load_robot_model
 from ros_hrc.msg import Status, TaskStatus
-from ros_hrc.nodes.common import init_node_when_master_is_up
+from ros_hrc.nodes.common import ServiceUnavailable, TriggerCaller, init_node_when_master_is_up
 from ros_hrc.pomdp.model import Model
 
 #: Seconds a stopped stack gets to shut down (roslaunch stops its nodes) before SIGKILL.
@@ -197,16 +201,34 @@ def wait_for_master(watch: StackWatch, wait: float = MASTER_WAIT) -> None:
         time.sleep(0.25)
 
 
-def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
-               deliver: Callable[[EpisodeRow, list], None], name: str, log_dir: Path) -> int:
-    """Record ``spec``'s episodes from the stack ``proc`` (``hrc.launch``, already started,
-    ending and resetting episodes itself): score and ``deliver`` each. Returns how many were
-    delivered."""
-    watch = StackWatch(proc, stack_log(spec, log_dir), name)
-    wait_for_master(watch)
-    init_node_when_master_is_up("hrc_experiment_cell", wait=30.0)
-    inbox = EpisodeInbox()
-    rospy.Subscriber("/hrc/status", Status, inbox.on_status, queue_size=1000)
+class CellTopics:
+    """The worker's subscriptions to its stack's ``/hrc/status`` and ``/hrc/task_status``,
+    made once for the stack's life: each cell points them at inboxes of its own
+    (:meth:`listen`) before its first step, so no cell sees another's messages."""
+
+    def __init__(self, on_status: Callable, on_task: Optional[Callable] = None) -> None:
+        self.listen(on_status, on_task)
+        rospy.Subscriber("/hrc/task_status", TaskStatus, self._task, queue_size=1000)
+        # The stack waits for a listener of /hrc/status before its first step: subscribed last.
+        rospy.Subscriber("/hrc/status", Status, self._status, queue_size=1000)
+
+    def listen(self, on_status: Callable, on_task: Optional[Callable] = None) -> None:
+        self.on_status, self.on_task = on_status, on_task
+
+    def _status(self, msg) -> None:
+        self.on_status(msg)
+
+    def _task(self, msg) -> None:
+        if self.on_task is not None:
+            self.on_task(msg)
+
+
+def drive_cell(spec: CellSpec, model: Model, stack: "WarmStack", inbox: EpisodeInbox,
+               deliver: Callable[[EpisodeRow, list], None]) -> int:
+    """Record ``spec``'s episodes from ``stack`` (its coordinator ending and resetting
+    episodes itself, ``inbox`` listening to its /hrc/status): score and ``deliver`` each.
+    Returns how many were delivered."""
+    name, log_dir = cell_name(spec), Path(spec.log_dir)
     bag = None
     try:
         if spec.record_bag:
@@ -218,12 +240,12 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
         delivered = 0
         previous_end = None
         for episode in spec.episodes:
-            still_running(watch)
+            stack.still_running()
             # The stack plays the spec's episodes by their numbers (episodes:=), in order;
             # a restarted coordinator plays them from the first again: those are done.
             while True:
                 steps, first_arrived, last_arrived = inbox.next_episode(
-                    spec.episode_timeout, lambda: still_running(watch))
+                    spec.episode_timeout, stack.still_running)
                 played = int(steps[0].episode)
                 if played == episode:
                     break
@@ -246,10 +268,8 @@ def drive_cell(spec: CellSpec, model: Model, proc: subprocess.Popen,
             delivered += 1
         return delivered
     finally:
-        SIGNALS.disarm()
         if bag is not None:
             stop_launched(bag, SIGNALS.grace())
-        rospy.signal_shutdown("cell done")
 
 
 class TaskInbox:
@@ -287,116 +307,223 @@ class TaskInbox:
             return self.tasks.pop(0)
 
 
-def drive_sequences(spec: CellSpec, proc: subprocess.Popen,
-                    deliver: Callable[[SequenceRow, list], None], name: str,
-                    log_dir: Path) -> int:
-    """Record ``spec``'s sequences (``spec.episodes``: their numbers) from the stack ``proc``
-    (``hrc.launch tasks:=L on_episode_end:=reset`` with the sequences' task episodes, already
-    started: after a sequence's last task the loop starts the next, and the robot process
-    makes a fresh selector for it): collect each task's ``/hrc/task_status`` and ``deliver``
-    each sequence whole (its :class:`SequenceRow` and task rows) as it ends. Task ``t`` of
-    sequence ``s`` is the loop's episode ``s*L + t - 1``
+def drive_sequences(spec: CellSpec, stack: "WarmStack", inbox: TaskInbox,
+                    deliver: Callable[[SequenceRow, list], None]) -> int:
+    """Record ``spec``'s sequences (``spec.episodes``: their numbers) from ``stack``
+    (``hrc.launch tasks:=L on_episode_end:=reset`` with the sequences' task episodes: after a
+    sequence's last task the loop starts the next, and the robot process makes a fresh
+    selector for it; ``inbox`` listening to its topics): collect each task's
+    ``/hrc/task_status`` and ``deliver`` each sequence whole (its :class:`SequenceRow` and
+    task rows) as it ends. Task ``t`` of sequence ``s`` is the loop's episode ``s*L + t - 1``
     (:func:`~ros_hrc.experiment.sequence_rows.task_episode`). Returns the sequences
     delivered."""
-    watch = StackWatch(proc, stack_log(spec, log_dir), name)
-    wait_for_master(watch)
-    init_node_when_master_is_up("hrc_experiment_cell", wait=30.0)
-    inbox = TaskInbox()
-    rospy.Subscriber("/hrc/task_status", TaskStatus, inbox.on_task, queue_size=1000)
-    # The stack waits for a listener of /hrc/status before its first step: subscribed last.
-    rospy.Subscriber("/hrc/status", Status, inbox.on_status, queue_size=1000)
+    name = cell_name(spec)
     length = spec.sequence
     delivered = 0
     last_arrival: Optional[float] = None
-    try:
-        for sequence in spec.episodes:
-            tasks = []
-            began: Optional[float] = None
-            for index in range(1, length + 1):
-                due = task_episode(sequence, index, length)
-                while True:
-                    status, arrived = inbox.next_task(spec.episode_timeout,
-                                                      lambda: still_running(watch))
-                    if int(status.episode) == due:
-                        break
-                    if int(status.episode) > due:
-                        raise CellFailed(f"{name}: the stack played task episode "
-                                         f"{status.episode} where {due} was due")
-                if int(status.task_index) != index:
-                    raise CellFailed(f"{name}: episode {due} was task {status.task_index} "
-                                     f"of its sequence, not task {index}")
-                if began is None:
-                    # Its wall time: from its first step (not the stack's start-up) for the
-                    # cell's first sequence, from the one before's last task for the others.
-                    began = inbox.first_step if last_arrival is None else last_arrival
-                tasks.append(task_row(status, spec.human_model, spec.robot_policy, spec.seed,
-                                      sequence))
-                last_arrival = arrived
-            deliver(sequence_row(tasks, max(0.0, arrived - (began or arrived))), tasks)
-            delivered += 1
-        return delivered
-    finally:
-        SIGNALS.disarm()
-        rospy.signal_shutdown("cell done")
+    for sequence in spec.episodes:
+        tasks = []
+        began: Optional[float] = None
+        for index in range(1, length + 1):
+            due = task_episode(sequence, index, length)
+            while True:
+                status, arrived = inbox.next_task(spec.episode_timeout, stack.still_running)
+                if int(status.episode) == due:
+                    break
+                if int(status.episode) > due:
+                    raise CellFailed(f"{name}: the stack played task episode "
+                                     f"{status.episode} where {due} was due")
+            if int(status.task_index) != index:
+                raise CellFailed(f"{name}: episode {due} was task {status.task_index} "
+                                 f"of its sequence, not task {index}")
+            if began is None:
+                # Its wall time: from its first step (not the stack's start-up) for the
+                # cell's first sequence, from the one before's last task for the others.
+                began = inbox.first_step if last_arrival is None else last_arrival
+            tasks.append(task_row(status, spec.human_model, spec.robot_policy, spec.seed,
+                                  sequence))
+            last_arrival = arrived
+        deliver(sequence_row(tasks, max(0.0, arrived - (began or arrived))), tasks)
+        delivered += 1
+    return delivered
 
 
-def run_cell(spec: CellSpec, deliver: Callable[[EpisodeRow, list], None]) -> int:
-    """Run the cell's episodes on a stack of its own; ``deliver(episode_row, step_rows)`` for
-    each one as it ends. Returns how many episodes were delivered; raises CellFailed if the
-    stack fails, ModelError if the robot model does not fit the task."""
-    if not spec.episodes:
-        return 0
-    model = None
-    if not spec.sequence:      # a sequence's robot models are its library's (the stack's)
-        model = load_robot_model(spec.robot_model, spec.task)
-        mapping = positional_mapping_line(model)
-        if mapping:   # stdout carries the episodes; stderr goes to the cell's worker log
-            print(f"{cell_name(spec)}: {mapping}", file=sys.stderr, flush=True)
-    ports = pick_ports()
-    log_dir = Path(spec.log_dir)
-    # This process's own node talks to the cell's master too.
-    os.environ.update(stack_environment(spec, ports, log_dir))
-    proc = None
-    try:
-        with SIGNALS.deferred():   # started means stopped in the finally, even on a signal
-            proc = start_stack(spec, ports, log_dir)
+#: Wall seconds a warm stack gets to take a cell's settings (both solver processes load the
+#: cell's models and build its planners; a library of 13 policies takes a few seconds).
+CONFIGURE_TIMEOUT = 300.0
+
+
+class WarmStack:
+    """The stack this worker process owns (``hrc.launch``, with a roscore and ports of its
+    own), across cells: started with its first cell's settings, then handed each next cell
+    through ``/hrc/configure`` (:meth:`take`) instead of a new roslaunch. Every process that
+    holds state starts the cell as a fresh stack would: the coordinator is new, both solver
+    processes read the cell's settings again and rebuild their models, planners and agents,
+    and the world draws each episode from the cell's (seed, episode) stream
+    (docs/experiments.md, "Warm stacks")."""
+
+    def __init__(self, first: CellSpec) -> None:
+        self.first = first
+        self.name = cell_name(first)
+        self.log_dir = Path(first.log_dir)
+        self.ports = pick_ports()
+        self.proc: Optional[subprocess.Popen] = None
+        self.watch: Optional[StackWatch] = None
+        self.topics: Optional[CellTopics] = None
+        self.running: Dict[str, object] = {}     # the launch's resolved settings now
+        self.cells = 0                           # cells played on it
+
+    def still_running(self) -> None:
+        """What every wait checks between its polls (:func:`still_running`)."""
+        still_running(self.watch)
+
+    def _settings(self, spec: CellSpec) -> Dict[str, object]:
+        """The cell's launch arguments checked as hrc.launch's pre-flight checks them (the
+        models loaded against the task): its resolved settings; HrcError (one line)."""
+        notes: List[str] = []
+        config = check(launch_arguments(spec, self.ports), port_check=False, notes=notes)
+        for note in notes:    # a model named by position: its mapping line, in the worker log
+            print(f"{cell_name(spec)}: {note}", file=sys.stderr, flush=True)
+        return config
+
+    def start(self, on_status: Callable, on_task: Optional[Callable] = None) -> None:
+        """Check the first cell's settings (a refusal is the cell's, before anything starts),
+        start the stack on them and listen to its topics."""
+        self.running = self._settings(self.first)
+        # This process's own node talks to the stack's master too.
+        os.environ.update(stack_environment(self.first, self.ports, self.log_dir))
+        with SIGNALS.deferred():   # started means stopped, even on a signal
+            self.proc = start_stack(self.first, self.ports, self.log_dir)
+        self.watch = StackWatch(self.proc, stack_log(self.first, self.log_dir), self.name)
+        wait_for_master(self.watch)
+        init_node_when_master_is_up("hrc_experiment_cell", wait=30.0)
+        self.topics = CellTopics(on_status, on_task)
+        self.cells = 1
+
+    def take(self, spec: CellSpec, on_status: Callable, on_task: Optional[Callable] = None
+             ) -> None:
+        """Hand the running stack the next cell: its settings checked (HrcError: refused,
+        the stack as it was), written as the launch's (the session's settings file, and
+        /hrc/config), the topics pointed at the cell's inboxes, then ``/hrc/configure``, after
+        which the stack plays the cell's episodes. CellFailed when the stack does not take
+        them (it is then replaced)."""
+        wanted = self._settings(spec)
+        moved = settings.needs_new_launch(self.running, wanted)
+        if moved:
+            raise CellFailed(f"{', '.join(moved)} differ from the stack's: a new launch "
+                             "is needed")
+        replace_session_settings(rospy.get_param("/hrc_human/link_session"), wanted)
+        shown = dict(wanted, token_file=rospy.get_param("/hrc/config/token_file", ""))
+        rospy.set_param("/hrc/config", shown)
+        self.topics.listen(on_status, on_task)
+        try:
+            ok, text = TriggerCaller(CONFIGURE_TIMEOUT)("/hrc/configure")
+        except ServiceUnavailable as exc:
+            raise CellFailed(f"the warm stack of {self.name} did not take the cell: "
+                             f"{exc}") from exc
+        if not ok:
+            raise CellFailed(f"the warm stack of {self.name} did not take the cell: {text}")
+        self.running = wanted
+        self.cells += 1
+        print(f"{cell_name(spec)}: on the warm stack of {self.name} (cell {self.cells}; its "
+              f"log: {stack_log(self.first, self.log_dir)})", file=sys.stderr, flush=True)
+
+    def play(self, spec: CellSpec, deliver: Callable) -> int:
+        """Start the stack for ``spec`` (its first cell) or hand it over (:meth:`take`), then
+        record the cell's episodes or sequences; how many were delivered."""
         if spec.sequence:
-            return drive_sequences(spec, proc, deliver, cell_name(spec), log_dir)
-        return drive_cell(spec, model, proc, deliver, cell_name(spec), log_dir)
+            inbox = TaskInbox()
+            listeners = (inbox.on_status, inbox.on_task)
+        else:
+            inbox = EpisodeInbox()
+            listeners = (inbox.on_status, None)
+        if self.proc is None:
+            self.start(*listeners)
+        else:
+            self.take(spec, *listeners)
+        if spec.sequence:
+            return drive_sequences(spec, self, inbox, deliver)
+        model = load_robot_model(spec.robot_model, spec.task)
+        return drive_cell(spec, model, self, inbox, deliver)
+
+    def stop(self) -> None:
+        """Stop the stack as Ctrl-C would, and what roslaunch left running."""
+        if self.proc is None:
+            return
+        left = stop_stack(self.proc, self.first, self.log_dir, SIGNALS.grace())
+        if left:
+            print(f"{self.name}: hrc.launch left {len(left)} processes running (its nodes "
+                  f"run in sessions of their own); stopped them", file=sys.stderr, flush=True)
+
+
+def serve(spec_files: Iterable[str], deliver: Callable, say: Callable[[str], None]) -> None:
+    """Play the cells whose spec files come one per line (``spec_files``: the pool writes
+    them as it hands this worker a cell), all on one stack: the first starts it, each next
+    is handed to it (:class:`WarmStack`). After each cell ``say`` gets its
+    :data:`~ros_hrc.experiment.stack.CELL_OVER_LINE` line, or the
+    :data:`~ros_hrc.experiment.stack.CELL_REFUSED_LINE` line when its settings were refused
+    (a bad model: the cell fails, the stack stays). A stack that fails raises CellFailed (the
+    pool replaces the worker); the stack stops when the lines end."""
+    stack: Optional[WarmStack] = None
+    try:
+        for line in spec_files:
+            if not line.strip():
+                continue
+            spec = read_spec(line.strip())
+            if not spec.episodes:
+                say(encode_cell_over(spec, 0))
+                continue
+            if stack is None:
+                stack = WarmStack(spec)
+            try:
+                delivered = stack.play(spec, deliver)
+            except HrcError as exc:     # the cell's settings, refused before they reached it
+                if stack.proc is None:
+                    stack = None
+                say(encode_cell_refused(spec, " ".join(str(exc).split())))
+                continue
+            say(encode_cell_over(spec, delivered))
     finally:
         SIGNALS.disarm()
-        if proc is not None:
-            left = stop_stack(proc, spec, log_dir, SIGNALS.grace())
-            if left:
-                print(f"{cell_name(spec)}: hrc.launch left {len(left)} processes running "
-                      f"(its nodes run in sessions of their own); stopped them",
-                      file=sys.stderr, flush=True)
+        if stack is not None:
+            stack.stop()
+        if not rospy.is_shutdown():
+            rospy.signal_shutdown("worker done")
 
 
 def main(argv: Optional[List[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 1:
-        print("usage: python -m ros_hrc.nodes.experiment_cell SPEC_FILE", file=sys.stderr)
+    if argv == ["--serve"]:
+        spec_files: Iterable[str] = sys.stdin
+        label = "worker"
+    elif len(argv) == 1 and not argv[0].startswith("-"):
+        spec_files = [argv[0]]
+        try:
+            spec = read_spec(argv[0])
+        except (OSError, ValueError, TypeError, KeyError) as exc:
+            print(f"cell spec {argv[0]}: unreadable ({exc})", file=sys.stderr, flush=True)
+            return 2
+        label = f"cell {spec.human_model}/{spec.robot_policy}/seed {spec.seed}"
+    else:
+        print("usage: python -m ros_hrc.nodes.experiment_cell SPEC_FILE | --serve (spec "
+              "files on stdin, one per line)", file=sys.stderr)
         return 2
-    try:
-        spec = read_spec(argv[0])
-    except (OSError, ValueError, TypeError, KeyError) as exc:
-        print(f"cell spec {argv[0]}: unreadable ({exc})", file=sys.stderr, flush=True)
-        return 2
-    label = f"cell {spec.human_model}/{spec.robot_policy}/seed {spec.seed}"
 
     def deliver(row, parts) -> None:
         line = encode_sequence(row, parts) if isinstance(row, SequenceRow) else \
             encode_episode(row, parts)
+        say(line)
+
+    def say(line: str) -> None:
         with SIGNALS.deferred():
             print(line, flush=True)
 
     SIGNALS.install()
     try:
-        run_cell(spec, deliver)
+        serve(spec_files, deliver, say)
     except CellStopped:
         pass
-    except (CellFailed, HrcError, OSError, ValueError) as exc:
+    except (CellFailed, HrcError, OSError, ValueError, TypeError, KeyError) as exc:
         if SIGNALS.signum is None:
             # The last line the parent shows after the cell's name: the reason alone.
             print(f"failed: {' '.join(str(exc).split())}", file=sys.stderr, flush=True)

@@ -52,7 +52,10 @@ Topics: /hrc/status (ros_hrc/Status), one message per step; /hrc/task_status
 (ros_hrc/TaskStatus), one message per task of a sequence.
 Services offered: /hrc/reset (std_srvs/Trigger: reset everything and wait until it is done),
 /hrc/set_human_state (ros_hrc/SetHumanState: the human's next state, for manual mode without
-a terminal).
+a terminal), /hrc/configure (std_srvs/Trigger: start again from the launch's resolved
+settings as they are now, which an experiment worker rewrote for its next cell: both solver
+processes rebuild from them (``configure``) and a fresh coordinator starts with a reset, as a
+new launch would; :meth:`HumanNode.configure`, docs/experiments.md, "Warm stacks").
 Parameters: ~task (the collaboration task, ros_hrc.tasks: seed or fabric), ~seed (the run's
 seed: the task's observation noise draws from its (seed, episode) streams), ~host,
 ~human_port (this node's server, for the MDP), ~pomdp_port (the POMDP process's server),
@@ -77,18 +80,18 @@ import itertools
 import os
 import sys
 import threading
-from dataclasses import dataclass
-from typing import Dict, Optional, TextIO, Tuple
+from dataclasses import dataclass, fields, replace
+from typing import Dict, Mapping, Optional, TextIO, Tuple
 
 import rospy
 from std_srvs.srv import Trigger, TriggerResponse
 
 from ros_hrc.command_line import print_whole_lines
-from ros_hrc.errors import HrcError
-from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, DispatchTable, Error,
-                                   Message, MessageError, NextState, Reaction, Reset, Step,
-                                   reply_error)
-from ros_hrc.link.token import launch_token
+from ros_hrc.errors import HrcError, LinkError
+from ros_hrc.link.protocol import (ERR_SEAT_TAKEN, MAX_STATE_INDEX, Ack, Configure,
+                                   DispatchTable, Error, Message, MessageError, NextState,
+                                   Reaction, Reset, Step, reply_error)
+from ros_hrc.link.token import launch_token, read_session_settings
 from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import settings, tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
@@ -145,6 +148,18 @@ class HumanNodeConfig:
     task_timeout: Optional[float] = parameter(settings.default("task_timeout"),
                                               "/hrc/config/task_timeout")
     sequence_human: str = parameter("", "/hrc/config/human_model")
+
+
+def configured(config: HumanNodeConfig, launch: Mapping[str, object]) -> HumanNodeConfig:
+    """``config`` with the launch's resolved settings ``launch`` in place of those a running
+    loop takes in place (:data:`ros_hrc.settings.IN_PLACE`: the seed, the episodes, a
+    sequence's length and schedule...); the human who plays a sequence is the launch's
+    ``human_model``, as /hrc/config gives it at start."""
+    changes = {f.name: launch[f.name] for f in fields(config)
+               if f.name in settings.IN_PLACE and f.name in launch}
+    if "human_model" in launch:
+        changes["sequence_human"] = launch["human_model"]
+    return replace(config, **changes)
 
 
 def world_services(task: tasks.Task) -> Tuple[str, ...]:
@@ -338,9 +353,6 @@ class HumanNode:
         # latched: the last task's status is there for whoever subscribes after it ended
         self.task_pub = rospy.Publisher("/hrc/task_status", TaskStatus, queue_size=100,
                                         latch=True)
-        human = config.sequence_human or self.task.default_model("human")
-        schedule = parse_schedule(config.schedule, model_names(self.task.model_dirs["human"]),
-                                  human, self.task.name) if config.tasks else None
         token = launch_token(config)
         self.pomdp = MessageClient(link_url(config.pomdp_port, config.host), "hrc_human",
                                    send_timeout=config.decide_timeout, token=token)
@@ -350,7 +362,30 @@ class HumanNode:
             awaited += (("a listener (wait_for_listener)", (STATUS_LISTENER,)),)
         self.startup = ServiceWait(awaited, say=lambda text: rospy.loginfo(
             "hrc_human: %s", text), every=config.wait_report_every, registered=self._up)
-        # A random first epoch: a respawned node never mints an epoch its predecessor used.
+        self.runner = self._new_runner(config)
+        self._configuring = threading.Lock()    # one /hrc/configure at a time
+        table = DispatchTable("hrc_human")
+        table.on(Step, self._on_step)
+        table.on(Reaction, self._on_reaction)
+        table.on(Reset, self._on_reset)
+        table.on(Ack, self._on_answer)
+        table.on(Error, self._on_answer)
+        self.server = MessageServer(config.human_port, table, host=config.host,
+                                    name="hrc_human", on_connect=self._mdp_came,
+                                    on_disconnect=self._mdp_left,
+                                    read_timeout=config.link_read_timeout, token=token)
+        self._next_state_ids = itertools.count(1)   # correlation ids of next_state requests
+        self._answers: Dict[int, Message] = {}
+        self._answered = threading.Condition()
+
+    def _new_runner(self, config: HumanNodeConfig) -> LoopRunner:
+        """A fresh coordinator for ``config`` and the runner that carries out what it asks,
+        as at this node's start. Raises HrcError or ValueError (a bad schedule)."""
+        human = config.sequence_human or self.task.default_model("human")
+        schedule = parse_schedule(config.schedule, model_names(self.task.model_dirs["human"]),
+                                  human, self.task.name) if config.tasks else None
+        # A random first epoch: a respawned (or reconfigured) loop never mints an epoch its
+        # predecessor used.
         first_epoch = int.from_bytes(os.urandom(3), "big") << 4
         coordinator = Coordinator(CoordinatorConfig(
             max_steps=config.max_steps, end_on_goal=config.end_on_goal,
@@ -365,23 +400,83 @@ class HumanNode:
         planner = LinkPlanner(self.pomdp, config.decide_timeout, config.planner_reset_timeout,
                               self.startup.wait)
         executor = RosExecutor(self.call, self.task.robot_action_services, self.startup.wait)
-        self.runner = LoopRunner(coordinator, RosWorld(self.call, self.startup.wait), planner,
-                                 executor, LinkMdp(), Terminal(self.status_pub, config.mode,
-                                                               config.print_steps, self.task,
-                                                               self.task_pub))
-        table = DispatchTable("hrc_human")
-        table.on(Step, self._on_step)
-        table.on(Reaction, self._on_reaction)
-        table.on(Reset, self._on_reset)
-        table.on(Ack, self._on_answer)
-        table.on(Error, self._on_answer)
-        self.server = MessageServer(config.human_port, table, host=config.host,
-                                    name="hrc_human", on_connect=self.runner.mdp_connected,
-                                    on_disconnect=self._mdp_left,
-                                    read_timeout=config.link_read_timeout, token=token)
-        self._next_state_ids = itertools.count(1)   # correlation ids of next_state requests
-        self._answers: Dict[int, Message] = {}
-        self._answered = threading.Condition()
+        world = RosWorld(self.call, self.startup.wait, seed=config.seed)
+        return LoopRunner(coordinator, world, planner, executor, LinkMdp(),
+                          Terminal(self.status_pub, config.mode, config.print_steps, self.task,
+                                   self.task_pub))
+
+    def configure(self) -> Tuple[bool, str]:
+        """Start again from the launch's settings as they are now (``/hrc/configure``: a warm
+        stack's next cell; the experiment worker rewrote them): the loop stops, both solver
+        processes read them again and start afresh (``configure``), and a fresh coordinator
+        on the new settings starts with a reset, its world reseeded on the new seed, as a
+        newly started stack would. (success, what was done or why not). A settings change
+        that needs a new launch (:data:`ros_hrc.settings.IN_PLACE`) is refused before
+        anything stops; a solver that refuses leaves the loop stopped (the stack is then
+        replaced)."""
+        with self._configuring:
+            if not self.config.link_session:
+                return False, "this node was not started by a launch: no settings to read"
+            try:
+                launch = read_session_settings(self.config.link_session)
+                config = configured(self.config, launch)
+                moved = [name for name in ("task", "host", "human_port", "pomdp_port", "mode")
+                         if getattr(config, name) != getattr(self.config, name)]
+                if moved:
+                    return False, (f"{', '.join(moved)} changed: only a new launch takes "
+                                   f"{'it' if len(moved) == 1 else 'them'}")
+                runner = self._new_runner(config)
+            except (HrcError, ValueError) as exc:
+                return False, f"not configured: {exc}"
+            self.runner.stop()
+            said = []
+            for who, ask in (("despot_pomdp", self._configure_pomdp),
+                             ("despot_mdp", self._configure_mdp)):
+                ok, text = ask()
+                if not ok:
+                    return False, f"{who} did not take the settings: {text}"
+                said.append(text)
+            seat = self.server_seat()
+            self.config, self.runner = config, runner
+            runner.start()
+            if seat is not None:
+                runner.mdp_connected(seat)
+            return True, "configured: " + "; ".join(said)
+
+    def server_seat(self) -> Optional[Peer]:
+        """The MDP process the stopped loop served (the new loop serves it again)."""
+        return self.runner.coordinator.seat
+
+    def _configure_pomdp(self) -> Tuple[bool, str]:
+        try:
+            reply = self.pomdp.request(Configure(reason="/hrc/configure called"),
+                                       self.config.reset_timeout)
+        except LinkError as exc:
+            return False, str(exc)
+        if isinstance(reply, Ack):
+            return True, reply.result or "configured"
+        return False, getattr(reply, "message", f"answered a {reply.type}")
+
+    def _configure_mdp(self) -> Tuple[bool, str]:
+        seat = self.server_seat()
+        if seat is None:
+            return False, "no MDP process is connected"
+        request_id = next(self._next_state_ids)
+        if not seat.send(Configure(reason="/hrc/configure called", id=request_id)):
+            return False, "the MDP process is gone"
+        with self._answered:
+            self._answered.wait_for(lambda: request_id in self._answers,
+                                    self.config.reset_timeout)
+            answer = self._answers.pop(request_id, None)
+        if answer is None:
+            return False, "the MDP process did not answer"
+        if isinstance(answer, Error):
+            return False, answer.message
+        return True, answer.result or "configured"
+
+    def configure_service(self, _req) -> TriggerResponse:
+        ok, text = self.configure()
+        return TriggerResponse(success=ok, message=text)
 
     def _up(self) -> set:
         """What the start-up wait finds up now: the services registered, the POMDP process's
@@ -409,6 +504,9 @@ class HumanNode:
         self.server.stop()
         self.pomdp.close()
         self.call.close()
+
+    def _mdp_came(self, peer: Peer) -> None:
+        self.runner.mdp_connected(peer)     # the runner of now (a configure replaces it)
 
     def _mdp_left(self, peer: Peer) -> None:
         self.runner.mdp_disconnected(peer, stopped=peer.stopped)
@@ -523,6 +621,7 @@ def main() -> None:
         raise SystemExit(2) from None
     rospy.on_shutdown(node.stop)
     rospy.Service("/hrc/reset", Trigger, node.reset_service)
+    rospy.Service("/hrc/configure", Trigger, node.configure_service)
     rospy.Service("/hrc/set_human_state", SetHumanState, node.set_human_state)
     if node.config.read_stdin and sys.stdin is not None and not sys.stdin.closed:
         threading.Thread(target=node.read_enter, name="enter-resets", daemon=True).start()

@@ -28,7 +28,7 @@ from ros_hrc.loop.effects import (Decision, EndTask, MdpRefused, MdpReset, MdpSt
 from ros_hrc.loop.runner import ExecutorPort, MdpPort, PlannerPort, WorldPort
 from ros_hrc.nodes.common import ServiceUnavailable, TriggerCaller
 from ros_hrc.srv import GetWorldState
-from ros_hrc.streams import WORLD_EPISODE_PARAM
+from ros_hrc.streams import WORLD_EPISODE_PARAM, WORLD_SEED_PARAM
 
 
 def no_wait() -> None:
@@ -49,11 +49,15 @@ def world_call() -> Iterator[None]:
 
 
 class RosWorld(WorldPort):
-    """The world's services. ``ready()`` blocks until the start-up wait is over."""
+    """The world's services. ``ready()`` blocks until the start-up wait is over. ``seed``:
+    the run's seed, whose (seed, episode) stream the world draws from in each episode (a
+    warm stack's next cell brings a new one; None: the world's own)."""
 
-    def __init__(self, call: TriggerCaller, ready: Callable[[], object] = no_wait) -> None:
+    def __init__(self, call: TriggerCaller, ready: Callable[[], object] = no_wait,
+                 seed: Optional[int] = None) -> None:
         self.call = call
         self.ready = ready
+        self.seed = seed
 
     def act_human(self, service: str) -> Outcome:
         self.ready()
@@ -76,6 +80,8 @@ class RosWorld(WorldPort):
         if not interrupt:
             # The world reseeds its stream for this episode at the reset (only this node
             # resets the world, so the parameter is read by the reset it precedes).
+            if self.seed is not None:
+                rospy.set_param(WORLD_SEED_PARAM, self.seed)
             rospy.set_param(WORLD_EPISODE_PARAM, episode)
         with world_call():
             ok, message = self.call("/hrc/world/reset")

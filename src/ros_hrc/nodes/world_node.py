@@ -107,7 +107,7 @@ from std_srvs.srv import Trigger, TriggerRequest, TriggerResponse
 from ros_hrc.errors import WORLD_ENDING, HrcError, SimulationError
 from ros_hrc import settings, tasks
 from ros_hrc.loop.display import StepCaption
-from ros_hrc.streams import WORLD_EPISODE_PARAM
+from ros_hrc.streams import WORLD_EPISODE_PARAM, WORLD_SEED_PARAM
 from ros_hrc.msg import Status, WorldState
 from ros_hrc.nodes.common import ParamReader, init_node, parameter, read_config
 from ros_hrc.nodes.guard import is_guard
@@ -328,11 +328,13 @@ def reseeding(world: World, reset: Callable[[TriggerRequest], TriggerResponse]
               ) -> Callable[[TriggerRequest], TriggerResponse]:
     """The world's reset handler ``reset``, first reseeding the world for the episode that
     starts (the ``/hrc/world/episode`` parameter, which hrc_human sets just before it resets
-    the world); without the parameter (the world alone) the stream goes on as it was."""
+    the world, with the run's seed in ``/hrc/world/seed``: a warm stack's next cell brings
+    another); without the parameter (the world alone) the stream goes on as it was."""
     def handle(request: TriggerRequest) -> TriggerResponse:
         episode = rospy.get_param(WORLD_EPISODE_PARAM, None)
         if episode is not None:
-            world.reseed(int(episode))
+            seed = rospy.get_param(WORLD_SEED_PARAM, None)
+            world.reseed(int(episode), None if seed is None else int(seed))
         return reset(request)
     return handle
 

@@ -40,6 +40,10 @@ the agent plays the task with the two models' rows mixed
 (:meth:`~ros_hrc.agents.human.HumanAgent.play`). A reset that names none keeps the model
 it plays.
 
+A ``configure`` (a warm stack's next cell: ``/hrc/configure`` of the human node) makes it read
+the launch's settings again and rebuild the human model and agent as at start, with no epoch;
+it then waits for the reset that starts the cell's first episode.
+
 The human node takes only processes of its own launch: this one proves the launch's link token
 in its hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
 ``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`). Under hrc.launch its options are the
@@ -56,13 +60,14 @@ import queue
 import sys
 import threading
 import time
-from typing import Dict, Optional, TextIO, Tuple
+from typing import Dict, Optional, Sequence, TextIO, Tuple
 
 from ros_hrc import tasks
-from ros_hrc.command_line import parse_launch_options, print_whole_lines, ranged_number
+from ros_hrc.command_line import (parse_launch_options, print_whole_lines, ranged_number,
+                                  reread_launch_options)
 from ros_hrc.errors import HrcError, LinkError
-from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Error, Message, NextState,
-                                   Reaction, Reset, Step, is_reply_to, reply_error)
+from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Configure, Error, Message,
+                                   NextState, Reaction, Reset, Step, is_reply_to, reply_error)
 from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc import settings
@@ -82,6 +87,15 @@ class _ResetRequested(Exception):
         self.reset = reset
 
 
+class _ConfigureRequested(Exception):
+    """A configure arrived (a warm stack's next cell): the loop starts from the launch's
+    settings again."""
+
+    def __init__(self, configure: Configure) -> None:
+        super().__init__(configure.reason or "configure")
+        self.configure = configure
+
+
 class SeatRefused(HrcError):
     """The human node serves another MDP process: this one is refused."""
 
@@ -96,10 +110,11 @@ class MdpProcess:
     the human's own state: the MDP agent."""
 
     def __init__(self, agent: HumanAgent, client: MessageClient, args: argparse.Namespace,
-                 out: TextIO = sys.stdout) -> None:
+                 out: TextIO = sys.stdout, argv: Optional[Sequence[str]] = None) -> None:
         self.agent = agent
         self.client = client
         self.args = args
+        self.argv = argv     # its command line: a configure reads the launch's settings again
         self.out = out
         self.epoch: Optional[int] = None
         self.episode = 0
@@ -142,6 +157,8 @@ class MdpProcess:
                 return
             if isinstance(msg, Reset):
                 self._events.put(("reset", msg))
+            elif isinstance(msg, Configure):
+                self._events.put(("configure", msg))
             elif isinstance(msg, NextState):
                 self._take_next_state(msg)
             elif isinstance(msg, Error) and msg.code == "seat_taken":
@@ -221,6 +238,8 @@ class MdpProcess:
                 return None
             if kind == "reset":
                 raise _ResetRequested(payload)
+            if kind == "configure":
+                raise _ConfigureRequested(payload)
             if kind == "refused":
                 raise SeatRefused(payload.message)
             if kind == wanted:
@@ -316,17 +335,46 @@ class MdpProcess:
                         self._wait_event("never", self.args.step_delay)
                 except _ResetRequested as reset:
                     self.start_episode(reset.reset)
+                except _ConfigureRequested as configure:
+                    self.configure(configure.configure)
+                    self._wait_for_reset()
         except SeatRefused as exc:
             print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
             return 3
         return 0
 
     def _wait_for_reset(self) -> None:
-        try:
-            while True:
+        while True:
+            try:
                 self._wait_event("never")
-        except _ResetRequested as reset:
-            self.start_episode(reset.reset)
+            except _ResetRequested as reset:
+                self.start_episode(reset.reset)
+                return
+            except _ConfigureRequested as configure:
+                self.configure(configure.configure)
+
+    def configure(self, msg: Configure) -> None:
+        """Start again from the launch's settings as they are now (a warm stack's next cell),
+        as a freshly started process would: the human model, the agent and its choice, the
+        seed; no epoch, no sequence's models (the next reset names them). Answered with an
+        ``ack``, or an ``error`` when the settings cannot be taken (nothing changes then)."""
+        try:
+            args = reread_launch_options(build_parser(), self.argv, self.args)
+            _task, model, agent = build_agent(args)
+        except (HrcError, OSError, ValueError) as exc:
+            self._send(reply_error(msg, f"{NAME} not configured: {exc}", ERR_INVALID))
+            return
+        with self._states_lock:
+            while not self._next_states.empty():   # states given for the cell before
+                self._next_states.get_nowait()
+            self._no_states = ""
+        self.agent, self.args, self.mode = agent, args, args.mode
+        self.state_var = agent.model.meta.get("state_var", "state_1")
+        self.epoch, self.episode, self.task_index = None, 0, None
+        self.models.clear()
+        line = human_line(model, args)
+        self.print(f"\n##### CONFIGURE ({msg.reason or 'configure'}): {line} #####")
+        self._send(Ack(step=0, of=msg.type, result=line, reply_to=msg.id))
 
     def one_step(self) -> bool:
         """One step; True when the loop now waits for a reset (the episode is over, or the
@@ -503,15 +551,29 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 
+def build_agent(args: argparse.Namespace) -> Tuple[tasks.Task, Model, HumanAgent]:
+    """The human the options ask for: the task, its model (checked against the task) and the
+    MDP agent that plays it. Raises HrcError, OSError or ValueError (one line)."""
+    task = tasks.get(args.task)
+    model = load_human_model(args.human_model, task)
+    agent = HumanAgent(model, HumanAgentConfig(choice=args.human_choice,
+                                               temperature=args.temperature,
+                                               manual_share=args.manual_share, seed=args.seed),
+                       reaction=task.reaction)
+    return task, model, agent
+
+
+def human_line(model: Model, args: argparse.Namespace) -> str:
+    """Who the process plays, in one line: the model, its size, the mode and the seed."""
+    return (f"{model.source or args.human_model}: {model.n_states} states, "
+            f"{model.n_actions} actions, {args.mode} mode, seed {args.seed}")
+
+
 def main(argv: Optional[list] = None) -> int:
     print_whole_lines()
     args = parse_launch_options(build_parser(), argv)
     try:
-        task = tasks.get(args.task)
-        model = load_human_model(args.human_model, task)
-        agent = HumanAgent(model, HumanAgentConfig(choice=args.human_choice, temperature=args.temperature,
-                                                   manual_share=args.manual_share, seed=args.seed),
-                           reaction=task.reaction)
+        task, model, agent = build_agent(args)
         token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
@@ -522,15 +584,14 @@ def main(argv: Optional[list] = None) -> int:
         return 2
     client = MessageClient(link_url(args.human_port, args.host), NAME, connect_timeout=3600.0,
                            send_timeout=args.reply_timeout, token=token)
-    process = MdpProcess(agent, client, args)
+    process = MdpProcess(agent, client, args, argv=argv)
     read_stdin = args.stdin == "on" or (args.stdin == "auto" and sys.stdin.isatty())
     mapping = positional_mapping_line(model)
     if mapping:
         print(f"{NAME}: {mapping}", file=sys.stderr, flush=True)
     reacts = "; he reacts to the robot" if task.reacts else ""
-    print(f"{NAME}: {model.source or args.human_model}: {model.n_states} states, "
-          f"{model.n_actions} actions, {args.mode} mode, task {task.name}{reacts}; connecting "
-          f"to {client.url}", flush=True)
+    print(f"{NAME}: {human_line(model, args)}, task {task.name}{reacts}; connecting to "
+          f"{client.url}", flush=True)
     code = 0
     try:
         client.connect()

@@ -44,6 +44,11 @@ starts from the model's initial belief with the type prior
 sequence) and a reset outside a sequence start from the model's own prior, and a task cut
 short and played again from the prior it started with.
 
+A ``configure`` (a warm stack's next cell: ``/hrc/configure`` of the human node) makes it read
+the launch's settings again and rebuild what it built at start, the robot model, planner,
+selector and library, with no epoch; a setting it cannot take in place (its port, its task)
+is refused and nothing changes.
+
 It serves only processes of its own launch: a client must prove the launch's link token in its
 hello (``--link-session``, given by hrc.launch; by hand ``--token-file PATH`` or
 ``HRC_LINK_TOKEN_FILE``; :mod:`ros_hrc.link.token`). Under hrc.launch its options are the
@@ -65,11 +70,12 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from ros_hrc import tasks
-from ros_hrc.command_line import parse_launch_options, print_whole_lines
+from ros_hrc.command_line import (parse_launch_options, print_whole_lines,
+                                  reread_launch_options)
 from ros_hrc.errors import HrcError, LinkError
-from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Decision, DispatchTable,
-                                   Message, Observation, Reset, TaskEnd, TaskReport,
-                                   reply_error)
+from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Configure, Decision,
+                                   DispatchTable, Message, Observation, Reset, TaskEnd,
+                                   TaskReport, reply_error)
 from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc import settings
@@ -302,16 +308,44 @@ class PomdpProcess:
     is refused, never applied: after a restart this process has no epoch at all, so the
     coordinator learns that the belief it relied on is gone and resets the loop."""
 
-    def __init__(self, agent: RobotAgent, sequence: Optional[SequenceRobot] = None) -> None:
+    def __init__(self, agent: RobotAgent, sequence: Optional[SequenceRobot] = None,
+                 args: Optional[argparse.Namespace] = None,
+                 argv: Optional[Sequence[str]] = None) -> None:
         self.agent = agent
         #: The robot across a sequence's tasks (None: this process plays no sequence).
         self.sequence = sequence
+        #: The options it was built from, and its command line (a ``configure`` reads the
+        #: launch's settings again with it).
+        self.args = args
+        self.argv = argv
         self.epoch: Optional[int] = None
         self.dispatch = DispatchTable(NAME)
         self.dispatch.on(Observation, self.on_observation)
         self.dispatch.on(Reset, self.on_reset)
         self.dispatch.on(TaskEnd, self.on_task_end)
+        self.dispatch.on(Configure, self.on_configure)
         self._said_no_time = False
+
+    def on_configure(self, msg: Configure, peer: Peer) -> Message:
+        """Start again from the launch's settings as they are now (a warm stack's next cell),
+        as a freshly started process would: the robot model, the planner, the selector and
+        its library, the seed; no epoch (the next reset names one). A refusal changes
+        nothing."""
+        if self.args is None:
+            return reply_error(msg, f"{NAME} was not started from a launch's settings: "
+                                    "nothing to read again", ERR_INVALID)
+        try:
+            args = reread_launch_options(build_parser(), self.argv, self.args)
+            model, planner, sequence = build_robot(args)
+        except (HrcError, OSError, ValueError) as exc:
+            return reply_error(msg, f"{NAME} not configured: {exc}", ERR_INVALID)
+        self.args, self.sequence = args, sequence
+        self.agent = next(iter(sequence.agents.values()))
+        self.epoch = None
+        self._said_no_time = False
+        line = robot_line(model, planner, args)
+        print(f"\n##### CONFIGURE ({msg.reason or 'configure'}): {line} #####", flush=True)
+        return Ack(step=0, of=msg.type, result=line, reply_to=msg.id)
 
     def on_reset(self, msg: Reset, peer: Peer) -> Message:
         # The coordinator names the episode (0 is one); a reset without a number (a client of
@@ -511,14 +545,28 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
                          forgetting=args.bpr_forgetting)
 
 
+def build_robot(args: argparse.Namespace) -> Tuple[Model, Planner, SequenceRobot]:
+    """The robot the options ask for: its model (checked against the task), its planner
+    and the robot across a sequence's tasks (the library's agents under a selector). Raises
+    HrcError, OSError or ValueError (one line)."""
+    task = tasks.get(args.task)
+    model = load_robot_model(args.robot_model, task)
+    planner = build_planner(model, args)
+    return model, planner, build_sequence_robot(task, model, planner, args)
+
+
+def robot_line(model: Model, planner: Planner, args: argparse.Namespace) -> str:
+    """What the process plays, in one line: the model, its size and the planner."""
+    return (f"{model.source or args.robot_model}: {model.n_states} states, {model.n_actions} "
+            f"actions, {model.n_observations} observations; planner {args.planner}, seed "
+            f"{args.seed}")
+
+
 def main(argv: Optional[list] = None) -> int:
     print_whole_lines()
     args = parse_launch_options(build_parser(), argv)
     try:
-        task = tasks.get(args.task)
-        model = load_robot_model(args.robot_model, task)
-        planner = build_planner(model, args)
-        sequence = build_sequence_robot(task, model, planner, args)
+        model, planner, sequence = build_robot(args)
         token = launch_token(args)
     except (HrcError, OSError, ValueError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
@@ -527,7 +575,7 @@ def main(argv: Optional[list] = None) -> int:
             print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
                   file=sys.stderr, flush=True)
         return 2
-    process = PomdpProcess(next(iter(sequence.agents.values())), sequence)
+    process = PomdpProcess(next(iter(sequence.agents.values())), sequence, args, argv)
     server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,
                            read_timeout=args.link_read_timeout, token=token)
     try:
@@ -538,9 +586,8 @@ def main(argv: Optional[list] = None) -> int:
     mapping = positional_mapping_line(model)
     if mapping:
         print(f"{NAME}: {mapping}", file=sys.stderr, flush=True)
-    print(f"{NAME}: {model.source or args.robot_model}: {model.n_states} states, {model.n_actions} "
-          f"actions, {model.n_observations} observations; planner {args.planner}; "
-          f"observations on {server.url}", flush=True)
+    print(f"{NAME}: {robot_line(model, planner, args)}; observations on {server.url}",
+          flush=True)
     policy_text = getattr(planner, "policy_text", None)
     if policy_text is not None:
         print(f"{NAME}: the reactive MDP's policy (value iteration): {policy_text()}", flush=True)

@@ -87,7 +87,8 @@ class World:
         # The world's draws (a fumbled grasp's miss) come from the stream of (seed, episode,
         # "world"), episode 0 until reseed() names another (the loop's node does at each reset).
         self.episode = 0
-        self.rng = streams.generator(self.config.seed, self.episode, "world")
+        self.seed = self.config.seed     # the run's seed (reseed() may bring another)
+        self.rng = streams.generator(self.seed, self.episode, "world")
         self._lock = threading.RLock()
         self._waiters = 0
         self._waiters_lock = threading.Lock()
@@ -511,11 +512,14 @@ class World:
         with self._locked():
             return getattr(self.human, predicate)()
 
-    def reseed(self, episode: int) -> None:
+    def reseed(self, episode: int, seed: Optional[int] = None) -> None:
         """Draw from episode ``episode``'s world stream from now on (:mod:`ros_hrc.streams`),
         from its start: the coordinator's node calls this as it resets the world for that
-        episode, so the episode's draws are the same whichever episodes came before it."""
-        fresh = streams.generator(self.config.seed, episode, "world")
+        episode, so the episode's draws are the same whichever episodes came before it.
+        ``seed``: the run's seed from now on (a warm stack's next cell; None: as it was)."""
+        if seed is not None:
+            self.seed = int(seed)
+        fresh = streams.generator(self.seed, episode, "world")
         with self._locked():
             # In place: the human holds the same generator.
             self.rng.bit_generator.state = fresh.bit_generator.state

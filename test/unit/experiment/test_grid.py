@@ -470,7 +470,8 @@ def test_a_stack_lost_mid_cell_runs_again_for_the_missing_episodes_only(tmp_path
     assert done.returncode == 0, done.stderr[-3000:]
     assert log.read_text().count("start ") == 2
     # Two episodes at least were in when the stack was lost (another may have come since).
-    again = re.search(r"its (\d+) episodes still missing run again \(attempt 2 of 3\)",
+    again = re.search(r"its (\d+) episodes still missing run again on a new stack "
+                      r"\(attempt 2 of 3\)",
                       done.stderr)
     assert again and 1 <= int(again.group(1)) <= 10, done.stderr
     worker_log = (out / "logs" / "tired-no_robot-seed3.worker.log").read_text()

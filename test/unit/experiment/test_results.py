@@ -424,13 +424,14 @@ def test_an_episode_that_cannot_be_recorded_stops_its_worker(tmp_path, monkeypat
               f"open({str(pid_file)!r}, 'w').write(str(os.getpid()))\n"
               f"print({encode_episode(row, steps_of(row))!r}, flush=True)\n"
               f"while True: time.sleep(0.1)\n")
-    monkeypatch.setattr(pool, "worker_command", lambda spec_file: [sys.executable, "-c", worker])
+    monkeypatch.setattr(pool, "worker_command", lambda spec_file=None: [sys.executable, "-c",
+                                                                         worker])
 
     def full(row, steps):
         raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "episodes.csv"))
     cell = CellSpec("tired", "no_robot", 0, [0, 1], log_dir=str(tmp_path / "logs"))
     with pytest.raises(OSError, match="No space left on device"):
-        pool._run_worker(cell, full, text_io.StringIO())
+        pool.StackWorker(pool.Stopper()).play(cell, full, text_io.StringIO())
     pid = int(pid_file.read_text())
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)

@@ -10,7 +10,7 @@ from ros_hrc.errors import LinkError, ProtocolError
 from ros_hrc.link.protocol import (BELIEF_TOLERANCE, ERR_INVALID, MAX_MESSAGE_BYTES,
                                    MESSAGE_TYPES, Ack, Action, Decision, Error, Hello,
                                    MessageError, NextState, Observation, Reaction, Reset, Step,
-                                   TaskEnd, TaskReport, decode, encode, error_message, error_reply, from_dict)
+                                   Configure, TaskEnd, TaskReport, decode, encode, error_message, error_reply, from_dict)
 
 # One message of each type, with every optional field set, and one with none of them.
 FULL_MESSAGES = [
@@ -38,6 +38,7 @@ FULL_MESSAGES = [
     TaskReport(selector="bpr", policy="policy3", robot_model="/m/policy3.pomdpx",
                type_names=["a", "b"], type_belief=[0.29, 0.71], signature=[0, 3, 63],
                total_disc_reward=4.5, epoch=4, reply_to=23),
+    Configure(reason="/hrc/configure called", id=24),
 ]
 MINIMAL_MESSAGES = [
     Hello(who="hrc_obs"),
@@ -52,6 +53,7 @@ MINIMAL_MESSAGES = [
     Error("oops"),
     TaskEnd(1, "timeout", 0, 0, 40, 80.0, -0.5),
     TaskReport("random", "base"),
+    Configure(),
 ]
 
 

@@ -30,6 +30,7 @@ BASE = {
     "task_end": {"task_index": 1, "outcome": "fail", "warnings": 0, "preemptions": 0,
                  "steps": 3, "duration": 69.0, "utility": -0.43},
     "task_report": {"selector": "bpr", "policy": "base"},
+    "configure": {},
 }
 
 
