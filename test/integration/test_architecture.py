@@ -32,16 +32,6 @@ def add_line(path: Path, line: str) -> None:
     path.write_text(path.read_text() + "\n" + line + "\n")
 
 
-def broken_by(tmp_path: Path, module: str, line: str) -> str:
-    """import-linter's report on a copy of the package with ``line`` added to ``module`` (a
-    path under ros_hrc/), which must break the contract."""
-    src = copy_of_the_package(tmp_path)
-    add_line(src / "ros_hrc" / module, line)
-    done = lint_imports(src)
-    assert done.returncode == 1
-    return done.stdout
-
-
 def test_the_package_keeps_its_import_contract():
     done = lint_imports(ROOT / "src")
     assert done.returncode == 0, done.stdout + done.stderr
@@ -49,40 +39,38 @@ def test_the_package_keeps_its_import_contract():
     assert "4 kept, 0 broken" in done.stdout
 
 
-def test_an_import_back_up_a_floor_breaks_the_contract(tmp_path):
-    # The POMDP toolkit (floor 1) reaching up for the loop's coordinator (floor 6).
-    report = broken_by(tmp_path, "pomdp/model.py",
-                       "from ros_hrc.loop import coordinator  # noqa: E402")
-    assert "The floors of ros_hrc read top-down BROKEN" in report
-    assert "ros_hrc.pomdp.model -> ros_hrc.loop.coordinator" in report
-
-
-def test_a_lazy_import_back_up_breaks_it_too(tmp_path):
+#: Five ways to break the contract, one per kind it must catch: (module under ros_hrc/, the line
+#: added to it, what import-linter's report must then say).
+BREAKAGES = [
+    # The POMDP toolkit (floor 2) reaching up for the loop's coordinator (floor 6).
+    ("pomdp/model.py", "from ros_hrc.loop import coordinator  # noqa: E402",
+     ["The floors of ros_hrc read top-down BROKEN",
+      "ros_hrc.pomdp.model -> ros_hrc.loop.coordinator"]),
     # An import inside a function is an arrow all the same (settings once took the baseline
     # robots' table this way).
-    report = broken_by(tmp_path, "settings.py",
-                       "def _robots():\n    from ros_hrc.agents import robots\n    return robots")
-    assert "ros_hrc.settings -> ros_hrc.agents.robots" in report
+    ("settings.py", "def _robots():\n    from ros_hrc.agents import robots\n    return robots",
+     ["ros_hrc.settings -> ros_hrc.agents.robots"]),
+    ("tasks/definition.py", "def _seed():\n    from ros_hrc.tasks import seed\n    return seed",
+     ["No circle of imports between the modules of one room BROKEN",
+      "No cycles are allowed in ros_hrc.tasks"]),
+    ("loop/display.py", "import rospy  # noqa: E402",
+     ["Only the nodes import ROS (DESIGN §8) BROKEN"]),
+]
 
 
-def test_a_circle_between_modules_of_one_room_breaks_it(tmp_path):
-    report = broken_by(tmp_path, "tasks/definition.py",
-                       "def _seed():\n    from ros_hrc.tasks import seed\n    return seed")
-    assert "No circle of imports between the modules of one room BROKEN" in report
-    assert "No cycles are allowed in ros_hrc.tasks" in report
-
-
-def test_a_room_on_no_floor_breaks_it(tmp_path):
+def test_each_kind_of_breakage_breaks_the_contract(tmp_path):
+    """One copy of the package with every breakage at once, and a room on no floor
+    (helpers.py), checked in one run of import-linter: its report names each."""
     src = copy_of_the_package(tmp_path)
+    for module, line, _ in BREAKAGES:
+        add_line(src / "ros_hrc" / module, line)
     (src / "ros_hrc" / "helpers.py").write_text('"""A module no floor names."""\n')
     done = lint_imports(src)
-    assert done.returncode == 1
-    assert "ros_hrc.helpers" in done.stdout
-
-
-def test_ros_outside_the_nodes_breaks_it(tmp_path):
-    report = broken_by(tmp_path, "loop/display.py", "import rospy  # noqa: E402")
-    assert "Only the nodes import ROS (DESIGN §8) BROKEN" in report
+    assert done.returncode == 1, done.stdout + done.stderr
+    for _, _, said in BREAKAGES:
+        for text in said:
+            assert text in done.stdout, (text, done.stdout)
+    assert "ros_hrc.helpers" in done.stdout, done.stdout
 
 
 def test_the_architecture_page_shows_todays_room_imports():

@@ -8,9 +8,10 @@
   robot's belief), are refused and closed; nothing acts.
 * A holder of the token who is not the coordinator sends the robot orders: no link takes
   them (hrc_human calls the world's /robot/* services itself; the POMDP port refuses them).
-* 50 concurrent /hrc/reset calls all succeed and are one reset (every answer names the same
-  episode), and afterwards the steps run 0, 1, 2 ... in one new epoch, every status
-  consistent.
+* 50 concurrent /hrc/reset calls are all answered, each naming the reset that served it;
+  calls that met a reset under way share it, and none is served by a reset older than one
+  another call had seen finish; afterwards the steps run 0, 1, 2 ... in one new epoch,
+  every status consistent.
 * Sixteen threads calling the world's services (/human/*, /robot/*) while the loop runs: the
   loop keeps stepping, no step fails (the loop's calls go first; the others are answered
   "busy" while the loop acts).
@@ -160,39 +161,64 @@ class TestLoopFaults(unittest.TestCase):
         self.assertFalse(any(s.fault for s in statuses), [s.fault for s in statuses])
 
     def test_2_fifty_concurrent_resets_then_steps_from_zero(self):
-        answers = []
+        """What /hrc/reset promises (docs/loop.md): every call is answered, once the reset that
+        served it is done, naming it; calls that come while a reset is under way (or within
+        reset_join_window after it, asked the same way) share it. How many resets fifty calls
+        make depends on when rospy's fifty connections reach the node (a CI run saw two,
+        episodes 35 and 76: a call that came after the first reset had ended rightly started
+        another), so the test asserts what holds for any arrival: the answers, the reset each
+        names, and that no call is served by a reset older than one another call saw end."""
+        calls = []      # (sent, answered, answer): a clock's order, never a duration
+        guard = threading.Lock()
         rospy.wait_for_service("/hrc/reset", WAIT)
-
-        # All fifty start together: a thread still being started under load called seconds
-        # after the others once (a CI run), and a reset that late is rightly a second one.
         start = threading.Barrier(50)
 
         def reset():
             proxy = rospy.ServiceProxy("/hrc/reset", Trigger)
             start.wait(WAIT)
-            answers.append(proxy())
+            sent = time.monotonic()
+            answer = proxy()
+            with guard:
+                calls.append((sent, time.monotonic(), answer))
 
         threads = [threading.Thread(target=reset) for _ in range(50)]
         for t in threads:
             t.start()
         for t in threads:
             t.join(WAIT)
-        self.assertEqual(len(answers), 50)
-        self.assertTrue(all(a.success for a in answers), {a.message for a in answers})
-        # Issue #20: they made 5 to 10 resets, the episode number jumping. One reset: every
-        # answer names the episode it started (a call that came while the loop reset itself
-        # at an episode's end shares that reset, as documented, and names it).
-        ours = [a.message for a in answers if "(/hrc/reset called)" in a.message]
-        episodes = {re.search(r"episode (\d+)", m).group(1) for m in ours}
-        self.assertEqual(len(episodes), 1, {a.message for a in answers})
+        self.assertEqual(len(calls), 50)
+        said = {answer.message for _, _, answer in calls}
+        self.assertTrue(all(answer.success for _, _, answer in calls), said)
+        # Each answer names the reset that served it: one the loop made for /hrc/reset, or
+        # the loop's own at an episode's end that the call came during (it shares that one).
+        named = re.compile(r"world, robot belief and human MDP reset \((.*)\): episode (\d+)"
+                           r"( \(this request joined it: it came as it finished\))?$")
+        served = []
+        for sent, answered, answer in calls:
+            found = named.match(answer.message)
+            self.assertIsNotNone(found, answer.message)
+            served.append((sent, answered, int(found.group(2)), found.group(1)))
+        # Calls that share a reset get the same account of it (a joiner adds that it joined).
+        by_episode = {}
+        for _, _, episode, reason in served:
+            by_episode.setdefault(episode, set()).add(reason)
+        self.assertTrue(all(len(reasons) == 1 for reasons in by_episode.values()), said)
+        # Issue #20 made a reset per call, answered out of order. A reset served a call only
+        # if it ended after that call was sent: a call sent after another call's answer
+        # came is never served by an older reset than that answer names.
+        for sent, _, episode, _ in served:
+            for _, other_answered, other_episode, _ in served:
+                if other_answered < sent:
+                    self.assertGreaterEqual(episode, other_episode, said)
         self.log.clear()   # everything from now on comes after every reset was answered
         ok, statuses = self.log.wait_for(lambda s: fresh_run(s, 4))
         self.assertTrue(ok, f"no run 0, 1, 2, 3 after the resets: "
                             f"{[(s.epoch, s.step) for s in statuses][:20]}")
         first_epoch = statuses[0].epoch
-        # No step of an episode before the reset's (the loop may have stepped, even ended
-        # that episode, between the answers and clear(): its episodes end in a step or two).
-        reset_episode = int(next(iter(episodes)))
+        # No step of an episode before the last reset's (the loop may have stepped, even
+        # ended that episode, between the answers and clear(): its episodes end in a step or
+        # two).
+        reset_episode = max(by_episode)
         self.assertGreaterEqual(min(s.episode for s in statuses), reset_episode,
                                 "a step of an older episode after the reset")
         for status in statuses:

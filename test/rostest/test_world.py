@@ -52,7 +52,10 @@ class WorldTestBase(unittest.TestCase):
 
 
 class WorldServices(WorldTestBase):
-    """Every service of Table 3.2, through ROS, behaving as in the world's unit tests."""
+    """The world's ROS wiring: every service of Table 3.2 as a Trigger, the predicates and an
+    action's outcome (or its refusal, with the reason) in its answer, the robot's action by the
+    task's name in the published state, snapshots, concurrent callers. What each action does
+    is the world's unit tests' (test/unit/world/)."""
 
     def setUp(self):
         for name in ("/human/reset", "/robot/reset"):
@@ -67,35 +70,6 @@ class WorldServices(WorldTestBase):
         self.assertEqual(self.predicates(), {"is_ov": True, "is_oir": True, "is_ho": False,
                                              "is_a0": False, "is_a2": True, "is_h4": False})
 
-    def test_walk_away_puts_the_object_out_of_reach(self):
-        ok, message = self.call("/human/walk_away")
-        self.assertTrue(ok, message)
-        ok, why = self.call("/human/is_oir")
-        self.assertFalse(ok)
-        self.assertIn("out of reach", why)
-        self.assertFalse(self.call("/human/is_a2")[0])
-
-    def test_look_around_loses_the_object_and_finds_it_again(self):
-        ok, message = self.call("/human/look_around")
-        self.assertTrue(ok, message)
-        self.assertIn("out of view for", message)
-        self.assertIn("back in view", message)
-        self.assertTrue(self.call("/human/is_ov")[0])
-
-    def test_warn_robot_is_seen_as_a_warning(self):
-        self.assertTrue(self.call("/human/warn_robot")[0])
-        self.assertTrue(self.call("/human/is_h4")[0])
-        self.assertFalse(self.call("/human/is_a2")[0])
-        self.assertTrue(self.call("/human/idle")[0])
-        self.assertFalse(self.call("/human/is_h4")[0])
-
-    def test_attempt_grasp_misses(self):
-        ok, message = self.call("/human/attempt_grasp")
-        self.assertTrue(ok, message)
-        self.assertIn("missed", message)
-        self.assertTrue(self.call("/human/is_a0")[0])
-        self.assertFalse(self.call("/human/is_ho")[0])
-
     def test_grasp_in_reach_holds_the_object(self):
         ok, message = self.call("/human/grasp")
         self.assertTrue(ok, message)
@@ -104,44 +78,6 @@ class WorldServices(WorldTestBase):
         ok, message = self.call("/robot/grasp")
         self.assertFalse(ok)
         self.assertIn("human holds", message)
-
-    def test_grasp_out_of_reach_fails_with_a_reason(self):
-        self.call("/human/walk_away")
-        for _ in range(4):  # time passes only during actions: let the belt carry it away
-            self.call("/human/look_around")
-        self.assertFalse(self.call("/human/is_oir")[0])
-        ok, message = self.call("/human/grasp")
-        self.assertFalse(ok)
-        self.assertIn("out of reach", message)
-
-    def test_robot_grasp_refuses_out_of_reach_then_takes_it_when_near(self):
-        ok, message = self.call("/robot/grasp")
-        self.assertFalse(ok)
-        self.assertIn("out of reach", message)
-        self.call("/human/walk_away")
-        self.call("/human/look_around")   # the belt brings the object to the robot
-        ok, message = self.call("/robot/grasp")
-        self.assertTrue(ok, message)
-        self.assertEqual(self.state().holder, "robot")
-        self.assertFalse(self.call("/human/is_ho")[0])
-
-    def test_grasp_planning_waits_over_the_object_then_a_grasp_takes_it(self):
-        """The fabric task's graspPlanning: the open gripper goes over where the belt brings
-        the object, and holds; nothing is grasped; a grasp then takes it."""
-        ok, message = self.call("/robot/grasp_planning")
-        self.assertFalse(ok)                # at the start the object is far from the robot
-        self.assertIn("out of reach", message)
-        self.call("/human/walk_away")
-        self.call("/human/look_around")     # the belt brings the object towards the robot
-        ok, message = self.call("/robot/grasp_planning")
-        self.assertTrue(ok, message)
-        self.assertIn("ready to grasp", message)
-        state = self.state()
-        # (the seed's robot has no action that moves so: the world's name for it)
-        self.assertEqual((state.robot_action, state.holder), ("grasp_planning", "none"))
-        ok, message = self.call("/robot/grasp")
-        self.assertTrue(ok, message)
-        self.assertEqual(self.state().holder, "robot")
 
     def test_point_then_cancel_then_reset(self):
         ok, message = self.call("/robot/point_to_obj")

@@ -27,7 +27,8 @@ from ros_hrc.streams import EpisodeSchedule
 from ros_hrc.processes.despot_mdp import MdpProcess, _ResetRequested
 from ros_hrc.processes.despot_pomdp import PomdpProcess, RobotAgent, build_planner
 from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
-from ros_hrc.world import World, WorldConfig
+from ros_hrc.world import World
+from ros_hrc.world.config import task_world_config
 from ros_hrc.world.human import HumanConfig
 
 PEER = "mdp"
@@ -55,7 +56,8 @@ class LocalLoop:
                  max_trials: int = 60, reactive_wait: float = 15.0,
                  away_time: float = 0.0) -> None:
         self.task = tasks.get(task)
-        self.world = World(WorldConfig(seed=seed, human=HumanConfig(away_time=away_time)))
+        self.world = World(task_world_config(getattr(self.task, "world_facts", {}), seed=seed,
+                                             human=HumanConfig(away_time=away_time)))
         human = load_human_model(human_model, self.task)
         robot = load_robot_model(robot_model, self.task)
         self.coordinator = Coordinator(CoordinatorConfig(
@@ -135,7 +137,10 @@ class LocalLoop:
         elif isinstance(effect, ResetWorld):
             if not effect.interrupt:
                 self.world.reseed(effect.episode)
-            done = self.world.reset()
+            # As hrc_human's reset through /hrc/world/reset: the loop's node drives the world,
+            # so its reset interrupts an action under way (fabric's grasp, answered as it
+            # started, may still run) instead of being refused as a bystander's call.
+            done = self.world.run("world", "reset", driver=True)
             c.call_done(effect.id, Outcome(done.success, done.message))
         elif isinstance(effect, ResetPlanner):
             reply = self.pomdp.on_reset(Reset(reason="reset", episode=effect.episode,

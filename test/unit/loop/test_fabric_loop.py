@@ -93,7 +93,7 @@ def reactive_run():
 @pytest.fixture(scope="module")
 def reactive_waiting_run():
     """A tired expert: he idles, and the robot waits its 15 s."""
-    return run_reactive("expert_tired_collaborative", 11, 30)
+    return run_reactive("expert_tired_collaborative", 11, 45)
 
 
 def test_a_seeded_fabric_run_with_the_reactive_robot_is_the_recorded_one(reactive_run):
@@ -112,7 +112,7 @@ def test_a_seeded_fabric_run_with_the_reactive_robot_is_the_recorded_one(reactiv
 @pytest.mark.parametrize("run, rules", [
     # He warns a robot that grasps on (a draw from RobotInterfered's row), and it cancels.
     ("reactive_run", {"attempt_failed", "grasp_attempt", "no_change", "not_detected",
-                      "success", "warning", "waited"}),
+                      "success", "warning"}),
     ("reactive_waiting_run", {"waited", "no_change", "success"}),
 ])
 def test_the_reactive_robot_decides_by_the_authors_rules_on_the_simulated_time(run, rules,
@@ -177,8 +177,13 @@ def test_each_step_shows_the_humans_reaction_to_the_robots_action(long_run):
                                                   record(report))
             checked[report.reaction] = checked.get(report.reaction, 0) + 1
         else:
+            # In fabric's world the robot's grasp goes on while the human acts: his own
+            # grasp, drawn a success, may end the episode on his goal (end_on_goal) while the
+            # robot still carries the product; a human at his goal reacts no more.
             assert report.reaction in ("model", "own_grasp", "robot_grasped",
-                                       "robot_grasped_again"), record(report)
+                                       "robot_grasped_again") or (
+                report.reaction == "terminal" and report.end_reason == "human_goal"), \
+                record(report)
             if report.reaction == "robot_grasped":    # his grasp's outcome was not interfered
                 assert report.human_state == "RobotInterfered", record(report)
         before = report
