@@ -1,19 +1,30 @@
 #!/usr/bin/env python3
-"""Benchmark of hrc_experiment: episodes per minute headless and the speed-up over real time.
+"""Benchmark of hrc_experiment: warm stacks against fresh ones, episodes per minute headless
+and the speed-up over real time.
 
-Runs a fixed grid (2 human models x 2 robot policies x 1 seed x 20 episodes, step limit 10,
-plus the human alone on each of those streams, which hrc_experiment runs itself for the
-counterfactual: 120 episodes) through the real stack, one stack per core, into a fresh
-directory, and prints episodes per minute with the pairs included (stack start-up and
-shut-down included), the speed-up over real time (simulated
-seconds / wall seconds, for the whole run and per stack while it steps), wall seconds per
-episode (p50, p99) and each policy's mean decision time; writes bench/results/experiment.json.
+By default (issue #39) it plays the same study-shaped grid twice in one run, on fresh stacks
+(`--fresh-stacks`: a stack per cell, as before) and on warm ones (each worker keeps its stack
+and hands it cell after cell): 2 human models x 2 robot policies x `--seeds` seeds (10), plus
+the human alone on each stream (60 cells, 30 per stack on 2 cores), at 20 and at 2 episodes a
+cell (step limit 10), then sequence cells of 20 tasks (`--sequence 20`, each human x seed one
+cell, `fixed:authors`), and prints each pair's wall time and the speed-up of warm stacks;
+every pair's rows are checked equal but for the wall clock. Writes
+bench/results/experiment_stacks.json.
 
-Each cell starts a stack of its own (about 3.5 s of start-up on 2 cores), so episodes per
-minute depend on episodes per cell: 20 is a small study's cell (an HRI study runs hundreds);
-`--episodes 2` shows the start-up-bound case.
+    python bench/bench_experiment.py [--jobs N] [--seeds 10]
 
-    python bench/bench_experiment.py [--jobs N] [--episodes 20]
+`--grid` plays the small fixed grid once instead (2 human models x 2 robot policies x 1 seed
+x `--episodes` 20, plus the human alone: 120 episodes) and prints episodes per minute with the
+pairs included (stack start-up and shut-down included), the speed-up over real time
+(simulated seconds / wall seconds, for the whole run and per stack while it steps), wall
+seconds per episode (p50, p99) and each policy's mean decision time; writes
+bench/results/experiment.json.
+
+    python bench/bench_experiment.py --grid [--jobs N] [--episodes 20] [--fresh-stacks]
+
+On fresh stacks each cell starts a stack of its own (about 8 s of start-up and stop on 2
+cores), so episodes per minute depend on episodes per cell; on warm stacks only each worker's
+first cell does.
 
 `--cluster local` (or an address, docs/cluster.md) runs the same grid twice, on the local pool
 and on the cluster, the cluster with as many cells in flight as the pool has stacks, and prints
@@ -39,6 +50,9 @@ human-alone ones (the run's own figure) and the robot's episodes per minute.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
+import io
 import json
 import os
 import statistics
@@ -47,22 +61,29 @@ from pathlib import Path
 
 from common import percentile, write_result  # bench/common.py
 
-from ros_hrc.experiment.cli import main as hrc_experiment
+from ros_hrc.experiment.cli import main as experiment_main
 from ros_hrc.experiment.store import ResultsStore
 
 
 HUMANS = ("expert", "distracted")
+
+
+def hrc_experiment(words: list) -> int:
+    """hrc_experiment in this process, its summary (stdout) kept out of the bench's figures;
+    its progress and its lines on stderr still show."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        return experiment_main(words)
 POLICIES = ("pomdp", "reactive")
 
 
-def run_grid(episodes: int, jobs: int, extra=()) -> tuple:
+def run_grid(episodes: int, jobs: int, extra=(), seeds: str = "0") -> tuple:
     """The bench's grid through hrc_experiment, its policies in ``extra`` (``--policies``):
     (run.json's figures, every episode row), or None when it failed."""
     with tempfile.TemporaryDirectory(prefix="bench_experiment_") as work:
         # The policies are always named: the grid stays the one the recorded figures were
         # measured on; no_robot is not named, so its episodes are the counterfactual pairs
         # (in work/alone).
-        rc = hrc_experiment(["--human-models", ",".join(HUMANS), "--seeds", "0",
+        rc = hrc_experiment(["--human-models", ",".join(HUMANS), "--seeds", seeds,
                              "--episodes", str(episodes), "--step-limit", "10",
                              "--jobs", str(jobs), "--out", work, "--no-plots", *extra])
         if rc != 0:
@@ -85,13 +106,23 @@ def main(argv=None) -> int:
     parser.add_argument("--sequence", action="store_true",
                         help="compare the sequence mode's tasks per minute with the episode "
                              "mode's episodes per minute on the same grid")
+    parser.add_argument("--grid", action="store_true",
+                        help="play the small fixed grid once (experiment.json) instead of "
+                             "warm stacks against fresh ones")
+    parser.add_argument("--fresh-stacks", action="store_true",
+                        help="with --grid: a stack per cell")
+    parser.add_argument("--seeds", type=int, default=10,
+                        help="seeds of the warm-against-fresh grid (2 x 3 cells each)")
     args = parser.parse_args(argv)
     results = Path(__file__).resolve().parent / "results"
     if args.sequence:
         return compare_sequences(args, args.out or results / "experiment_sequence.json")
     if args.cluster is not None:
         return compare_cluster(args, args.out or results / "experiment_cluster.json")
-    done = run_grid(args.episodes, args.jobs, ["--policies", ",".join(POLICIES)])
+    if not args.grid:
+        return compare_stacks(args, args.out or results / "experiment_stacks.json")
+    done = run_grid(args.episodes, args.jobs, ["--policies", ",".join(POLICIES)] +
+                    (["--fresh-stacks"] if args.fresh_stacks else []))
     if done is None:
         return 1
     run, rows = done
@@ -122,25 +153,80 @@ def main(argv=None) -> int:
     return 0
 
 
+#: What the wall clock sets in a row, and so differs between any two runs of it.
+WALL_FIELDS = ("wall_seconds", "mean_decision_ms")
+
+
+def same_rows(a: list, b: list) -> bool:
+    """Whether two runs wrote the same rows, the wall clock's fields apart."""
+    def plain(rows):
+        return sorted(repr(sorted((k, v) for k, v in dataclasses.asdict(r).items()
+                                  if k not in WALL_FIELDS)) for r in rows)
+    return plain(a) == plain(b)
+
+
+def compare_stacks(args, out: Path) -> int:
+    """The study-shaped grid on fresh stacks, then on warm ones, at 20 and at 2 episodes a
+    cell, then sequence cells of 20 tasks both ways: each pair's wall time, pace and the
+    warm stacks' speed-up; the rows of each pair checked equal but for the wall clock."""
+    jobs = args.jobs or os.cpu_count() or 1
+    seeds = ",".join(str(s) for s in range(args.seeds))
+    policies = ["--policies", ",".join(POLICIES)]
+    runs = [("episodes", 20, lambda extra: run_grid(20, jobs, policies + extra, seeds)),
+            ("episodes", 2, lambda extra: run_grid(2, jobs, policies + extra, seeds)),
+            ("tasks", 20, lambda extra: run_sequences(20, jobs, extra, seeds, parts=True))]
+    result = {"jobs": jobs, "humans": list(HUMANS), "policies": list(POLICIES),
+              "seeds": args.seeds, "cells_per_episode_grid": len(HUMANS) * (len(POLICIES) + 1)
+              * args.seeds, "sequence_cells": len(HUMANS) * args.seeds, "pairs": []}
+    failed = False
+    for unit, per_cell, run in runs:
+        fresh, warm = run(["--fresh-stacks"]), run([])
+        if fresh is None or warm is None:
+            failed = True
+            continue
+        (fresh_run, fresh_rows), (warm_run, warm_rows) = fresh, warm
+        speedup = fresh_run["wall_seconds"] / warm_run["wall_seconds"]
+        same = same_rows(fresh_rows, warm_rows)
+        failed = failed or not same
+        count = warm_run["episodes"] if unit == "episodes" else warm_run["tasks"]
+        pace = f"{unit}_per_minute"
+        result["pairs"].append({
+            "unit": unit, "per_cell": per_cell, unit: count,
+            "fresh_wall_seconds": fresh_run["wall_seconds"],
+            "warm_wall_seconds": warm_run["wall_seconds"],
+            f"fresh_{pace}": fresh_run[pace], f"warm_{pace}": warm_run[pace],
+            "speedup": speedup, "same_rows": same})
+        print(f"  {per_cell} {unit} a cell, {count} {unit}: fresh stacks "
+              f"{fresh_run['wall_seconds']:.1f} s ({fresh_run[pace]:.1f} {unit}/min), warm "
+              f"stacks {warm_run['wall_seconds']:.1f} s ({warm_run[pace]:.1f} {unit}/min): "
+              f"x{speedup:.2f}; rows {'the same' if same else 'DIFFER'} but the wall clock",
+              flush=True)
+    write_result(out, result)
+    return 1 if failed else 0
+
+
 #: The library policy that is the episode grid's ``pomdp`` (the seed authors' robot model,
 #: planned with DESPOT): the sequence mode runs it as ``fixed:<it>``.
 SEQUENCE_POLICY = "authors"
 
 
-def run_sequences(tasks: int, jobs: int) -> tuple:
-    """The bench's grid as sequences of ``tasks`` tasks (one per human): (run.json's
-    figures, every sequence row), or None when it failed."""
+def run_sequences(tasks: int, jobs: int, extra=(), seeds: str = "0", parts: bool = False
+                  ) -> tuple:
+    """The bench's grid as sequences of ``tasks`` tasks (one per human and seed): (run.json's
+    figures, every sequence row, and with ``parts`` every task row too), or None when it
+    failed."""
     from ros_hrc.experiment.sequence_rows import SequenceStore
     with tempfile.TemporaryDirectory(prefix="bench_sequence_") as work:
         rc = hrc_experiment(["--sequence", str(tasks), "--episodes", "1",
-                             "--human-models", ",".join(HUMANS), "--seeds", "0",
+                             "--human-models", ",".join(HUMANS), "--seeds", seeds,
                              "--selectors", f"fixed:{SEQUENCE_POLICY}", "--step-limit", "10",
-                             "--jobs", str(jobs), "--out", work, "--no-plots"])
+                             "--jobs", str(jobs), "--out", work, "--no-plots", *extra])
         if rc != 0:
             print(f"hrc_experiment --sequence failed ({rc})")
             return None
         run = json.loads((Path(work) / "run.json").read_text())
-        rows = SequenceStore(work).sequences()
+        store = SequenceStore(work)
+        rows = store.sequences() + (store.tasks() if parts else [])
     return run, rows
 
 
