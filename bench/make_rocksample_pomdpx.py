@@ -21,8 +21,8 @@ The problem: a rover on an n x n grid knows where k rocks are but not which are 
 * Discount 0.95. RockSample[7, 8] uses the published rock layout and starts at (0, 3); other
   sizes place rocks at random cells (``--seed``) and start at (0, n // 2).
 
-Rewards are three kinds of ``<Func>`` (exit, and one per rock for sampling), summed by the
-reader; the transition of each rock is an identity with one override, so the file exercises
+Rewards are three kinds of ``<Func>`` (exit, and one per rock for sampling), each of a reward
+variable of its own (``reward_exit``, ``reward_rock<i>``), summed by the reader; the transition of each rock is an identity with one override, so the file exercises
 ``*``, ``-``, ``identity`` and several state variables.
 """
 from __future__ import annotations
@@ -91,7 +91,11 @@ def rocksample_pomdpx(n: int, k: int, rocks: Optional[Sequence[Tuple[int, int]]]
         w("    </StateVar>")
     w('    <ObsVar vname="obs_sensor"><ValueEnum>none ogood obad</ValueEnum></ObsVar>')
     w(f'    <ActionVar vname="action_robot"><ValueEnum>{" ".join(actions)}</ValueEnum></ActionVar>')
-    w('    <RewardVar vname="reward_robot"/>')
+    # One reward variable per <Func>, as SARSOP's own RockSample files have them: its reader
+    # refuses a file whose reward variables and functions differ in number.
+    w('    <RewardVar vname="reward_exit"/>')
+    for i in range(k):
+        w(f'    <RewardVar vname="reward_rock{i}"/>')
     w("  </Variable>")
 
     # Initial belief: the rover's cell is known, every rock is good or bad with 1/2.
@@ -153,14 +157,14 @@ def rocksample_pomdpx(n: int, k: int, rocks: Optional[Sequence[Tuple[int, int]]]
 
     # Rewards: exit east, and one function per rock for sampling it.
     w("  <RewardFunction>")
-    w("    <Func><Var>reward_robot</Var><Parent>action_robot robot_0</Parent>"
+    w("    <Func><Var>reward_exit</Var><Parent>action_robot robot_0</Parent>"
       '<Parameter type="TBL">')
     for y in range(n):
         w(f"      <Entry><Instance>ame {_cell(n - 1, y, n)}</Instance>"
           "<ValueTable>10</ValueTable></Entry>")
     w("    </Parameter></Func>")
     for i, (x, y) in enumerate(rocks):
-        w(f"    <Func><Var>reward_robot</Var><Parent>action_robot robot_0 rock{i}_0</Parent>"
+        w(f"    <Func><Var>reward_rock{i}</Var><Parent>action_robot robot_0 rock{i}_0</Parent>"
           '<Parameter type="TBL">')
         w(f"      <Entry><Instance>as {_cell(x, y, n)} -</Instance>"
           "<ValueTable>-10 10</ValueTable></Entry>")
