@@ -17,6 +17,7 @@ from ros_hrc.experiment.stack import (CellSpec, EpisodeRanges, cell_name, check_
                                       launch_arguments, read_spec, worker_command, write_spec)
 from ros_hrc.experiment.lock import DirectoryLocked, lock_directory
 from experiment_runs import fake_ros  # noqa: F401  (a fixture)
+from in_process import run_main
 from ros_hrc.settings import SettingError
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -27,24 +28,24 @@ def o36_robot_model(tmp_path) -> Path:
     return bad
 
 
-def refused_in_process(monkeypatch, capsys, fake_ros, *args) -> str:
+def refused_in_process(monkeypatch, fake_ros, *args) -> str:
     """hrc_experiment's ``main`` on ``args`` in this process, with the recording roslaunch
     first on PATH: its one line (exit status 2)."""
     env, _ = fake_ros
     monkeypatch.setenv("PATH", env["PATH"])
     monkeypatch.setenv("FAKE_ROSLAUNCH_LOG", env["FAKE_ROSLAUNCH_LOG"])
-    assert main(list(args)) == 2
-    lines = capsys.readouterr().err.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("hrc_experiment: "), lines
+    status, _, err = run_main(main, args)
+    lines = err.splitlines()
+    assert status == 2 and len(lines) == 1 and lines[0].startswith("hrc_experiment: "), err
     return lines[0]
 
 
 def test_a_robot_model_with_other_observation_names_is_refused_before_any_stack(
-        tmp_path, fake_ros, monkeypatch, capsys):
+        tmp_path, fake_ros, monkeypatch):
     _, log = fake_ros
     bad = o36_robot_model(tmp_path)
     out = tmp_path / "out"
-    line = refused_in_process(monkeypatch, capsys, fake_ros, "--robot-model", str(bad),
+    line = refused_in_process(monkeypatch, fake_ros, "--robot-model", str(bad),
                               "--human-models", "tired", "--out", str(out))
     assert line == (f"hrc_experiment: {bad}: observations O36 are not the task's "
                     "observations (missing: O35)")
@@ -52,11 +53,10 @@ def test_a_robot_model_with_other_observation_names_is_refused_before_any_stack(
     assert not out.exists(), "the results directory was touched"
 
 
-def test_a_missing_human_model_is_refused_before_any_stack(tmp_path, fake_ros, monkeypatch,
-                                                           capsys):
+def test_a_missing_human_model_is_refused_before_any_stack(tmp_path, fake_ros, monkeypatch):
     _, log = fake_ros
     out = tmp_path / "out"
-    line = refused_in_process(monkeypatch, capsys, fake_ros, "--human-models",
+    line = refused_in_process(monkeypatch, fake_ros, "--human-models",
                               "tired,does_not_exist", "--out", str(out))
     assert line.startswith("hrc_experiment: --human-models: no human model named "
                            "'does_not_exist'")
@@ -184,11 +184,10 @@ def test_file_arguments_are_made_absolute_once_for_the_cells(tmp_path, monkeypat
     assert cells[2].human_model_file == str(ROOT / "models" / "human" / "expert.pomdpx")
 
 
-def test_a_missing_relative_model_is_one_line_before_any_stack(tmp_path, fake_ros, monkeypatch,
-                                                               capsys):
+def test_a_missing_relative_model_is_one_line_before_any_stack(tmp_path, fake_ros, monkeypatch):
     _, log = fake_ros
     monkeypatch.chdir(tmp_path)
-    line = refused_in_process(monkeypatch, capsys, fake_ros, "--robot-model",
+    line = refused_in_process(monkeypatch, fake_ros, "--robot-model",
                               "nowhere/robot.pomdp", "--out", "out")
     assert line.startswith("hrc_experiment: --robot-model: no model file ")
     assert line.endswith(f"(looked for {tmp_path}/nowhere/robot.pomdp)")

@@ -1,14 +1,15 @@
 """hrc_perturb_humans: humans of our own around the task's types (the study's part (c))."""
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 
 from ros_hrc import tasks
 from ros_hrc.experiment.grid import task_humans
+from ros_hrc.experiment import perturbed_humans
 from ros_hrc.experiment.perturbed_humans import perturb_rows
 from ros_hrc.models import load_human_model
+
+from in_process import run_main
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -36,11 +37,12 @@ def test_a_larger_concentration_stays_closer_to_the_type():
     assert near < far / 3
 
 
-def test_the_command_writes_each_type_under_its_own_name_and_the_task_loads_them(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "ros_hrc.experiment.perturbed_humans",
-                           "--task", "fabric", "--seed", "5", "--out", "humans"],
-                          cwd=tmp_path, capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
+def test_the_command_writes_each_type_under_its_own_name_and_the_task_loads_them(tmp_path,
+                                                                                 monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    status, _, err = run_main(perturbed_humans.main, ["--task", "fabric", "--seed", "5",
+                                                      "--out", "humans"])
+    assert status == 0, err
     task = tasks.get("fabric")
     for name in task_humans(task):
         written = load_human_model(str(tmp_path / "humans" / f"{name}.pomdpx"), task)
@@ -50,12 +52,12 @@ def test_the_command_writes_each_type_under_its_own_name_and_the_task_loads_them
                    for a, b in zip(written.T, original.T))
 
 
-def test_a_bad_concentration_or_type_is_one_line_and_nothing_written(tmp_path):
+def test_a_bad_concentration_or_type_is_one_line_and_nothing_written(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     for extra, said in ((["--concentration", "0"], "--concentration: must be > 0"),
                         (["--human-models", "nobody"], "--human-models: ")):
-        done = subprocess.run([sys.executable, "-m", "ros_hrc.experiment.perturbed_humans",
-                               "--task", "fabric", "--out", "humans"] + extra,
-                              cwd=tmp_path, capture_output=True, text=True)
-        assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
-        assert said in done.stderr
+        status, _, err = run_main(perturbed_humans.main,
+                                  ["--task", "fabric", "--out", "humans"] + extra)
+        assert status == 2 and len(err.splitlines()) == 1, err
+        assert said in err
         assert not (tmp_path / "humans").exists()

@@ -4,8 +4,6 @@ and the plots (plots.py)."""
 import csv
 import math
 import os
-import subprocess
-import sys
 import warnings
 
 import pytest
@@ -15,26 +13,9 @@ from ros_hrc.experiment.statistics import (POOLED, SUMMARY_COLUMNS, format_ci, m
                                            proportion_ci, summarize, write_summary)
 from ros_hrc.experiment.rows import EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, StepRow
 from ros_hrc.experiment.store import ResultsStore, ResultsWarning
+from result_rows import episode, steps_of
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-
-
-def episode(human="careful", policy="pomdp", seed=0, number=0, outcome="human", **over):
-    """An episode row; outcome is who succeeded, or the end reason of a failure."""
-    success = outcome in ("human", "robot")
-    values = dict(human_model=human, robot_policy=policy, seed=seed, episode=number,
-                  success=int(success), succeeded_by=outcome if success else "none",
-                  end_reason="success" if success else outcome, steps=12, sim_seconds=6.5,
-                  robot_discounted_reward=-3.25, intrusive_actions=1, warnings=0,
-                  zero_probability_observations=1, mean_decision_ms=4.5, wall_seconds=9.75)
-    values.update(over)
-    return EpisodeRow(**values)
-
-
-def steps_of(row, needs=(0, 1, 1, 0), beliefs=(0.1, 0.4, 0.8, 0.3)):
-    return [StepRow(row.human_model, row.robot_policy, row.seed, row.episode, i, "idle",
-                    "evaluating", "S2" if n else "S0", "rIdle", "O3", b, n, 0)
-            for i, (n, b) in enumerate(zip(needs, beliefs))]
 
 
 def read_lines(path):
@@ -306,18 +287,6 @@ def test_plot_belief_warns_when_runs_disagree_on_the_truth(tmp_path):
         assert_png(plot_belief(rows, tmp_path / "b.png"))
 
 
-def test_the_plots_need_no_display_and_leave_pyplot_alone(tmp_path):
-    code = ("import sys; from ros_hrc.experiment import plots, statistics, store; "
-            "rows = [store.EpisodeRow('h', 'p', 0, 0, 1, 'human', 'success', 3, 1.0, 0.0, 0, 0, "
-            "0, 1.0, 1.0)]; "
-            f"plots.plot_outcomes(statistics.summarize(rows), {str(tmp_path / 'o.png')!r}); "
-            "assert 'matplotlib.pyplot' not in sys.modules; "
-            "assert not {'rospy', 'pybullet'} & set(sys.modules)")
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MPLBACKEND")}
-    subprocess.run([sys.executable, "-c", code], check=True, env=env)
-    assert_png(tmp_path / "o.png")
-
-
 # ------------------------------------------------------------------ files that cannot be used
 
 def test_a_binary_results_file_is_refused_by_name_and_left_as_it_is(tmp_path):
@@ -370,68 +339,3 @@ def test_a_summary_that_cannot_be_written_leaves_the_previous_one(tmp_path, monk
     assert info.value.errno == errno.ENOSPC and info.value.filename == str(csv_path)
     assert (open(csv_path).read(), open(md_path).read()) == before
     assert sorted(os.listdir(tmp_path)) == ["s.csv", "s.md"], "no temporary file left"
-
-
-def _can_mount_a_small_disk() -> bool:
-    try:
-        return subprocess.run(["unshare", "-rm", "sh", "-c",
-                               "mount -t tmpfs -o size=64k tmpfs /mnt 2>/dev/null || "
-                               "mount -t tmpfs -o size=64k tmpfs /tmp"],
-                              capture_output=True, timeout=30).returncode == 0
-    except (OSError, subprocess.TimeoutExpired):
-        return False
-
-
-@pytest.mark.skipif(not _can_mount_a_small_disk(),
-                    reason="needs a mount namespace for a small tmpfs (unshare -rm)")
-def test_a_full_disk_while_writing_the_summary_is_one_line(tmp_path):
-    """Before: OSError: [Errno 28] with a traceback. A real full disk: a 256 KiB tmpfs in a
-    mount namespace of the test's own, filled before hrc_experiment writes its summary."""
-    recorded = tmp_path / "recorded"
-    store = ResultsStore(recorded)
-    row = episode(human="tired", policy="no_robot", number=0)
-    store.add(row, steps_of(row))
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    out = disk / "out"
-    script = (f"mount -t tmpfs -o size=256k tmpfs {disk} && mkdir {out} && "
-              f"cp {recorded}/episodes.csv {recorded}/steps.csv {out}/ && echo 1 > {out}/.lock "
-              f"&& (dd if=/dev/zero of={disk}/filler bs=4096 2>/dev/null; true) && "
-              f"exec {sys.executable} -m ros_hrc.experiment.cli --human-models tired "
-              f"--policies no_robot --seeds 0 --episodes 1 --no-plots --out {out}")
-    done = subprocess.run(["unshare", "-rm", "sh", "-c", script], capture_output=True,
-                          text=True, timeout=120, stdin=subprocess.DEVNULL)
-    assert done.returncode == 1, done.stderr
-    assert done.stderr.splitlines() == [
-        f"hrc_experiment: the disk at {disk} is full (No space left on device: "
-        f"{out / 'summary.csv'}): 1 whole episode kept in {out}; resume with: hrc_experiment "
-        f"--human-models tired --policies no_robot --seeds 0 --episodes 1 --no-plots --out "
-        f"{out} once there is room on {disk} (or copy {out} to another disk and give --out "
-        "that copy)"]
-    assert "0 to run" in done.stdout
-
-
-def test_an_episode_that_cannot_be_recorded_stops_its_worker(tmp_path, monkeypatch):
-    """A full disk while an episode is appended fails the cell with the reason, and its worker
-    (and so its stack) is stopped rather than left running unread."""
-    import errno
-    import io as text_io
-    from ros_hrc.experiment import pool
-    from ros_hrc.experiment.stack import CellSpec, encode_episode
-    row = episode(human="tired", policy="no_robot", number=0)
-    pid_file = tmp_path / "worker.pid"
-    worker = (f"import os, signal, sys, time\n"
-              f"open({str(pid_file)!r}, 'w').write(str(os.getpid()))\n"
-              f"print({encode_episode(row, steps_of(row))!r}, flush=True)\n"
-              f"while True: time.sleep(0.1)\n")
-    monkeypatch.setattr(pool, "worker_command", lambda spec_file=None: [sys.executable, "-c",
-                                                                         worker])
-
-    def full(row, steps):
-        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "episodes.csv"))
-    cell = CellSpec("tired", "no_robot", 0, [0, 1], log_dir=str(tmp_path / "logs"))
-    with pytest.raises(OSError, match="No space left on device"):
-        pool.StackWorker(pool.Stopper()).play(cell, full, text_io.StringIO())
-    pid = int(pid_file.read_text())
-    with pytest.raises(ProcessLookupError):
-        os.kill(pid, 0)

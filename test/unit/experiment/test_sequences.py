@@ -3,8 +3,7 @@ expansion, the task rows made from /hrc/task_status records, the store's resume 
 sequences, the episodes a cell's stack plays, and the summary's statistics on hand-made
 tables (checked against scipy's own calls)."""
 import math
-import subprocess
-import sys
+import os
 import warnings
 from pathlib import Path
 from types import SimpleNamespace
@@ -13,6 +12,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from ros_hrc.experiment import cli
 from ros_hrc.experiment.grid import GridError
 from ros_hrc.experiment.sequence_rows import (SequenceStore, TaskRow, sequence_of,
                                               sequence_row, task_episode, task_row)
@@ -22,13 +22,23 @@ from ros_hrc.experiment.sequence_statistics import (best_fixed, identification,
 from ros_hrc.experiment.sequences import expand_selectors, sequence_launch_args
 from ros_hrc.experiment.stack import CellSpec, launch_settings
 from ros_hrc.experiment.store import ResultsWarning
+from in_process import run_main
 
 PORTS = {"master": 11311, "pomdp": 7070, "human": 9090}
 
 
 def run_cli(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "ros_hrc.experiment.cli", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=120)
+    """hrc_experiment's ``main`` on ``args`` in this process, run from ``cwd``: its exit
+    status (``returncode``), ``stdout`` and ``stderr``."""
+    here = os.getcwd()
+    os.chdir(cwd)
+    try:
+        status, out, err = run_main(cli.main, args)
+    finally:
+        os.chdir(here)
+    return SimpleNamespace(returncode=status, stdout=out, stderr=err)
+
+
 
 
 @pytest.mark.parametrize("args, line", [

@@ -1,8 +1,5 @@
 """hrc_train_selector without a stack: which recorded tasks train the model, the model's
 arithmetic through the selector model's own builder, and the refusals before any stack."""
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
@@ -10,7 +7,9 @@ from ros_hrc.agents.selector_model import from_tasks
 from ros_hrc.experiment.sequence_rows import SequenceStore, TaskRow, sequence_row, task_episode
 from ros_hrc.experiment.train_selector import (DEFAULT_SEEDS, build_parser, study_words,
                                                training_tasks)
+from ros_hrc.experiment import train_selector
 from ros_hrc.experiment.cli import DEFAULT_SEEDS as STUDY_SEEDS
+from in_process import run_main
 
 
 def task(human, policy, index, utility, signature, seed=4, selector=None, episode=0):
@@ -78,13 +77,12 @@ def test_the_training_runs_are_a_sequence_study_of_fixed_policies_per_type():
     (["--task", "fabric", "--leave-out", "nobody"],
      "hrc_train_selector: --leave-out: 'nobody' is not one of the types"),
 ])
-def test_the_trainer_refuses_in_one_line_before_any_stack(tmp_path, args, line):
-    done = subprocess.run([sys.executable, "-m", "ros_hrc.experiment.train_selector", *args,
-                           "--runs", str(tmp_path / "runs")], cwd=tmp_path,
-                          capture_output=True, text=True, timeout=120)
-    assert done.returncode == 2
-    assert done.stderr.startswith(line), done.stderr
-    assert len(done.stderr.strip().splitlines()) == 1
+def test_the_trainer_refuses_in_one_line_before_any_stack(tmp_path, monkeypatch, args, line):
+    monkeypatch.chdir(tmp_path)
+    status, _, err = run_main(train_selector.main, [*args, "--runs", str(tmp_path / "runs")])
+    assert status == 2
+    assert err.startswith(line), err
+    assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "runs").exists()
 
 

@@ -1,13 +1,12 @@
 """The per-launch link token (ros_hrc.link.token): made private, read only when private, found
-by session, by file or by environment, pruned when its launch has ended; hello proofs."""
+by session, by file or by environment; hello proofs. (Pruned once its launch has ended:
+test/integration/link/test_link_processes.py.)"""
 import os
-import subprocess
-import sys
 
 import pytest
 
 from ros_hrc.link.token import (TOKEN_FILE_ENV, TokenError, mint_token, proof, proof_matches,
-                                prune_tokens, read_token, resolve_token, session_token_file,
+                                read_token, resolve_token, session_token_file,
                                 token_dir)
 
 
@@ -72,16 +71,6 @@ def test_the_token_file_comes_from_the_option_then_the_session_then_the_environm
     assert resolve_token(environ=env)[1] == by_env
     with pytest.raises(TokenError, match="no link token.*--token-file PATH.*HRC_LINK_TOKEN_FILE"):
         resolve_token(environ=home)
-
-
-def test_tokens_of_ended_launches_are_pruned_and_live_ones_kept(home):
-    ended = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                           capture_output=True, text=True, check=True)
-    gone = mint_token("gone", launcher_pid=int(ended.stdout), environ=home)
-    live = mint_token("live", launcher_pid=os.getpid(), environ=home)
-    unknown = mint_token("unknown", environ=home)
-    assert prune_tokens(home) == 1
-    assert not gone.exists() and live.exists() and unknown.exists()
 
 
 def test_a_proof_binds_the_token_role_port_name_and_nonce():

@@ -1,8 +1,6 @@
 """hrc_check, the launch's pre-flight: good arguments give the whole configuration as YAML and
 exit 0; any bad one gives exactly one line on stderr naming the argument or the file, exit 2,
 and never a traceback."""
-import contextlib
-import io
 import socket
 from pathlib import Path
 
@@ -12,6 +10,7 @@ import yaml
 from ros_hrc.link.transport import free_port
 from ros_hrc import settings
 from ros_hrc.commands.check import CheckError, check, check_display, main, parse_words
+from in_process import run_main
 
 ROOT = Path(__file__).resolve().parents[3]
 SCRIPT = ROOT / "scripts" / "hrc_check"
@@ -21,10 +20,7 @@ def run(*words):
     """hrc_check's ``main`` on ``words``, in-process: (exit status, stdout, stderr). Its script
     and roslaunch's run of it: test/integration/loop/test_launch_arguments.py and
     test_launch_refuses.py."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        status = main(list(words))
-    return status, out.getvalue(), err.getvalue()
+    return run_main(main, words)
 
 
 def free_ports():

@@ -1,7 +1,5 @@
 """Choosing the format by extension, exact conversions both ways, and the hrc_pomdp command."""
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -129,12 +127,3 @@ def test_subcommands_register_through_one_list():
     parser = cli.build_parser()
     assert {"info", "convert"} <= set(parser._subparsers._group_actions[0].choices)
     assert cli._register_info in cli.SUBCOMMANDS and cli._register_convert in cli.SUBCOMMANDS
-
-
-def test_the_script_exits_with_the_status(tmp_path):
-    bad = tmp_path / "bad.pomdp"
-    bad.write_text("discount: 2\n")
-    result = subprocess.run([sys.executable, str(ROOT / "scripts" / "hrc_pomdp"), "info", str(bad)],
-                            capture_output=True, text=True, timeout=60)
-    assert result.returncode == 2
-    assert result.stderr.strip() == f"hrc_pomdp: {bad}:1: discount 2 is outside [0, 1)"
