@@ -37,6 +37,10 @@ GRID = ["--human-models", "tired,distracted", "--policies", "no_robot,reactive",
         "--episodes", str(EPISODES), "--step-limit", "8", "--no-plots"]
 #: Ray's ports for the test's nodes (each taken only when free).
 RAY_PORTS = (23311, 23999)
+#: The tests that start a Ray cluster run one at a time, on one pytest worker: the two-node
+#: ones put their nodes on the same loopback addresses, and each cluster's raylets, stacks
+#: and Ray workers would otherwise share the machine's two cores with another's.
+ONE_RAY_CLUSTER_AT_A_TIME = pytest.mark.xdist_group("ray")
 
 
 def experiment(*args: str) -> list:
@@ -92,6 +96,7 @@ exit 1
 
 @pytest.mark.skipif(not (HAS_RAY and importlib.util.find_spec("rospy")),
                     reason="needs Ray; the worker needs rospy")
+@ONE_RAY_CLUSTER_AT_A_TIME
 def test_a_cell_that_fails_three_times_is_reported_with_its_log_s_last_lines(tmp_path):
     bin_dir = tmp_path / "bin"
     bin_dir.mkdir()
@@ -185,6 +190,7 @@ def _kill(proc) -> None:
 
 
 @pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
+@ONE_RAY_CLUSTER_AT_A_TIME
 def test_a_grid_on_two_nodes_equals_the_local_run_and_a_lost_node_loses_no_episode(tmp_path):
     # The local pool's run, while the cluster starts.
     local = _start(experiment(*GRID, "--jobs", "2", "--out", str(tmp_path / "local")),
@@ -250,6 +256,7 @@ def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
 
 
 @pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
+@ONE_RAY_CLUSTER_AT_A_TIME
 def test_a_cell_fails_with_the_reason_once_no_node_offers_ros_hrc(tmp_path):
     """The only node with the resource dies while the head lives: Ray would keep the cell
     queued forever; after --cluster-wait it fails, saying why and how to resume."""
@@ -286,6 +293,7 @@ def _fail_without_a_node(tmp_path: Path, other, address: str) -> None:
 
 
 @pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
+@ONE_RAY_CLUSTER_AT_A_TIME
 def test_a_sequence_cell_runs_on_the_cluster_with_the_driver_s_library(tmp_path):
     """A sequence cell on the cluster: its whole-sequence line reaches the driver, and the
     stack plays the --library and --selector-model the driver was given, from the node's
