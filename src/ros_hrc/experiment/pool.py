@@ -3,7 +3,8 @@ process that owns one stack and plays cell after cell on it (:class:`StackWorker
 stack, handed each next cell through one reconfiguration and reset instead of a new
 roslaunch; ``--fresh-stacks``: a new stack per cell, as before), under SIGINT and SIGTERM
 (:func:`run_stoppable`; on a cluster, the same queue with
-:class:`ros_hrc.experiment.cluster.ClusterRun` playing each cell). No ROS here.
+:class:`ros_hrc.experiment.cluster.NodeLane`, an actor on a node, playing each lane's
+cells). No ROS here.
 
 A cell goes from the :class:`CellQueue` (the human alone, ``no_robot``, on a stream before the
 robots' episodes of that stream) to a lane's worker (:func:`run_grid`), which plays it in up
@@ -35,7 +36,7 @@ from ros_hrc.experiment.disk import (CHECK_INTERVAL, DiskFull, DiskWatch, full_d
                                      is_full_disk)
 from ros_hrc.experiment.episode import ALONE_POLICY
 from ros_hrc.experiment.recording import Progress
-from ros_hrc.experiment.stack import (CellSpec, cell_name, check_launch_settings,
+from ros_hrc.experiment.stack import (CellSpec, StackKeeper, cell_name, check_launch_settings,
                                       decode_cell_end, decode_episode, worker_command,
                                       write_spec)
 from ros_hrc import settings
@@ -138,23 +139,23 @@ class CellRefused(RuntimeError):
 def stack_key(cell: CellSpec) -> Tuple[Tuple[str, Any], ...]:
     """What a cell needs of a stack that a running one cannot take in place (the task, the
     world's settings, the windows: every setting outside :data:`ros_hrc.settings.IN_PLACE`,
-    resolved): cells of one key can follow each other on one warm stack. A cell whose
-    settings do not resolve has a key of its own (it fails where it plays, with the
-    reason)."""
+    resolved): cells of one key can follow each other on one warm stack. None for a cell
+    whose settings do not resolve: any stack takes it, and its worker refuses it with the
+    reason (:class:`CellRefused`) without touching the stack."""
     return _stack_key(dataclasses.replace(cell, episodes=()).to_json())
 
 
 @functools.lru_cache(maxsize=4096)
-def _stack_key(spec_json: str) -> Tuple[Tuple[str, Any], ...]:
+def _stack_key(spec_json: str) -> Optional[Tuple[Tuple[str, Any], ...]]:
     try:
         config = check_launch_settings(CellSpec.from_json(spec_json))
     except (HrcError, ValueError):
-        return (("unresolved", spec_json),)
+        return None
     return tuple((name, config[name]) for name in settings.SETTINGS
                  if name not in settings.IN_PLACE)
 
 
-class StackWorker:
+class StackWorker(StackKeeper):
     """A worker process that owns one stack (``python -m ros_hrc.nodes.experiment_cell
     --serve``, :func:`~ros_hrc.experiment.stack.worker_command`) and plays the cells it is
     handed one after another: the first starts the stack, each next is handed to the running
@@ -175,7 +176,14 @@ class StackWorker:
 
     def takes(self, cell: CellSpec) -> bool:
         """Whether its running stack can play ``cell`` next (no stack yet: any cell)."""
-        return self.proc is None or (not self.fresh and self.key == stack_key(cell))
+        if self.proc is None:
+            return True
+        key = stack_key(cell)
+        # None on either side: a cell refused before it reached a stack (it starts none).
+        return not self.fresh and (key is None or self.key is None or key == self.key)
+
+    def stack_running(self) -> bool:
+        return self.proc is not None
 
     def _start(self, cell: CellSpec) -> None:
         self.proc = subprocess.Popen(worker_command(), stdin=subprocess.PIPE,
@@ -215,17 +223,14 @@ class StackWorker:
             proc.stdin.flush()
         except OSError:   # it died before it could read the cell: its reason is on stderr
             pass
+        refusal, over = None, False
         try:
             for line in proc.stdout:
                 end = decode_cell_end(line)
                 if end is not None:
-                    log.writelines(self._take_errors())
                     over, what = end
-                    if self.fresh:
-                        self.close(wait=False)
-                    if not over:
-                        raise CellRefused(what["reason"])
-                    return
+                    refusal = None if over else what["reason"]
+                    break
                 try:
                     episode = decode_episode(line)
                 except (ValueError, KeyError) as exc:   # a line cut short: the episode reruns
@@ -234,13 +239,27 @@ class StackWorker:
                     continue
                 if episode is not None:
                     deliver(*episode)
+            else:
+                # Its output ended before the cell did: the worker (and so its stack) is gone.
+                self._worker_gone(proc, log)
+                return
         except BaseException:
             # An episode could not be recorded (a full disk): the worker must not run on, nor
             # its stack: SIGTERM makes it stop the stack; the reason goes up.
             if self.proc is proc:
                 self._terminate()
             raise
-        # Its output ended before the cell did: the worker (and so its stack) is gone.
+        log.writelines(self._take_errors())
+        if over and self.key is None:    # the stack its first cell started
+            self.key = stack_key(cell)
+        if self.fresh:
+            self.close(wait=False)
+        if refusal is not None:
+            raise CellRefused(refusal)
+
+    def _worker_gone(self, proc: subprocess.Popen, log: TextIO) -> None:
+        """The worker's output ended before its cell did: RuntimeError with its last line
+        (unless the run is stopping), its messages in ``log``."""
         proc.wait()
         if self._reader is not None:
             self._reader.join(5.0)
@@ -310,9 +329,11 @@ class CellQueue:
         return cell.robot_policy == ALONE_POLICY or \
             self._alone_left.get((cell.human_model, cell.seed), 0) == 0
 
-    def take(self, worker: Optional[StackWorker] = None) -> Optional[CellSpec]:
+    def take(self, worker: Optional[StackKeeper] = None,
+             on_wait: Optional[Callable[[], None]] = None) -> Optional[CellSpec]:
         """The next cell to play (blocking until one is ready), or None when none is left or
-        the run stops."""
+        the run stops. ``on_wait()`` is called once, the queue unlocked, before it first
+        waits."""
         with self._ready:
             while True:
                 if self._stopper is not None and self._stopper.stopping:
@@ -321,8 +342,7 @@ class CellQueue:
                 if not ready and not self._waiting:
                     return None
                 if ready:
-                    fits = [c for c in ready if worker is not None and worker.proc is not None
-                            and worker.takes(c)]
+                    fits = [c for c in ready if worker is not None and worker.warm_for(c)]
                     cell = (fits or ready)[0]
                     self._waiting.remove(cell)
                     if cell.robot_policy != ALONE_POLICY and self._gate is not None:
@@ -330,6 +350,14 @@ class CellQueue:
                         if cell is None:
                             continue
                     return cell
+                if on_wait is not None:
+                    self._ready.release()
+                    try:
+                        on_wait()
+                    finally:
+                        self._ready.acquire()
+                    on_wait = None
+                    continue
                 self._ready.wait(1.0)    # a human-alone cell still plays
 
     def done(self, cell: CellSpec) -> None:
@@ -377,8 +405,10 @@ def run_grid(cells: List[CellSpec], store, jobs: int,
     they come (``store.add(row, steps)``). Returns run figures. ``program`` names the
     progress bar and the messages (hrc_fit runs grids too). Cells come from a
     :class:`CellQueue` (the human alone first; ``gate``). ``remote``: a
-    :class:`ros_hrc.experiment.cluster.ClusterRun`, whose ``run_cell`` plays each cell on
-    the cluster instead; ``status()`` leads the progress bar's text."""
+    :class:`ros_hrc.experiment.cluster.ClusterRun`: the cells play on the cluster instead,
+    each lane on a Ray actor that keeps its stack on a node
+    (:class:`~ros_hrc.experiment.cluster.NodeLane`); ``status()`` leads the progress bar's
+    text."""
     stopper = stopper or Stopper()
     progress = Progress(store, sum(len(c.episodes) for c in cells), program, status,
                         unit="sequence" if cells[0].sequence else "episode")
@@ -410,11 +440,18 @@ def run_grid(cells: List[CellSpec], store, jobs: int,
             worker.close()
 
     def cluster_lane() -> None:
-        while (cell := queue.take()) is not None:
-            try:
-                record(cell, lambda log: remote.run_cell(cell, progress.deliver, log, stopper))
-            finally:
-                queue.done(cell)
+        lane = remote.lane(stopper, fresh=fresh_stacks)
+        try:
+            # While it waits for a cell to be ready, its actor's slot goes to a lane that has
+            # one: a lane whose node was lost waits for a slot, and may hold the very cell
+            # this one waits for.
+            while (cell := queue.take(lane, on_wait=lane.close)) is not None:
+                try:
+                    record(cell, lambda log: lane.run_cell(cell, progress.deliver, log))
+                finally:
+                    queue.done(cell)
+        finally:
+            lane.close()
 
     with progress:
         watcher = DiskWatcher(stopper)
@@ -455,7 +492,7 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
                   fresh_stacks: bool = False) -> Tuple[Optional[dict], Optional[int]]:
     """:func:`run_grid` under SIGINT and SIGTERM: ``(figures, None)``, or, when a signal
     stopped it, ``(None, 128 + signal)`` after saying what is kept and how to resume.
-    ``cluster`` (``--cluster``): the cells run as Ray tasks there
+    ``cluster`` (``--cluster``): the cells run on Ray actors there
     (:mod:`ros_hrc.experiment.cluster`, the only place Ray is imported); a cluster that cannot
     be joined is one line and ``(None, 2)``. A full disk under the run (``out``'s, or
     ``$ROS_HOME``'s) stops it as a signal does: one line naming the disk, ``(None, 1)``."""
@@ -481,7 +518,7 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
             else:
                 figures = run_grid(cells, store, remote.in_flight_limit, stopper,
                                    program=program, gate=gate, remote=remote,
-                                   status=remote.status)
+                                   fresh_stacks=fresh_stacks, status=remote.status)
                 figures["cluster"] = remote.report()
         finally:
             stopper.uninstall()

@@ -81,3 +81,46 @@ def test_a_sequence_cell_after_others_on_a_warm_stack_writes_the_rows_of_a_fresh
         played_warm = rows_of(getattr(SequenceStore(warm), rows)(), **cell)
         played_fresh = rows_of(getattr(SequenceStore(fresh), rows)(), **cell)
         assert played_warm and played_warm == played_fresh, rows
+
+
+def test_a_refused_cell_fails_alone_and_a_stack_that_dies_is_replaced(tmp_path, capsys):
+    """A cell whose settings are refused (a human model that is not there) fails with the
+    reason and leaves the warm stack as it was: the next cell plays on it. A warm stack
+    that dies mid-run (its roslaunch killed) is replaced: the cell's episodes run again on
+    a new stack, and the run says so in one line."""
+    import psutil
+    import pytest
+    from ros_hrc.experiment.pool import CellRefused, StackWorker, Stopper, play_cell
+    from ros_hrc.experiment.stack import CellSpec
+
+    logs = tmp_path / "logs"
+    log = (tmp_path / "worker.log").open("a")
+    worker = StackWorker(Stopper())
+    played = []
+
+    def cell(seed: int, **more) -> CellSpec:
+        return CellSpec("expert", "reactive", seed, [0, 1], step_limit=10, log_dir=str(logs),
+                        **more)
+    try:
+        worker.play(cell(1), lambda row, steps: played.append(row), log)
+        with pytest.raises(CellRefused, match="gone.pomdpx"):
+            worker.play(cell(2, human_model_file=str(tmp_path / "gone.pomdpx")),
+                        lambda row, steps: played.append(row), log)
+        worker.play(cell(3), lambda row, steps: played.append(row), log)
+        log.flush()
+        assert "expert-reactive-seed3: on the warm stack of expert-reactive-seed1 (cell 2;" in \
+            (tmp_path / "worker.log").read_text()
+        assert [(r.seed, r.episode) for r in played] == [(1, 0), (1, 1), (3, 0), (3, 1)]
+
+        roslaunch = [p for p in psutil.Process(worker.proc.pid).children(recursive=True)
+                     if "roslaunch" in " ".join(p.cmdline())]
+        assert roslaunch
+        roslaunch[0].kill()
+        play_cell(worker, cell(4), lambda row, steps: played.append(row), log, "test")
+        assert [(r.seed, r.episode) for r in played][-2:] == [(4, 0), (4, 1)]
+        said = [line for line in capsys.readouterr().err.splitlines()
+                if "still missing run again on a new stack" in line]
+        assert len(said) == 1 and "cell expert-reactive-seed4: " in said[0], said
+    finally:
+        worker.close()
+        log.close()
