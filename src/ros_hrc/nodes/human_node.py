@@ -462,17 +462,23 @@ class HumanNode:
         if seat is None:
             return False, "no MDP process is connected"
         request_id = next(self._next_state_ids)
-        if not seat.send(Configure(reason="/hrc/configure called", id=request_id)):
+        return self._ask_mdp(seat, Configure(reason="/hrc/configure called", id=request_id),
+                             self.config.reset_timeout, "configured")
+
+    def _ask_mdp(self, seat: Peer, message: Message, timeout: float, done: str
+                 ) -> Tuple[bool, str]:
+        """Send the served MDP ``message`` (a request: it has an id) and wait up to
+        ``timeout`` s for its answer: (success, what it answered, or ``done``)."""
+        if not seat.send(message):
             return False, "the MDP process is gone"
         with self._answered:
-            self._answered.wait_for(lambda: request_id in self._answers,
-                                    self.config.reset_timeout)
-            answer = self._answers.pop(request_id, None)
+            self._answered.wait_for(lambda: message.id in self._answers, timeout)
+            answer = self._answers.pop(message.id, None)
         if answer is None:
             return False, "the MDP process did not answer"
         if isinstance(answer, Error):
             return False, answer.message
-        return True, answer.result or "configured"
+        return True, answer.result or done
 
     def configure_service(self, _req) -> TriggerResponse:
         ok, text = self.configure()
@@ -568,17 +574,7 @@ class HumanNode:
         except MessageError:   # a number no model has (the field is at most MAX_STATE_INDEX)
             return False, (f"no human state {state}: states are numbered from 0 to at most "
                            f"{MAX_STATE_INDEX}; a negative number lets the model choose")
-        if not seat.send(message):
-            return False, "the MDP process is gone"
-        with self._answered:
-            self._answered.wait_for(lambda: request_id in self._answers,
-                                    self.config.reply_timeout)
-            answer = self._answers.pop(request_id, None)
-        if answer is None:
-            return False, "the MDP process did not answer"
-        if isinstance(answer, Error):
-            return False, answer.message
-        return True, answer.result or "next state queued"
+        return self._ask_mdp(seat, message, self.config.reply_timeout, "next state queued")
 
     def read_enter(self, stream: Optional[TextIO] = None) -> None:
         """Enter on this node's terminal resets everything; in manual mode a typed state goes
