@@ -43,7 +43,8 @@ from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.output import write_atomically
 from ros_hrc.pomdp.sampling import ModelSampler
 
-__all__ = ["MAX_CELLS", "ExperienceCounts", "RowSupport", "fit_model", "row_support",
+__all__ = ["MAX_CELLS", "ExperienceCounts", "RowSupport", "fit_model", "posterior_table",
+           "row_support",
            "support_lines", "fit_header", "fitted_text", "write_fitted", "sample_experience",
            "uniform_policy"]
 
@@ -262,8 +263,10 @@ def _check_strength(strength) -> float:
     return k
 
 
-def _posterior(prior: sp.csr_matrix, n: np.ndarray, k: float) -> sp.csr_matrix:
-    """Row-wise Dirichlet posterior mean of one table; rows without counts keep the prior."""
+def posterior_table(prior: sp.csr_matrix, n: np.ndarray, k: float) -> sp.csr_matrix:
+    """Row-wise Dirichlet posterior mean of one table with ``k`` pseudo-counts per prior row
+    and counts ``n`` (whole, or expected: :mod:`ros_hrc.pomdp.bayes_adaptive`); rows without
+    counts keep the prior."""
     p = sp.csr_matrix(prior).toarray().astype(float)
     n = n.astype(float)
     N = n.sum(axis=1)
@@ -301,8 +304,8 @@ def fit_model(prior: Model, counts: ExperienceCounts, strength: float,
     k = _check_strength(strength)
     prior.validate()
     _check_sizes(prior, counts)
-    T = [_posterior(prior.T[a], counts.transitions[a], k) for a in range(prior.n_actions)]
-    O = [_posterior(prior.O[a], counts.observations[a], k) for a in range(prior.n_actions)]
+    T = [posterior_table(prior.T[a], counts.transitions[a], k) for a in range(prior.n_actions)]
+    O = [posterior_table(prior.O[a], counts.observations[a], k) for a in range(prior.n_actions)]
     # The prior's observation structure (an MDP's identity O, a MOMDP's observed values) still
     # holds while no fitted O row gives weight to an observation its prior row rules out.
     same_support = all(_support_within(o, po) for o, po in zip(O, prior.O))

@@ -1,0 +1,192 @@
+"""A POMDP whose dynamics are learnt while it is used: Dirichlet posteriors over T (and O).
+
+The ROS-free core of a Bayes-adaptive robot (Ross, Chaib-draa and Pineau, JMLR 2011; root
+sampling as in BAMCP, Guez, Silver and Dayan, NeurIPS 2012): a prior model's rows, each a
+Dirichlet of ``strength`` pseudo-counts (``alpha = strength * prior row``), plus the counts
+that experience added. The experience of a task is its actions and observations only (the
+true state is never read): :func:`expected_counts` runs forward-backward over them under a
+model (the posterior mean) and returns the expected number of times each transition and each
+observation happened, which :meth:`DirichletPosterior.learn` adds.
+
+With prior row ``p``, strength ``k`` and a row's counts ``n``, the posterior mean row is
+``(k p + n) / sum(k p + n)`` (:func:`ros_hrc.pomdp.fit.posterior_table`, the same rule as
+``hrc_fit``'s labelled fit), and a row drawn from the posterior is a Dirichlet draw on the
+prior row's support (:meth:`DirichletPosterior.sample`). :meth:`DirichletPosterior.forget`
+moves the counts towards the prior (``n <- (1 - rate) n``), so that a human who changed is
+learnt again.
+
+Steps are ``(action, observation)`` pairs by index: ``action`` is the one taken before
+``observation`` was made (the robot's previous action; for a task's first step its idle
+action), as the robot's belief update takes them. No task is known here.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from ros_hrc.errors import ModelError
+from ros_hrc.pomdp.fit import posterior_table
+from ros_hrc.pomdp.model import Model
+
+__all__ = ["expected_counts", "DirichletPosterior", "check_strength", "check_forgetting"]
+
+Step = Tuple[int, int]
+
+
+def expected_counts(model: Model, steps: Sequence[Step],
+                    belief: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+    """The expected counts of a task's hidden transitions and observations under ``model``,
+    given its ``steps`` (``(action, observation)`` indices) and the belief it started from
+    (``belief``; the model's initial belief when None): ``(transitions[a, s, s'],
+    observations[a, s', o])``, float arrays whose entries for each step sum to 1.
+
+    Forward-backward (scaled): an observation the model gives probability 0 after the
+    prediction is left out of that step (the belief keeps the prediction, as the robot's
+    belief update does), so that one surprise does not void the task."""
+    T, O = model.dense_T, model.dense_O
+    A, S, _ = T.shape
+    n_obs = O.shape[2]
+    b = np.asarray(model.initial_belief if belief is None else belief, dtype=float)
+    if b.shape != (S,) or not np.isfinite(b).all() or b.min() < 0 or b.sum() <= 0:
+        raise ModelError(f"the starting belief must be {S} non-negative numbers, not {b!r}")
+    for a, o in steps:
+        if not (0 <= a < A and 0 <= o < n_obs):
+            raise ModelError(f"step ({a}, {o}) is outside the model's {A} actions and "
+                             f"{n_obs} observations")
+    transitions = np.zeros((A, S, S))
+    observations = np.zeros((A, S, n_obs))
+    if not steps:
+        return transitions, observations
+    # Forward: alpha[t] is P(s_t | o_1..o_t), the likelihood each step used in lik[t - 1].
+    alphas, likelihoods = [b / b.sum()], []
+    for a, o in steps:
+        predicted = alphas[-1] @ T[a]
+        likelihood = O[a][:, o]
+        if not (predicted @ likelihood) > 0:
+            likelihood = np.ones(S)      # an impossible observation: the prediction stands
+        posterior = predicted * likelihood
+        alphas.append(posterior / posterior.sum())
+        likelihoods.append(likelihood)
+    # Backward: beta[t] (scaled) with alpha[t] * beta[t] = P(s_t | all observations).
+    beta = np.ones(S)
+    for t in range(len(steps), 0, -1):
+        a, o = steps[t - 1]
+        weighted = likelihoods[t - 1] * beta                      # over s_t
+        joint = alphas[t - 1][:, None] * T[a] * weighted[None, :]  # (s_{t-1}, s_t)
+        total = joint.sum()
+        joint /= total
+        transitions[a] += joint
+        observations[a][:, o] += joint.sum(axis=0)
+        beta = (T[a] @ weighted) / total
+    return transitions, observations
+
+
+def check_strength(strength: float) -> float:
+    """The prior's strength ``kappa`` (pseudo-counts per row): a finite number > 0, or a
+    one-line ValueError."""
+    try:
+        k = float(strength)
+    except (TypeError, ValueError):
+        raise ValueError(f"the prior's strength must be a number, not {strength!r}") from None
+    if not math.isfinite(k) or k <= 0:
+        raise ValueError(f"the prior's strength must be a finite number > 0, not {strength!r}")
+    return k
+
+
+def check_forgetting(rate: float) -> float:
+    """A forgetting rate: a number from 0 (keep everything) to 1 (back to the prior), or a
+    one-line ValueError."""
+    try:
+        r = float(rate)
+    except (TypeError, ValueError):
+        raise ValueError(f"the forgetting rate must be a number, not {rate!r}") from None
+    if not 0.0 <= r <= 1.0:
+        raise ValueError(f"the forgetting rate must be from 0 to 1, not {rate!r}")
+    return r
+
+
+@dataclass
+class DirichletPosterior:
+    """A prior model's T (and, with ``learn_observations``, O) as Dirichlet posteriors: each
+    row ``strength * prior row`` plus the expected counts learnt so far (``transitions``,
+    ``observations``, float arrays). Rewards, discount, initial belief and names stay the
+    prior's."""
+
+    prior: Model
+    strength: float
+    learn_observations: bool = False
+    transitions: Optional[np.ndarray] = None      # (A, S, S') counts learnt
+    observations: Optional[np.ndarray] = None     # (A, S', O) counts learnt
+
+    def __post_init__(self) -> None:
+        self.strength = check_strength(self.strength)
+        self.prior.validate()
+        A, S, n_obs = self.prior.n_actions, self.prior.n_states, self.prior.n_observations
+        if self.transitions is None:
+            self.transitions = np.zeros((A, S, S))
+        if self.observations is None:
+            self.observations = np.zeros((A, S, n_obs))
+        if self.transitions.shape != (A, S, S) or self.observations.shape != (A, S, n_obs):
+            raise ModelError(f"the counts are not sized for the prior's {A} actions, {S} "
+                             f"states and {n_obs} observations")
+
+    def learn(self, steps: Sequence[Step], belief: Optional[np.ndarray] = None) -> None:
+        """Add a task's expected counts, computed under the posterior mean."""
+        transitions, observations = expected_counts(self.mean(), steps, belief)
+        self.transitions += transitions
+        if self.learn_observations:
+            self.observations += observations
+
+    def forget(self, rate: float) -> None:
+        """Move the counts towards the prior: ``n <- (1 - rate) n`` (0 keeps them, 1 is the
+        prior again)."""
+        keep = 1.0 - check_forgetting(rate)
+        self.transitions *= keep
+        self.observations *= keep
+
+    def _model(self, T, O, name: str) -> Model:
+        prior = self.prior
+        model = dataclasses.replace(
+            prior, T=T, O=O, R=[sp.csr_matrix(r, copy=True) for r in prior.R],
+            initial_belief=np.array(prior.initial_belief, dtype=float, copy=True),
+            fully_observable=prior.fully_observable and not self.learn_observations,
+            observed_key=(np.array(prior.observed_key, copy=True)
+                          if prior.observed_key is not None and not self.learn_observations
+                          else None),
+            name=name, source=None, meta=dict(prior.meta))
+        return model
+
+    def mean(self) -> Model:
+        """The posterior mean model (certainty equivalence)."""
+        k, prior = self.strength, self.prior
+        T = [posterior_table(prior.T[a], self.transitions[a], k) for a in range(prior.n_actions)]
+        O = [posterior_table(prior.O[a], self.observations[a], k)
+             for a in range(prior.n_actions)] if self.learn_observations else \
+            [sp.csr_matrix(o, copy=True) for o in prior.O]
+        return self._model(T, O, f"{prior.name or 'model'}-posterior-mean")
+
+    def sample(self, rng: np.random.Generator) -> Model:
+        """A model drawn from the posterior: every row a Dirichlet draw on the prior row's
+        support (a transition the prior rules out stays ruled out), as a scenario of root
+        sampling draws its model."""
+        k, prior = self.strength, self.prior
+
+        def draw(table: sp.csr_matrix, counts: np.ndarray) -> sp.csr_matrix:
+            p = sp.csr_matrix(table).toarray().astype(float)
+            out = np.zeros_like(p)
+            for row in range(p.shape[0]):
+                support = p[row] > 0
+                out[row, support] = rng.dirichlet(k * p[row, support] + counts[row, support])
+            drawn = sp.csr_matrix(out)
+            drawn.eliminate_zeros()
+            return drawn
+
+        T = [draw(prior.T[a], self.transitions[a]) for a in range(prior.n_actions)]
+        O = [draw(prior.O[a], self.observations[a]) for a in range(prior.n_actions)] \
+            if self.learn_observations else [sp.csr_matrix(o, copy=True) for o in prior.O]
+        return self._model(T, O, f"{prior.name or 'model'}-posterior-draw")
