@@ -1,7 +1,10 @@
-"""Fixtures shared by the unit tests."""
+"""Fixtures shared by the tests of every folder (test/unit, test/nodes, test/integration)."""
+from typing import Iterator
+
 import pytest
 
 from ros_hrc.link.token import mint_token, read_token
+from ros_hrc.world import World, WorldConfig
 
 
 @pytest.fixture
@@ -23,3 +26,19 @@ def library_without_model(tmp_path):
     (folder / "library.toml").write_text(
         manifest.read_text().replace('model = "', f'model = "{manifest.parent}/'))
     return folder / "library.toml"
+
+
+# -- the world's tests: small, headless worlds, closed after each test ---------------------
+
+@pytest.fixture
+def world() -> Iterator[World]:
+    """The default scene, headless, belt at its default speed."""
+    with World(WorldConfig(seed=3)) as w:
+        yield w
+
+
+@pytest.fixture
+def still_world() -> Iterator[World]:
+    """The default scene with the belt stopped, so the object stays where it is put."""
+    with World(WorldConfig(seed=3, belt_speed=0.0)) as w:
+        yield w
