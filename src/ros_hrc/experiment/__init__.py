@@ -15,8 +15,8 @@
   ros_hrc.experiment.recording   where a run's episodes go: the alone pairs, the progress
   ros_hrc.experiment.attempts    one cell in up to three attempts, locally or on a cluster
   ros_hrc.experiment.pool        the local pool: cells side by side, stopped by SIGINT/SIGTERM
-  ros_hrc.experiment.cluster     --cluster: the cells as Ray tasks (the option, the driver)
-  ros_hrc.experiment.cluster_task  a cell's Ray task, on its node
+  ros_hrc.experiment.cluster     --cluster: the cells on Ray actors (the option, the driver)
+  ros_hrc.experiment.cluster_task  a lane's Ray actor, on its node: one warm stack
   ros_hrc.experiment.ray_node    a Ray node of one's own (--cluster local, tests, benchmark)
   ros_hrc.experiment.cli         hrc_experiment: checks the grid, locks --out, runs the cells
   ros_hrc.experiment.fit         hrc_fit: the robot model fitted from episodes

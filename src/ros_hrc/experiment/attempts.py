@@ -2,7 +2,7 @@
 failed: a port taken between its pick and its bind, a node that died; on a cluster, its node
 lost) is followed by another with only the episodes not yet delivered, on fresh ports, up to
 :data:`MAX_ATTEMPTS`; then the cell fails with the last reason. Each episode is delivered
-once. What one attempt is (a local worker process, a Ray task) is the caller's: it is handed
+once. What one attempt is (a local worker's, a cluster actor's) is the caller's: it is handed
 to :meth:`CellAttempts.run`. No ROS here.
 """
 from __future__ import annotations

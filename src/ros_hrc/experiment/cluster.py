@@ -1,43 +1,50 @@
-"""Studies beyond one machine: an experiment grid's cells as Ray tasks (``--cluster``).
+"""Studies beyond one machine: an experiment grid's cells on a Ray cluster (``--cluster``).
 
 ``hrc_experiment --cluster ADDRESS`` (and ``hrc_fit --cluster``) runs the same cells as the
-local pool, each as a Ray task that asks for one CPU and one unit of the custom resource
-``ros_hrc`` (which ``ray start --resources '{"ros_hrc": N}'`` sets on the machines where
-``make setup`` ran). On the node it lands on, the task runs the same worker command as the
-local pool (:func:`ros_hrc.experiment.stack.worker_command`: the cell's whole stack, with a
-roscore and free ports of its own on that machine) and streams each episode's line back to the
-driver as the worker prints it (a Ray generator task). The driver alone writes the results
+local pool, in as many lanes as the cluster has slots: each lane owns a Ray actor
+(:class:`NodeLane`; on the node, :class:`ros_hrc.experiment.cluster_task.NodeStack`) that asks
+for one CPU and one unit of the custom resource ``ros_hrc`` (which ``ray start --resources
+'{"ros_hrc": N}'`` sets on the machines where ``make setup`` ran) and lives on one node. There
+it keeps the local pool's worker (:func:`ros_hrc.experiment.stack.worker_command`, ``--serve``:
+one stack, with a roscore and free ports of its own on that machine) across the lane's cells,
+each handed to the running stack (a warm stack), and streams each episode's line back to the
+driver as the worker prints it (a Ray generator method). The driver alone writes the results
 directory: resume, the lock and the summary are the local run's.
 
 - ``ADDRESS``: ``host:port`` of the cluster's head (its GCS, ``ray start --head --port``);
   ``auto``: the cluster ``ray start`` started on this machine (or ``RAY_ADDRESS``); ``local``:
   a private one-node cluster started for the run on this machine and stopped at its end.
-- **Faults.** A node that dies takes its cells back to the queue: the driver submits the cell
-  again with only the episodes it does not have (a cell's episodes already delivered are kept;
-  an episode that comes twice is dropped, by its (human model, policy, seed, episode)). Ray's
-  own task retry would replay a cell from its first episode, so the tasks ask for none. A cell
-  that fails :data:`~ros_hrc.experiment.attempts.MAX_ATTEMPTS` times is reported with the
-  last lines of its logs, read on the node where it last ran.
-- **Stopping.** SIGINT or SIGTERM to the driver cancels the remote tasks; each task then sends
-  SIGTERM to its worker, which stops its stack as it does locally. A worker whose task's
-  process dies (the driver gone before its tasks ended, a node lost) gets SIGTERM from the
-  kernel (``setpriv --pdeathsig``) and stops its stack too; with ``local`` the driver waits
-  for its cells' processes to end before it stops the private cluster.
+- **Faults.** A node that dies (or an actor, or its worker) fails the attempt under way: the
+  lane makes a new actor, maybe on another node, and hands it the cell again with only the
+  episodes the driver does not have (those delivered are kept; an episode that comes twice is
+  dropped, by its (human model, policy, seed, episode)). Ray's own restarts and retries would
+  replay a cell from its first episode, so the actors ask for none. A cell that fails
+  :data:`~ros_hrc.experiment.attempts.MAX_ATTEMPTS` times is reported with the last lines of
+  its logs, read on the node where it last ran. A cell whose settings are refused fails at
+  once, with the reason.
+- **Stopping.** SIGINT or SIGTERM to the driver cancels the calls in flight; each actor then
+  sends SIGTERM to its worker, which stops its stack as it does locally, and the driver ends
+  every actor's worker and kills the actor before it lets go of the cluster. A worker whose
+  actor's process dies (the driver gone, a node lost) gets SIGTERM from the kernel
+  (``setpriv --pdeathsig``) and stops its stack too; with ``local`` the driver waits for its
+  cells' processes to end before it stops the private cluster.
 - A cell's logs stay on its node, under the node's Ray session directory
   (``<ray temp dir>/session_*/ros_hrc/<run>/``; with ``local``, beside the driver's logs:
   ``logs/<run>/``); the driver's ``logs/<cell>.worker.log`` says which node ran each attempt
   and where its logs are there.
 
-The pieces: this module is the option and the driver (:class:`ClusterRun`, which retries a
-cell as the local pool does, :class:`ros_hrc.experiment.attempts.CellAttempts`);
-:mod:`ros_hrc.experiment.cluster_task` is the task on the node;
+The pieces: this module is the option and the driver (:class:`ClusterRun`, and its lanes,
+:class:`NodeLane`, which retry a cell as the local pool does,
+:class:`ros_hrc.experiment.attempts.CellAttempts`); :mod:`ros_hrc.experiment.cluster_task` is
+the actor on the node;
 :mod:`ros_hrc.experiment.ray_node` starts and stops a node of one's own (``ray start
 --block``): ``--cluster local``, the tests and the benchmark use it. Ray is imported here and
-in the task only, and only when ``--cluster`` is given (DESIGN §15); no ROS here.
+in the actor only, and only when ``--cluster`` is given (DESIGN §15); no ROS here.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import ipaddress
 import math
@@ -49,17 +56,17 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.attempts import CellAttempts
-from ros_hrc.experiment.cluster_task import STOP_WAIT, run_cell_on_node
+from ros_hrc.experiment.cluster_task import STOP_WAIT, NodeStack
 from ros_hrc.experiment.ray_node import RESOURCE, RayNode, RayNodeError
 from ros_hrc.experiment.shipped_files import ShippedFiles, cell_files
-from ros_hrc.experiment.stack import CellSpec, decode_episode
+from ros_hrc.experiment.stack import CellSpec, StackKeeper, decode_episode
 from ros_hrc.process_tree import processes_naming
 
-#: Seconds the driver waits for cancelled tasks to end before it lets go of the cluster.
+#: Seconds the driver waits for a cancelled call to end (its worker stopped).
 CANCEL_WAIT = 90.0
 #: How long the node count shown on the progress bar is kept before it is asked again (s).
 NODES_REFRESH = 5.0
@@ -94,9 +101,10 @@ def add_argument(parser: argparse.ArgumentParser) -> None:
     """``--cluster ADDRESS|auto|local`` (hrc_experiment and hrc_fit)."""
     parser.add_argument("--cluster", type=cluster_argument, default=None,
                         metavar="ADDRESS|auto|local",
-                        help="run the cells as Ray tasks on a cluster (docs/cluster.md): the "
-                             "head's host:port, auto (the one started on this machine) or "
-                             "local (a private one for this run); default: the local pool")
+                        help="run the cells on a Ray cluster, a warm stack per slot "
+                             "(docs/cluster.md): the head's host:port, auto (the one started "
+                             "on this machine) or local (a private one for this run); "
+                             "default: the local pool")
     parser.add_argument("--cluster-wait", type=_seconds, default=NO_NODE_WAIT, metavar="S",
                         help="with --cluster: how long a cell waits to start while no living "
                              f"node offers the {RESOURCE} resource (all of them lost) before "
@@ -134,8 +142,9 @@ class NodeFigures:
 
 
 class _RemoteCell:
-    """A running task as :class:`ros_hrc.experiment.pool.Stopper` sees a worker process:
-    ``poll()`` and ``send_signal()``, which cancels the task (it then stops its stack)."""
+    """A cell's call in flight as :class:`ros_hrc.experiment.pool.Stopper` sees a worker
+    process: ``poll()`` and ``send_signal()``, which cancels the call (the actor then stops
+    its worker's stack)."""
 
     def __init__(self, ray_module, generator) -> None:
         self._ray = ray_module
@@ -188,9 +197,9 @@ def check_reachable(address: str) -> None:
 
 class ClusterRun:
     """The driver's side of a run on a Ray cluster: connects (or starts the private cluster of
-    ``--cluster local``), runs cells as Ray tasks (:meth:`run_cell`, what
-    :func:`ros_hrc.experiment.pool.run_grid` calls for each cell), says what runs where
-    (:meth:`status`, :meth:`report`) and lets go of the cluster (:meth:`close`)."""
+    ``--cluster local``), gives each of :func:`ros_hrc.experiment.pool.run_grid`'s lanes an
+    actor on a node (:meth:`lane`), says what runs where (:meth:`status`, :meth:`report`) and
+    lets go of the cluster (:meth:`close`: every lane's actor first)."""
 
     def __init__(self, address: str, program: str, slots: int = 0,
                  no_node_wait: float = NO_NODE_WAIT) -> None:
@@ -208,7 +217,8 @@ class ClusterRun:
         self._files: Dict[Tuple[str, str], ShippedFiles] = {}   # what cells' files were read
         self._private: Optional[RayNode] = None
         self._ray = None
-        self._remote = None
+        self._actor_class = None
+        self._lanes: List["NodeLane"] = []
         self._alive: Tuple[float, int] = (0.0, 0)
 
     # -- connecting ---------------------------------------------------------------------------
@@ -251,8 +261,10 @@ class ClusterRun:
                                f"setup ran with --resources '{{\"{RESOURCE}\": N}}' "
                                "(docs/cluster.md)")
         self.slots = capacity
-        self._remote = ray.remote(num_cpus=1, resources={RESOURCE: 1},
-                                  max_retries=0)(run_cell_on_node)
+        # A lane's actor holds its CPU and ros_hrc unit for its life; Ray neither restarts it
+        # nor retries its calls (a cell would replay from its first episode).
+        self._actor_class = ray.remote(num_cpus=1, resources={RESOURCE: 1}, max_restarts=0,
+                                       max_task_retries=0)(NodeStack)
         self.connect_seconds = time.monotonic() - started
         offers = self._offers()
         offered = ", ".join(f"{ip} {count:g}" for ip, count in offers)
@@ -276,9 +288,21 @@ class ClusterRun:
         return [(n["NodeManagerAddress"], n["Resources"].get(RESOURCE, 0))
                 for n in self._ray.nodes() if n.get("Alive") and n["Resources"].get(RESOURCE)]
 
+    def lane(self, stopper, fresh: bool = False) -> "NodeLane":
+        """A new lane of the run (its actor made with its first cell)."""
+        lane = NodeLane(self, stopper, fresh)
+        with self._lock:
+            self._lanes.append(lane)
+        return lane
+
     def close(self) -> None:
-        """Let go of the cluster; for ``local``, once the cells' workers on this machine have
-        stopped their stacks, stop the private cluster."""
+        """Let go of the cluster, every lane's actor ended first (its worker stopped, the actor
+        killed); for ``local``, once the cells' workers on this machine have stopped their
+        stacks, stop the private cluster."""
+        with self._lock:
+            lanes, self._lanes = self._lanes, []
+        for lane in lanes:
+            lane.close()
         if self._ray is not None and self._ray.is_initialized():
             self._ray.shutdown()
         if self._private is not None:
@@ -334,87 +358,15 @@ class ClusterRun:
             node.in_flight += 1
         return node
 
-    def run_cell(self, cell: CellSpec, deliver, log, stopper=None,
-                 on_all_delivered: Optional[Callable[[], None]] = None) -> None:
-        """Run one cell on the cluster, as :func:`ros_hrc.experiment.pool.run_local_cell` runs
-        it locally: ``deliver(row, steps)`` per episode as it arrives, ``on_all_delivered()``
-        once the last one is in. A failed attempt (its node lost, its stack failed) is
-        submitted again with the episodes still missing, up to
-        :data:`~ros_hrc.experiment.attempts.MAX_ATTEMPTS` attempts
-        (:class:`~ros_hrc.experiment.attempts.CellAttempts`); then RuntimeError with the last
-        lines of its logs."""
-        attempts = CellAttempts(cell, deliver, log, self.program, on_all_delivered)
-        # The files the cell names here travel with it: a node needs none of this machine's
-        # paths (ros_hrc.experiment.shipped_files).
-        files = cell_files(cell, self._files)
-
-        def attempt(number: int, spec: CellSpec) -> Tuple[str, Sequence[str]]:
-            return self._attempt(number, spec, files, attempts, stopper)
-
-        attempts.run(attempt, stopper, again="go back to the queue", where=" on the cluster",
-                     on_retry=self._count_retry)
-
     def _count_retry(self) -> None:
         with self._lock:
             self.retried_cells += 1
 
-    def _attempt(self, number: int, spec: CellSpec, files: ShippedFiles,
-                 attempts: CellAttempts, stopper) -> Tuple[str, Sequence[str]]:
-        """One attempt at ``spec``'s episodes as a Ray task: (why it ended short, its worker's
-        last lines). RuntimeError when no living node offers the resource for
-        ``no_node_wait`` seconds."""
-        ray = self._ray
-        # The private cluster's node is this machine: its cells keep their files beside
-        # the driver's logs, which outlive the cluster.
-        here = spec.log_dir if self._private is not None else None
-        generator = self._remote.remote(spec.to_json(), files, self.run_id, number, here)
-        handle = _RemoteCell(ray, generator)
-        if stopper is not None:
-            stopper.add(handle)
-        node: Optional[NodeFigures] = None
-        end: Optional[Dict[str, Any]] = None
-        lost: Optional[str] = None
-        if not self._started_or_stopped(generator, stopper):
-            handle.send_signal(signal.SIGTERM)    # it never started: out of the queue
-            if stopper is not None:
-                stopper.discard(handle)
-            raise RuntimeError(
-                f"no living node of the cluster has offered the {RESOURCE} resource for "
-                f"{self.no_node_wait:g} s (every such node lost); start Ray on a machine "
-                f"where make setup ran with --resources '{{\"{RESOURCE}\": N}}' and run "
-                "again to resume (docs/cluster.md)")
-        try:
-            for ref in generator:
-                kind, payload = ray.get(ref)
-                if kind == "start":
-                    node = self._started(payload)
-                    attempts.began(number, len(spec.episodes), f" on {node.label()}; its logs "
-                                                               f"there: {payload['directory']}")
-                elif kind == "episode":
-                    self._take(payload, attempts, node)
-                elif kind == "end":
-                    end = payload
-        except ray.exceptions.RayError as exc:
-            lost = " ".join(str(exc).split())
-        except BaseException:
-            # An episode could not be recorded (a full disk): the task must not run on.
-            handle.send_signal(signal.SIGTERM)
-            _drain(ray, generator)
-            raise
-        finally:
-            handle.returncode = 0
-            if stopper is not None:
-                stopper.discard(handle)
-            if node is not None:
-                with self._lock:
-                    node.in_flight -= 1
-        missing = len(attempts.wanted) - len(attempts.delivered)
-        return self._failure(node, end, lost, missing), (end or {}).get("lines", [])
-
     def _started_or_stopped(self, generator, stopper) -> bool:
-        """Wait until the cell's task has something to say (it started on a node: its first
-        item), the run is stopping, or no living node has offered the resource for
-        ``no_node_wait`` seconds (False: Ray would keep the task queued forever)."""
+        """Wait until the cell's call has something to say (its actor lives on a node: its
+        first item), the run is stopping, or no living node has offered the resource for
+        ``no_node_wait`` seconds (False: Ray would keep the actor waiting for a node
+        forever)."""
         none_since: Optional[float] = None
         while True:
             ready, _ = self._ray.wait([generator], timeout=NODES_REFRESH)
@@ -458,7 +410,7 @@ class ClusterRun:
         if lost is not None:
             return f"on {where}: {lost[:400]}"
         if end is None:
-            return f"on {where}: the task ended with {missing} episodes missing"
+            return f"on {where}: the call ended with {missing} episodes missing"
         code = end.get("returncode")
         lines = [line for line in end.get("lines", []) if line.strip()]
         text = f"on {where}: " + (lines[-1].strip() if lines else f"exit code {code}")
@@ -468,8 +420,142 @@ class ClusterRun:
         return text
 
 
+class NodeLane(StackKeeper):
+    """One lane of a run on the cluster: a Ray actor (:class:`NodeStack`, one CPU and one
+    ``ros_hrc`` unit) that lives on a node and keeps one warm worker there across the cells
+    the lane hands it (:meth:`run_cell`, what :func:`ros_hrc.experiment.pool.run_grid`'s
+    cluster lane calls for each cell). A cell that needs another stack
+    (:func:`~ros_hrc.experiment.stack.stack_key`) gets the actor's worker replaced; with
+    ``fresh`` (``--fresh-stacks``) the actor ends its worker after each cell. An attempt that
+    ends short (its node lost, the actor or its worker dead) ends the actor: the next attempt
+    makes a new one, maybe on another node. :meth:`close` ends the actor's worker (it stops
+    its stack) and kills the actor, which frees its slot."""
+
+    def __init__(self, run: ClusterRun, stopper, fresh: bool = False) -> None:
+        super().__init__(fresh)
+        self.run = run
+        self.stopper = stopper
+        self.actor = None
+        self._placed = False    # the actor lives on a node (a call of its started)
+        self._worker = False    # its worker runs
+
+    def stack_running(self) -> bool:
+        return self._worker
+
+    def run_cell(self, cell: CellSpec, deliver, log) -> None:
+        """Run one cell on the lane's actor, as :func:`ros_hrc.experiment.pool.play_cell`
+        plays it locally: ``deliver(row, steps)`` per episode as it arrives. A failed attempt
+        (its node lost, its stack failed) is followed by another with the episodes still
+        missing, on a new actor, up to :data:`~ros_hrc.experiment.attempts.MAX_ATTEMPTS`
+        attempts (:class:`~ros_hrc.experiment.attempts.CellAttempts`); then RuntimeError with
+        the last lines of its logs. A cell whose settings were refused fails at once."""
+        attempts = CellAttempts(cell, deliver, log, self.run.program)
+        # The files the cell names here travel with it: a node needs none of this machine's
+        # paths (ros_hrc.experiment.shipped_files).
+        files = cell_files(cell, self.run._files)
+
+        def attempt(number: int, spec: CellSpec) -> Tuple[str, Sequence[str]]:
+            return self._attempt(number, spec, files, attempts)
+
+        attempts.run(attempt, self.stopper, again="go back to the queue",
+                     where=" on the cluster", on_retry=self.run._count_retry)
+
+    def _attempt(self, number: int, spec: CellSpec, files: ShippedFiles,
+                 attempts: CellAttempts) -> Tuple[str, Sequence[str]]:
+        """One attempt at ``spec``'s episodes on the lane's actor (made now if there is none):
+        (why it ended short, its worker's last lines). RuntimeError when the cell's settings
+        were refused, or when no living node offers the resource for ``no_node_wait``
+        seconds."""
+        run, ray = self.run, self.run._ray
+        if self.actor is None:
+            self.actor = run._actor_class.remote(run.run_id)
+            self._placed = False
+        new_stack = not self.takes(spec)
+        if new_stack:
+            self.key = None
+        # The private cluster's node is this machine: its cells keep their files beside
+        # the driver's logs, which outlive the cluster.
+        here = spec.log_dir if run._private is not None else None
+        generator = self.actor.play.remote(spec.to_json(), files, number, here, new_stack,
+                                           not self.fresh)
+        handle = _RemoteCell(ray, generator)
+        self.stopper.add(handle)
+        node: Optional[NodeFigures] = None
+        end: Optional[Dict[str, Any]] = None
+        lost: Optional[str] = None
+        refused: Optional[str] = None
+        if not run._started_or_stopped(generator, self.stopper):
+            handle.send_signal(signal.SIGTERM)    # it never started: out of the queue
+            self.stopper.discard(handle)
+            self.close()                          # nor may its actor take a slot later
+            raise RuntimeError(
+                f"no living node of the cluster has offered the {RESOURCE} resource for "
+                f"{run.no_node_wait:g} s (every such node lost); start Ray on a machine "
+                f"where make setup ran with --resources '{{\"{RESOURCE}\": N}}' and run "
+                "again to resume (docs/cluster.md)")
+        try:
+            for ref in generator:
+                kind, payload = ray.get(ref)
+                if kind == "start":
+                    self._placed = self._worker = True
+                    node = run._started(payload)
+                    attempts.began(number, len(spec.episodes), f" on {node.label()}; its logs "
+                                                               f"there: {payload['directory']}")
+                elif kind == "episode":
+                    run._take(payload, attempts, node)
+                elif kind == "refused":
+                    refused = payload
+                elif kind == "end":
+                    end = payload
+        except ray.exceptions.RayError as exc:
+            lost = " ".join(str(exc).split())
+        except BaseException:
+            # An episode could not be recorded (a full disk): the cell must not run on.
+            handle.send_signal(signal.SIGTERM)
+            _drain(ray, generator)
+            self.close()
+            raise
+        finally:
+            handle.returncode = 0
+            self.stopper.discard(handle)
+            if node is not None:
+                with run._lock:
+                    node.in_flight -= 1
+        if refused is not None:     # the stack is as it was: the lane keeps it
+            raise RuntimeError(f"refused: {refused}")
+        if attempts.complete:
+            self.played(spec)
+            if self.fresh:
+                self._worker, self.key = False, None
+            return "", ()
+        # Its node, its actor or its worker is gone (or the run is stopping): the next
+        # attempt, if any, goes to a new actor. One lost with its node is not asked to end
+        # its worker (it would not answer): its keeper died with it.
+        if lost is not None:
+            self._placed = False
+        self.close()
+        missing = len(attempts.wanted) - len(attempts.delivered)
+        return run._failure(node, end, lost, missing), (end or {}).get("lines", [])
+
+    def close(self) -> None:
+        """End the actor's worker (its input closed, or SIGTERM when the run is stopping: it
+        stops its stack), then kill the actor. An actor never placed is killed at once; one
+        lost with its node is gone (its worker's keeper died with it)."""
+        actor, placed = self.actor, self._placed
+        self.actor, self._placed, self._worker, self.key = None, False, False, None
+        if actor is None:
+            return
+        ray = self.run._ray
+        if placed:
+            with contextlib.suppress(Exception):    # lost with its node, or the cluster gone
+                ray.get(actor.close.remote(terminate=self.stopper.stopping),
+                        timeout=STOP_WAIT + 10.0)
+        with contextlib.suppress(Exception):
+            ray.kill(actor)
+
+
 def _drain(ray, generator, wait: float = CANCEL_WAIT) -> None:
-    """Wait (a bounded time) for a cancelled task to end: its stack is down then."""
+    """Wait (a bounded time) for a cancelled call to end: its worker's stack is down then."""
     deadline = time.monotonic() + wait
     try:
         for ref in generator:

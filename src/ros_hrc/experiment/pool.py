@@ -17,8 +17,6 @@ or a write of the run's own that found none), in one line naming the disk.
 """
 from __future__ import annotations
 
-import dataclasses
-import functools
 import json
 import shlex
 import signal
@@ -28,7 +26,7 @@ import threading
 from collections import defaultdict
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Sequence, Set, TextIO, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Set, TextIO, Tuple
 
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.attempts import CellAttempts, Deliver
@@ -36,10 +34,8 @@ from ros_hrc.experiment.disk import (CHECK_INTERVAL, DiskFull, DiskWatch, full_d
                                      is_full_disk)
 from ros_hrc.experiment.episode import ALONE_POLICY
 from ros_hrc.experiment.recording import Progress
-from ros_hrc.experiment.stack import (CellSpec, StackKeeper, cell_name, check_launch_settings,
-                                      decode_cell_end, decode_episode, worker_command,
-                                      write_spec)
-from ros_hrc import settings
+from ros_hrc.experiment.stack import (CellSpec, StackKeeper, cell_name, decode_cell_end,
+                                      decode_episode, stack_key, worker_command, write_spec)
 from ros_hrc.pomdp.output import write_text_atomically
 
 
@@ -136,51 +132,24 @@ class CellRefused(RuntimeError):
     fails with the reason, at once; the worker's stack is as it was."""
 
 
-def stack_key(cell: CellSpec) -> Tuple[Tuple[str, Any], ...]:
-    """What a cell needs of a stack that a running one cannot take in place (the task, the
-    world's settings, the windows: every setting outside :data:`ros_hrc.settings.IN_PLACE`,
-    resolved): cells of one key can follow each other on one warm stack. None for a cell
-    whose settings do not resolve: any stack takes it, and its worker refuses it with the
-    reason (:class:`CellRefused`) without touching the stack."""
-    return _stack_key(dataclasses.replace(cell, episodes=()).to_json())
-
-
-@functools.lru_cache(maxsize=4096)
-def _stack_key(spec_json: str) -> Optional[Tuple[Tuple[str, Any], ...]]:
-    try:
-        config = check_launch_settings(CellSpec.from_json(spec_json))
-    except (HrcError, ValueError):
-        return None
-    return tuple((name, config[name]) for name in settings.SETTINGS
-                 if name not in settings.IN_PLACE)
-
-
 class StackWorker(StackKeeper):
     """A worker process that owns one stack (``python -m ros_hrc.nodes.experiment_cell
     --serve``, :func:`~ros_hrc.experiment.stack.worker_command`) and plays the cells it is
     handed one after another: the first starts the stack, each next is handed to the running
     stack (docs/experiments.md, "Warm stacks"). A cell its stack cannot take in place (another
-    task, other world settings: :func:`stack_key`) gets a new worker, as does every cell with
-    ``fresh`` (``--fresh-stacks``: a stack per cell, the old one shutting down while the next
-    starts). A worker whose stack fails is gone: :meth:`play` raises, and the next cell starts
-    a new one. SIGTERM from ``stopper`` stops its stack."""
+    task, other world settings: :func:`~ros_hrc.experiment.stack.stack_key`) gets a new
+    worker, as does every cell with ``fresh`` (``--fresh-stacks``: a stack per cell, the old
+    one shutting down while the next starts). A worker whose stack fails is gone:
+    :meth:`play` raises, and the next cell starts a new one. SIGTERM from ``stopper`` stops
+    its stack."""
 
     def __init__(self, stopper: "Stopper", fresh: bool = False) -> None:
+        super().__init__(fresh)
         self.stopper = stopper
-        self.fresh = fresh
         self.proc: Optional[subprocess.Popen] = None
-        self.key: Optional[tuple] = None
         self._errors: List[str] = []        # its stderr lines since its cell began
         self._errors_lock = threading.Lock()
         self._reader: Optional[threading.Thread] = None
-
-    def takes(self, cell: CellSpec) -> bool:
-        """Whether its running stack can play ``cell`` next (no stack yet: any cell)."""
-        if self.proc is None:
-            return True
-        key = stack_key(cell)
-        # None on either side: a cell refused before it reached a stack (it starts none).
-        return not self.fresh and (key is None or self.key is None or key == self.key)
 
     def stack_running(self) -> bool:
         return self.proc is not None
@@ -250,8 +219,8 @@ class StackWorker(StackKeeper):
                 self._terminate()
             raise
         log.writelines(self._take_errors())
-        if over and self.key is None:    # the stack its first cell started
-            self.key = stack_key(cell)
+        if over:
+            self.played(cell)
         if self.fresh:
             self.close(wait=False)
         if refusal is not None:

@@ -18,6 +18,8 @@ in ``ros_hrc.experiment`` imports ``ros_hrc.nodes``.
 from __future__ import annotations
 
 import bisect
+import dataclasses
+import functools
 import json
 import os
 import re
@@ -31,6 +33,7 @@ from pathlib import Path
 from typing import (Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Set, Tuple,
                     Union)
 
+from ros_hrc.errors import HrcError
 from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
 from ros_hrc.experiment.rows import EpisodeRow, StepRow
 from ros_hrc.experiment.sequence_rows import SequenceRow, TaskRow
@@ -265,6 +268,57 @@ def check_launch_settings(spec: CellSpec) -> Dict[str, Any]:
     raises SettingError (one line) for a bad one, before any stack starts."""
     stand_in = {"pomdp": settings.default("pomdp_port"), "human": settings.default("human_port")}
     return settings.resolve(launch_settings(spec, stand_in))
+
+
+def stack_key(cell: CellSpec) -> Optional[Tuple[Tuple[str, Any], ...]]:
+    """What a cell needs of a stack that a running one cannot take in place (the task, the
+    world's settings, the windows: every setting outside :data:`ros_hrc.settings.IN_PLACE`,
+    resolved): cells of one key can follow each other on one warm stack. None for a cell
+    whose settings do not resolve: any stack takes it, and its worker refuses it with the
+    reason (``CELL_REFUSED``) without touching the stack."""
+    return _stack_key(dataclasses.replace(cell, episodes=()).to_json())
+
+
+@functools.lru_cache(maxsize=4096)
+def _stack_key(spec_json: str) -> Optional[Tuple[Tuple[str, Any], ...]]:
+    try:
+        config = check_launch_settings(CellSpec.from_json(spec_json))
+    except (HrcError, ValueError):
+        return None
+    return tuple((name, config[name]) for name in settings.SETTINGS
+                 if name not in settings.IN_PLACE)
+
+
+class StackKeeper:
+    """What a lane knows of the one stack it keeps across cells (a local worker's,
+    :class:`ros_hrc.experiment.pool.StackWorker`; a cluster actor's,
+    :class:`ros_hrc.experiment.cluster.NodeLane`): whether one runs
+    (:meth:`stack_running`), its :func:`stack_key` (its first cell's, once that cell is
+    over: :meth:`played`), and ``fresh`` (``--fresh-stacks``: a stack per cell)."""
+
+    def __init__(self, fresh: bool = False) -> None:
+        self.fresh = fresh
+        self.key: Optional[Tuple[Tuple[str, Any], ...]] = None
+
+    def stack_running(self) -> bool:
+        raise NotImplementedError
+
+    def takes(self, cell: CellSpec) -> bool:
+        """Whether ``cell`` can play next without a new stack (no stack yet: any cell)."""
+        if not self.stack_running():
+            return True
+        key = stack_key(cell)
+        # None on either side: a cell refused before it reached a stack (it starts none).
+        return not self.fresh and (key is None or self.key is None or key == self.key)
+
+    def warm_for(self, cell: CellSpec) -> bool:
+        """Whether a stack runs and can take ``cell`` in place (what the queue prefers)."""
+        return self.stack_running() and self.takes(cell)
+
+    def played(self, cell: CellSpec) -> None:
+        """``cell`` is over on the running stack: the stack's key is its first cell's."""
+        if self.key is None:
+            self.key = stack_key(cell)
 
 
 #: What a cell's stack listens on: its roscore and its two websocket links.

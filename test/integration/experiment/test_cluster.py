@@ -1,11 +1,11 @@
-"""hrc_experiment --cluster: the cells as Ray tasks (docs/cluster.md).
+"""hrc_experiment --cluster: the cells on Ray actors that keep their stacks (docs/cluster.md).
 
 The whole test starts a Ray cluster of two nodes on this machine's loopback (a head on
 127.0.0.2 and a node on 127.0.0.3, one CPU and one ``ros_hrc`` slot each, each with its own
-temp dir), runs a small grid on it through the real stacks (each cell starts its own roscore:
+temp dir), runs a small grid on it through the real stacks (each stack starts its own roscore:
 no master is needed beforehand), kills the second node's raylet once that node has delivered an
-episode, and checks the rows against the same grid run by the local pool. The others need no
-Ray cluster."""
+episode, and checks the rows against the same grid run by the local pool, and that a lane's
+later cells played on the stack its first one started. The others need no Ray cluster."""
 import contextlib
 import importlib.util
 import json
@@ -147,6 +147,15 @@ def _node_cells(logs: Path, node_ip: str) -> list:
             if f" {node_ip} (node " in log.read_text(errors="replace")]
 
 
+def _attempt_logs(logs: Path) -> list:
+    """(cell, its attempt's directory on its node) of every attempt, from the driver's worker
+    logs (``its logs there: DIR``)."""
+    return [(log.name[:-len(".worker.log")], Path(line.split("its logs there: ")[1]))
+            for log in sorted(logs.glob("*.worker.log"))
+            for line in log.read_text(errors="replace").splitlines()
+            if "its logs there: " in line]
+
+
 def _node_cell(logs: Path, node_ip: str):
     """The first cell whose worker log says an attempt ran on ``node_ip``, if any."""
     cells = _node_cells(logs, node_ip)
@@ -249,6 +258,15 @@ def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
         assert any("attempt 2 of 3" in line and " 127.0.0.2 (node " in line
                    for line in log.splitlines()), log
         assert "cells per node: " in cluster_out
+
+        # A lane keeps its actor's stack: each attempt either started a stack (a stack's log
+        # lies in its first cell's directory) or played on the one before it on its node (its
+        # worker there says so), and some did.
+        attempts = _attempt_logs(out / "logs")
+        warm = [cell for cell, there in attempts
+                if "on the warm stack of" in (there / f"{cell}.worker.log").read_text()]
+        started = [cell for cell, there in attempts if (there / f"{cell}.log").exists()]
+        assert warm and len(started) + len(warm) == len(attempts), (attempts, warm, started)
         # The lost node's stacks stopped (their keepers died with its Ray worker).
         assert wait_for_cells(str(other.directory), 60.0)
     finally:
