@@ -22,7 +22,8 @@ if [[ $part != rostest ]]; then
   echo "=== unit and integration tests (pytest, both cores) ==="
   # -n 2: a worker per core (xdist); --dist loadgroup: tests marked with one xdist_group
   # (those that share something only one may use at a time) run on one worker, in turn.
-  python -m pytest -q -p no:cacheprovider -n 2 --dist loadgroup
+  # --durations: the ten slowest, where the next speed-up is to be had.
+  python -m pytest -q -p no:cacheprovider -n 2 --dist loadgroup --durations=10
   rc=$?
   if [[ $rc -eq 5 ]]; then echo "pytest collected no tests: failing"; status=1
   elif [[ $rc -ne 0 ]]; then status=1; fi

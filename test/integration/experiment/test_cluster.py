@@ -1,15 +1,19 @@
 """hrc_experiment --cluster: the cells on Ray actors that keep their stacks (docs/cluster.md).
 
-The whole test starts a Ray cluster of two nodes on this machine's loopback (a head on
-127.0.0.2 and a node on 127.0.0.3, one CPU and one ``ros_hrc`` slot each, each with its own
-temp dir), runs a small grid on it through the real stacks (each stack starts its own roscore:
-no master is needed beforehand), kills the second node's raylet once that node has delivered an
-episode, and checks the rows against the same grid run by the local pool, and that a lane's
-later cells played on the stack its first one started. The others need no Ray cluster."""
+The one real Ray test starts a cluster of three nodes on this machine's loopback (a head on
+127.0.0.2 with no ``ros_hrc`` slot, nodes on 127.0.0.3 and 127.0.0.4 with one each, one CPU
+each, each with its own temp dir) and runs three studies on it through the real stacks (each
+stack starts its own roscore: no master is needed beforehand): a sequence cell with the
+driver's library and selector model; a small grid, one node's raylet killed once that node
+has delivered an episode, its rows checked against the same grid run by the local pool and a
+lane's later cells seen to play on the stack its first one started; then a cell whose only
+node left is killed, which fails after --cluster-wait with the reason. The others need no
+cluster of their own (one runs on --cluster local, with a roslaunch that dies at start)."""
 import contextlib
 import importlib.util
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -37,9 +41,9 @@ GRID = ["--human-models", "tired,distracted", "--policies", "no_robot,reactive",
         "--episodes", str(EPISODES), "--step-limit", "8", "--no-plots"]
 #: Ray's ports for the test's nodes (each taken only when free).
 RAY_PORTS = (23311, 23999)
-#: The tests that start a Ray cluster run one at a time, on one pytest worker: the two-node
-#: ones put their nodes on the same loopback addresses, and each cluster's raylets, stacks
-#: and Ray workers would otherwise share the machine's two cores with another's.
+#: The tests that start a Ray cluster run one at a time, on one pytest worker: each cluster's
+#: raylets, stacks and Ray workers would otherwise share the machine's two cores with
+#: another's (and the three-node cluster takes its loopback addresses and port range).
 ONE_RAY_CLUSTER_AT_A_TIME = pytest.mark.xdist_group("ray")
 
 
@@ -171,20 +175,21 @@ def _rows_of_cell(episodes: Path, cell: str) -> int:
 
 
 @contextlib.contextmanager
-def two_nodes(head_slots: int):
-    """A head on 127.0.0.2 with ``head_slots`` ros_hrc slots and a node on 127.0.0.3 with one,
-    one CPU each, Ray's ports from :data:`RAY_PORTS`; both stopped and their files removed
-    at the end."""
+def three_nodes():
+    """A head on 127.0.0.2 with no ros_hrc slot (it runs no cell) and nodes on 127.0.0.3 and
+    127.0.0.4 with one each, one CPU each, Ray's ports from :data:`RAY_PORTS`; all stopped
+    and their files removed at the end."""
     # Ray's socket paths must stay short: its own temp dirs under /tmp, not pytest's.
     ray_dir = Path(tempfile.mkdtemp(prefix="hrc_ray_", dir="/tmp"))
     nodes = []
     try:
         ports = PortSource(*RAY_PORTS)
-        nodes.append(RayNode.start(ray_dir / "head", cpus=1, ros_hrc=head_slots,
-                                   node_ip="127.0.0.2", ports=ports))
-        nodes.append(RayNode.start(ray_dir / "other", cpus=1, ros_hrc=1, node_ip="127.0.0.3",
-                                   head_address=nodes[0].address, ports=ports))
-        yield nodes[0], nodes[1]
+        nodes.append(RayNode.start(ray_dir / "head", cpus=1, ros_hrc=0, node_ip="127.0.0.2",
+                                   ports=ports))
+        for name, ip in (("first", "127.0.0.3"), ("second", "127.0.0.4")):
+            nodes.append(RayNode.start(ray_dir / name, cpus=1, ros_hrc=1, node_ip=ip,
+                                       head_address=nodes[0].address, ports=ports))
+        yield tuple(nodes)
     finally:
         for node in reversed(nodes):
             node.stop()
@@ -200,19 +205,27 @@ def _kill(proc) -> None:
 
 @pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
 @ONE_RAY_CLUSTER_AT_A_TIME
-def test_a_grid_on_two_nodes_equals_the_local_run_and_a_lost_node_loses_no_episode(tmp_path):
+def test_a_cluster_plays_sequences_and_grids_through_lost_nodes(tmp_path):
+    """One cluster, three studies in turn: a sequence cell with the driver's library; a grid
+    equal to the local pool's though a node is lost mid-cell; a cell that fails with the
+    reason once no living node offers ros_hrc."""
     # The local pool's run, while the cluster starts.
     local = _start(experiment(*GRID, "--jobs", "2", "--out", str(tmp_path / "local")),
                    tmp_path / "local.out")
     try:
-        with two_nodes(head_slots=1) as (head, other):
-            _grid_on_two_nodes(tmp_path, local, head, other)
+        with three_nodes() as (head, first, second):
+            for part in ("sequence", "no_node"):
+                (tmp_path / part).mkdir()
+            _sequence_cell_with_the_driver_s_library(tmp_path / "sequence", head.address)
+            _grid_on_two_nodes(tmp_path, local, head, survivor=first, lost=second)
+            _fail_without_a_node(tmp_path / "no_node", first, head.address)
     finally:
         _kill(local)
 
 
-def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
-    """The grid on the cluster, its second node's raylet killed mid-cell, against ``local``."""
+def _grid_on_two_nodes(tmp_path: Path, local, head, survivor, lost) -> None:
+    """The grid on the cluster, the ``lost`` node's raylet killed mid-cell, against
+    ``local``: the lost cell's missing episodes run again on the ``survivor``."""
     driver = None
     try:
         assert local.wait(timeout=600) == 0, _said(tmp_path / "local.out")
@@ -220,14 +233,14 @@ def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
         out = tmp_path / "cluster"
         driver = _start(experiment(*GRID, "--cluster", head.address, "--out", str(out)),
                         tmp_path / "cluster.out")
-        # Once the second node has delivered some but not all of a cell's episodes (the cell
-        # is under way there: a finished one would leave nothing to lose), its raylet dies.
+        # Once the lost node has delivered some but not all of a cell's episodes (the cell is
+        # under way there: a finished one would leave nothing to lose), its raylet dies.
         killed_cell = None
         deadline = time.monotonic() + 300
         while driver.poll() is None and killed_cell is None and time.monotonic() < deadline:
-            for cell in _node_cells(out / "logs", other.node_ip):
+            for cell in _node_cells(out / "logs", lost.node_ip):
                 if 1 <= _rows_of_cell(out / "episodes.csv", cell) <= EPISODES // 4:
-                    os.kill(other.raylet_pid(), signal.SIGKILL)
+                    os.kill(lost.raylet_pid(), signal.SIGKILL)
                     killed_cell = cell
                     break
             time.sleep(0.02)
@@ -245,17 +258,21 @@ def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
         episodes = rows_of(out / "episodes.csv")
         assert len({key(row) for row in episodes}) == len(episodes) == 2 * 2 * EPISODES
 
-        # Cells ran on both nodes; the lost node's cell went back to the queue with only the
-        # episodes it had not delivered, and ran again on the head.
+        # Cells ran on both nodes (none on the head, which offers no slot); the lost node's
+        # cell went back to the queue with only the episodes it had not delivered, and ran
+        # again on the survivor.
         run = json.loads((out / "run.json").read_text())["cluster"]
-        by_ip = {node["ip"]: node for node in run["nodes"]}
-        assert set(by_ip) == {"127.0.0.2", "127.0.0.3"}, run
+        by_ip = {node["ip"]: node for node in run["nodes"] if node["cells"] or node["episodes"]}
+        assert set(by_ip) == {survivor.node_ip, lost.node_ip}, run
         # (Its "alive" flag waits for Ray's health checks, which may come after the run.)
-        assert by_ip["127.0.0.3"]["episodes"] >= 1, run
-        assert by_ip["127.0.0.2"]["cells"] >= 1 and run["retried_cells"] >= 1, run
+        assert by_ip[lost.node_ip]["episodes"] >= 1, run
+        assert by_ip[survivor.node_ip]["cells"] >= 1 and run["retried_cells"] >= 1, run
         assert run["dropped_duplicates"] == 0, run
+        # (Ray may place the next attempt on the lost node before it notices the node is
+        # gone: that attempt fails too, and a later one runs on the survivor.)
         log = (out / "logs" / f"{killed_cell}.worker.log").read_text()
-        assert any("attempt 2 of 3" in line and " 127.0.0.2 (node " in line
+        assert any(re.search(rf": attempt [23] of 3 \(\d+ episodes\) on .* "
+                             rf"{re.escape(survivor.node_ip)} \(node ", line)
                    for line in log.splitlines()), log
         assert "cells per node: " in cluster_out
 
@@ -268,23 +285,15 @@ def _grid_on_two_nodes(tmp_path: Path, local, head, other) -> None:
         started = [cell for cell, there in attempts if (there / f"{cell}.log").exists()]
         assert warm and len(started) + len(warm) == len(attempts), (attempts, warm, started)
         # The lost node's stacks stopped (their keepers died with its Ray worker).
-        assert wait_for_cells(str(other.directory), 60.0)
+        assert wait_for_cells(str(lost.directory), 60.0)
     finally:
         _kill(driver)
 
 
-@pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
-@ONE_RAY_CLUSTER_AT_A_TIME
-def test_a_cell_fails_with_the_reason_once_no_node_offers_ros_hrc(tmp_path):
-    """The only node with the resource dies while the head lives: Ray would keep the cell
-    queued forever; after --cluster-wait it fails, saying why and how to resume."""
-    with two_nodes(head_slots=0) as (head, other):
-        _fail_without_a_node(tmp_path, other, head.address)
-
-
 def _fail_without_a_node(tmp_path: Path, other, address: str) -> None:
-    """A grid on the cluster at ``address``, the ``other`` node's raylet killed once a cell
-    runs there: the cell fails after --cluster-wait with the reason."""
+    """A grid on the cluster at ``address``, whose only node with the resource is ``other``:
+    its raylet killed once a cell runs there while the head lives, Ray would keep the cell
+    queued forever; after --cluster-wait it fails, saying why and how to resume."""
     driver = None
     try:
         out = tmp_path / "cluster"
@@ -310,9 +319,7 @@ def _fail_without_a_node(tmp_path: Path, other, address: str) -> None:
         _kill(driver)
 
 
-@pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
-@ONE_RAY_CLUSTER_AT_A_TIME
-def test_a_sequence_cell_runs_on_the_cluster_with_the_driver_s_library(tmp_path):
+def _sequence_cell_with_the_driver_s_library(tmp_path: Path, address: str) -> None:
     """A sequence cell on the cluster: its whole-sequence line reaches the driver, and the
     stack plays the --library and --selector-model the driver was given, from the node's
     copies (test_shipped_files.py checks the copies load without the driver's folder)."""
@@ -325,17 +332,18 @@ def test_a_sequence_cell_runs_on_the_cluster_with_the_driver_s_library(tmp_path)
                    "--human-models", "expert_tired_noncollaborative", "--selectors", "bpr",
                    "--library", str(driver_models / "library.toml"),
                    "--selector-model", str(driver_models / "selector_model.json"),
-                   "--max-trials", "100", "--no-plots", "--cluster", "local", "--jobs", "1",
+                   "--max-trials", "100", "--no-plots", "--cluster", address,
                    "--out", str(out)),
-        capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL,
-        env=dict(os.environ, TMPDIR="/tmp"))
+        capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL)
     said = done.stdout[-3000:] + done.stderr[-3000:]
     assert done.returncode == 0, said
     tasks = rows_of(out / "tasks.csv", ())
     assert [int(t["task_index"]) for t in tasks] == [1, 2], said
     assert all(t["selector"] == "bpr" and t["policy"] for t in tasks), tasks
-    specs = list((out / "logs").glob("*/*.attempt1/*.spec.json"))
-    assert len(specs) == 1, list((out / "logs").rglob("*"))
+    attempts = _attempt_logs(out / "logs")
+    assert len(attempts) == 1, (attempts, said)
+    specs = list(attempts[0][1].glob("*.spec.json"))
+    assert len(specs) == 1, list(attempts[0][1].rglob("*"))
     given = dict(word.split(":=", 1) for word in json.loads(specs[0].read_text())["extra_args"])
     for name in ("library", "selector_model"):
         assert Path(given[name]).is_relative_to(specs[0].parent / "models"), given
