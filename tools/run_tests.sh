@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test of the package: pytest on the folders of pytest.ini (test/unit, test/nodes,
-# test/integration) on both cores, then each launched test in test/rostest/*.test under
-# rostest. Fails when any test fails or when nothing ran. Says how long the tests took.
+# test/integration) on both cores and, beside it, each launched test in test/rostest/*.test
+# under rostest, one after another. Fails when any test fails or when nothing ran. Says how
+# long the tests took.
 # Usage: run_tests.sh [all|unit|rostest]   (make test, make unit, make rostest)
 set -uo pipefail
 part=${1:-all}
@@ -15,11 +16,38 @@ cd "$repo"
 # shellcheck source=/dev/null
 set +u; source env.sh; set -u
 export ROS_LOG_DIR="$repo/.ws/log"
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+# The launched tests, one after another (rostest's master takes its one port, 22422, and the
+# stacks the tests start take hrc.launch's own ports): each one's output in $work, then a
+# line "passed|failed <file> <seconds>" in $work/rostest.results.
+rostests() {
+  shopt -s nullglob
+  local tests=(test/rostest/*.test) t out began
+  rm -f "$ROS_LOG_DIR/fuzz_counts.txt"
+  for t in "${tests[@]}"; do
+    out="$work/$(basename "$t").txt"
+    began=$SECONDS
+    # Not --text: with it rostest exits 0 even when a test fails. Without it the nodes'
+    # output goes to $ROS_LOG_DIR and rostest prints each failure with its traceback.
+    if { echo "--- rostest $t"; rostest "$t"; } > "$out" 2>&1; then
+      echo "passed $t $((SECONDS - began))" >> "$work/rostest.results"
+    else
+      echo "failed $t $((SECONDS - began))" >> "$work/rostest.results"
+    fi
+  done
+}
 
 started=$SECONDS
 status=0
+if [[ $part != unit ]]; then
+  # Beside pytest: the stacks and the masters of the launched tests spend much of their time
+  # waiting (a stack's start, a step's simulated seconds), which pytest's workers fill.
+  rostests & lane=$!
+fi
 if [[ $part != rostest ]]; then
-  echo "=== unit and integration tests (pytest, both cores) ==="
+  echo "=== unit and integration tests (pytest, both cores; the launched tests run beside it) ==="
   # -n 2: a worker per core (xdist); --dist loadgroup: tests marked with one xdist_group
   # (those that share something only one may use at a time) run on one worker, in turn.
   # --durations: the ten slowest, where the next speed-up is to be had.
@@ -31,30 +59,27 @@ fi
 pytest_took=$((SECONDS - started))
 if [[ $part == unit ]]; then echo "wall time: tests ${pytest_took} s"; exit $status; fi
 
+wait "$lane"
 echo "=== integration tests (rostest) ==="
 passed=0; failed=0; failed_names=()
-rostest_out=$(mktemp -d)
-shopt -s nullglob
-tests=(test/rostest/*.test)
-rm -f "$ROS_LOG_DIR/fuzz_counts.txt"
-if ((${#tests[@]} == 0)); then echo "no rostest files: failing"; status=1; fi
-for t in "${tests[@]}"; do
-  echo "--- rostest $t"
-  # Not --text: with it rostest exits 0 even when a test fails. Without it the nodes' output
-  # goes to $ROS_LOG_DIR and rostest prints each failure with its traceback.
-  out="$rostest_out/$(basename "$t").txt"
-  rostest "$t" 2>&1 | tee "$out"
-  if [[ ${PIPESTATUS[0]} -eq 0 ]]; then passed=$((passed+1))
+while read -r outcome t seconds; do
+  cat "$work/$(basename "$t").txt"
+  echo "($t: ${seconds} s)"
+  if [[ $outcome == passed ]]; then passed=$((passed+1))
   else failed=$((failed+1)); failed_names+=("$t"); status=1; fi
-done
+done < <(cat "$work/rostest.results" 2>/dev/null)
+if ((passed + failed == 0)); then echo "no rostest files: failing"; status=1; fi
 # The fuzz test's counts (sent, error replies, closed, survived), which rostest keeps in a file.
 if [[ -f "$ROS_LOG_DIR/fuzz_counts.txt" ]]; then cat "$ROS_LOG_DIR/fuzz_counts.txt"; fi
 # CI keeps only the end of this output: say there which tests failed, and how.
 for t in "${failed_names[@]}"; do
   echo "--- FAILED rostest $t:"
-  grep -E "FAIL|Error|assert|Traceback|\[failed\]" "$rostest_out/$(basename "$t").txt" | tail -15
+  grep -E "FAIL|Error|assert|Traceback|\[failed\]" "$work/$(basename "$t").txt" | tail -15
 done
-rm -rf "$rostest_out"
-echo "wall time: tests $((SECONDS - started)) s (pytest ${pytest_took} s, rostest $((SECONDS - started - pytest_took)) s)"
+if [[ $part == all ]]; then
+  echo "wall time: tests $((SECONDS - started)) s (pytest ${pytest_took} s, the launched tests beside it)"
+else
+  echo "wall time: tests $((SECONDS - started)) s"
+fi
 echo "rostest: $passed passed, $failed failed${failed_names[*]:+: ${failed_names[*]}}"
 exit $status
