@@ -110,7 +110,12 @@ class TestLoopFaults(unittest.TestCase):
         answers = []
         try:
             for frame in frames:
-                ws.send(frame)
+                try:
+                    ws.send(frame)
+                except WebSocketException:
+                    # Refused and closed before this frame went out (a CI-like run saw the
+                    # unproven hello answered and the connection closed first): as it should.
+                    break
             while True:
                 try:
                     answers.append(json.loads(ws.recv(timeout=30)))
