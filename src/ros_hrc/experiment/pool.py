@@ -17,6 +17,7 @@ or a write of the run's own that found none), in one line naming the disk.
 """
 from __future__ import annotations
 
+import argparse
 import json
 import shlex
 import signal
@@ -118,9 +119,9 @@ class Stopper:
             self._workers.discard(proc)
 
 
-def add_stack_argument(parser) -> None:
-    """``--fresh-stacks`` (hrc_experiment and hrc_fit)."""
-    parser.add_argument("--fresh-stacks", action="store_true",
+def add_stack_argument(parser: argparse.ArgumentParser) -> None:
+    """``--fresh-stacks`` / ``--no-fresh-stacks`` (hrc_experiment and hrc_fit)."""
+    parser.add_argument("--fresh-stacks", action=argparse.BooleanOptionalAction, default=False,
                         help="start a new stack (roscore, roslaunch, every process) for each "
                              "cell, as before warm stacks; by default each worker keeps its "
                              "stack and hands it the next cell (docs/experiments.md, \"Warm "
