@@ -23,7 +23,9 @@ def _one_json(result):
 def test_solve_on_50000_states_makes_no_state_by_state_array(torus):
     # In a process that may not map more than 1 GiB in all (the interpreter, numpy and scipy
     # map about 250 MB before any model is read); an identity matrix of 50,000 states is 20 GB.
-    facts = _one_json(run_hrc_pomdp(["solve", str(torus), "--timeout", "3", "--json"],
+    # The clock starts with the command, reading the model included (about a second alone,
+    # several under a loaded machine's two busy cores): 10 s leaves room for backups then.
+    facts = _one_json(run_hrc_pomdp(["solve", str(torus), "--timeout", "10", "--json"],
                                     address_space=1 * GiB))
     assert facts["stats"]["backups"] > 0                 # it did solve, not just start
 
