@@ -16,6 +16,7 @@ import numpy as np
 
 from ros_hrc import tasks
 from ros_hrc.tasks.definition import Task
+from ros_hrc.tasks.utility import sim_span
 from ros_hrc.experiment.paired import counterfactual_outcome
 from ros_hrc.experiment.rows import UNPAIRED, EpisodeKey, EpisodeRow, StepRow
 from ros_hrc.pomdp.model import Model
@@ -133,12 +134,10 @@ def discounted_robot_reward(steps: Sequence, model: Model) -> float:
 
 def sim_duration(steps: Sequence, start_sim_time: float) -> float:
     """Simulated seconds from the episode's start to the end of its last step, to the
-    microsecond. The world's clock runs on across a cell's episodes, so the difference of two
-    readings carries rounding from the clock's size: unrounded, the same episode played alone
-    and in a grid would differ in the last bits."""
+    microsecond (:func:`ros_hrc.tasks.utility.sim_span`)."""
     if not steps:
         return 0.0
-    return round(max(0.0, float(steps[-1].sim_time) - float(start_sim_time)), 6)
+    return sim_span(start_sim_time, steps[-1].sim_time)
 
 
 def time_to_success(steps: Sequence, reason: str, start_sim_time: float) -> float:

@@ -95,7 +95,7 @@ from ros_hrc.streams import EpisodeSchedule, generator
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.schedule import Schedule, TaskPlay, type_name
 from ros_hrc.tasks.seed import SEED
-from ros_hrc.tasks.utility import TaskOutcome, task_utility
+from ros_hrc.tasks.utility import TaskOutcome, sim_span, task_utility
 
 
 #: Episode policies after an episode ends (the ``on_episode_end`` setting).
@@ -470,7 +470,7 @@ class Coordinator:
                 ctx.decided_on = report.robot_state
                 self._call(Decide, call.step, observation=report.robot_observation, bits=raw,
                            state=report.robot_state,
-                           elapsed=max(0.0, float(result.sim_time) - self._episode_start_time))
+                           elapsed=sim_span(self._episode_start_time, result.sim_time))
             elif isinstance(call, Decide):
                 if result.action not in self.task.robot_action_services:
                     return self._fail_step(f"the robot planner answered an unknown action "
@@ -557,7 +557,7 @@ class Coordinator:
             return "object_left_belt"
         if self.config.end_on_goal and report.human_state == self.config.goal_state:
             return "human_goal"
-        if self.config.tasks and (float(report.sim_time) - self._episode_start_time
+        if self.config.tasks and (sim_span(self._episode_start_time, report.sim_time)
                                   >= self.config.task_timeout):
             return "task_timeout"
         if self.config.max_steps and report.step + 1 >= self.config.max_steps:
@@ -805,7 +805,7 @@ class Coordinator:
             outcome, who = "fail", ""
         else:   # task_timeout, step_limit
             outcome, who = "timeout", ""
-        duration = max(0.0, float(report.sim_time) - self._episode_start_time)
+        duration = sim_span(self._episode_start_time, report.sim_time)
         measured = TaskOutcome(outcome, who, self._task_warnings, int(self._task_preempted),
                                duration, self.config.task_timeout)
         utility = task_utility(measured)

@@ -107,6 +107,7 @@ from ros_hrc.msg import Status, TaskStatus
 from ros_hrc.nodes.common import (ServiceWait, TriggerCaller, init_node, parameter, read_config,
                                   registered_services, route_python_logging)
 from ros_hrc.tasks.schedule import parse_schedule
+from ros_hrc.tasks.utility import sim_span
 from ros_hrc.nodes.loop_ports import LinkMdp, LinkPlanner, RosExecutor, RosWorld
 from ros_hrc.srv import SetHumanState, SetHumanStateResponse
 
@@ -229,7 +230,7 @@ def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
 def episode_time(status: Status) -> float:
     """The step's simulated time counted from its episode's start (the message keeps the
     world's raw ``sim_time``, which counts from the launch)."""
-    return max(0.0, status.sim_time - status.episode_start_time)
+    return sim_span(status.episode_start_time, status.sim_time)
 
 
 def object_text(status: Status) -> str:

@@ -12,12 +12,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["OUTCOMES", "WHO_SUCCEEDED", "TaskOutcome", "task_utility"]
+__all__ = ["OUTCOMES", "WHO_SUCCEEDED", "TaskOutcome", "task_utility", "sim_span"]
 
 #: How a task ends.
 OUTCOMES = ("success", "fail", "timeout")
 #: Who took the object ("" when no one did).
 WHO_SUCCEEDED = ("human", "robot", "")
+
+
+def sim_span(start: float, end: float) -> float:
+    """Simulated seconds from ``start`` to ``end``, two readings of the world's clock, to the
+    microsecond (never below 0). The world's clock runs on across episodes, tasks and a warm
+    stack's cells, so the plain difference of two readings carries rounding from the clock's
+    size: unrounded, the same task would last 6.6 s on a new world and 6.599999999999994 s on
+    an older one, and a wait compared with it could end a step apart."""
+    return round(max(0.0, float(end) - float(start)), 6)
 
 
 @dataclass(frozen=True)

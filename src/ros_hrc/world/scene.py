@@ -118,9 +118,12 @@ class World:
             stage = build_stage(self.client, self.physics, cfg, self.model_dir, self.control_period,
                                 self.rng, self._predicted_object, self._window if cfg.gui else None)
             self.floor_id, self.scenery, self.conveyor, self.object, self.human, self.robot = stage
-            # The task's clock (belt_start counts from it): the last reset that put the object
-            # back at its start.
-            self._task_start = 0.0
+            # The task's clock (belt_start counts from it): the physics step of the last reset
+            # that put the object back at its start. Kept in steps: a difference of two clock
+            # readings carries rounding from the clock's size, and the world's clock runs on
+            # across episodes (and a warm stack's cells), so a task would see its belt start a
+            # step earlier or later on an older world.
+            self._task_start_step = 0
             self._belt_speed = self._running_speed()
             self._actions = ActionQueues({"human": self.human, "robot": self.robot})
             if cfg.gui:
@@ -213,7 +216,7 @@ class World:
 
     def _belt_now(self) -> float:
         """The belt's speed at this step: still for belt_start seconds of the task, then running."""
-        if self.sim_time - self._task_start < self.config.belt_start:
+        if (self.step_count - self._task_start_step) * self.time_step < self.config.belt_start:
             return 0.0
         return self._belt_speed
 
@@ -241,12 +244,12 @@ class World:
             self.object.reset()
             self.human.reset()
             self.robot.reset()
-            self._task_start = now
+            self._task_start_step = self.step_count
             return Outcome(True, "world reset: human, robot and object back at their start")
         if ticket.agent == "human":
             actions.interrupt("human", "reset", now)
             self.object.reset()  # the seed's /human/reset puts the object back too
-            self._task_start = now
+            self._task_start_step = self.step_count
             outcome = self.human.reset()
             return replace(outcome, message=outcome.message + "; object back at the start of the belt")
         if ticket.action == "reset":
