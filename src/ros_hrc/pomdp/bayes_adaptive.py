@@ -86,28 +86,26 @@ def expected_counts(model: Model, steps: Sequence[Step],
     return transitions, observations
 
 
-def check_strength(strength: float) -> float:
-    """The prior's strength ``kappa`` (pseudo-counts per row): a finite number > 0, or a
-    one-line ValueError."""
+def _checked(value, what: str, rule: str, holds) -> float:
+    """``value`` as a float when it is a finite number for which ``holds`` is true; else a
+    one-line ValueError saying what it must be."""
     try:
-        k = float(strength)
+        x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"the prior's strength must be a number, not {strength!r}") from None
-    if not math.isfinite(k) or k <= 0:
-        raise ValueError(f"the prior's strength must be a finite number > 0, not {strength!r}")
-    return k
+        raise ValueError(f"{what} must be a number, not {value!r}") from None
+    if not (math.isfinite(x) and holds(x)):
+        raise ValueError(f"{what} must be {rule}, not {value!r}")
+    return x
+
+
+def check_strength(strength: float) -> float:
+    """The prior's strength ``kappa`` (pseudo-counts per row): a finite number > 0."""
+    return _checked(strength, "the prior's strength", "a finite number > 0", lambda k: k > 0)
 
 
 def check_forgetting(rate: float) -> float:
-    """A forgetting rate: a number from 0 (keep everything) to 1 (back to the prior), or a
-    one-line ValueError."""
-    try:
-        r = float(rate)
-    except (TypeError, ValueError):
-        raise ValueError(f"the forgetting rate must be a number, not {rate!r}") from None
-    if not 0.0 <= r <= 1.0:
-        raise ValueError(f"the forgetting rate must be from 0 to 1, not {rate!r}")
-    return r
+    """A forgetting rate: from 0 (keep everything) to 1 (back to the prior)."""
+    return _checked(rate, "the forgetting rate", "from 0 to 1", lambda r: 0.0 <= r <= 1.0)
 
 
 @dataclass
