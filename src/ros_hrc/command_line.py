@@ -74,8 +74,7 @@ def reread_launch_options(parser: argparse.ArgumentParser, argv: Optional[Sequen
         args = parse_launch_options(parser, argv)
     except SystemExit:    # argparse said why on stderr
         raise ValueError("the launch's settings cannot be read again") from None
-    moved = [name for name in settings.SETTINGS if name not in settings.IN_PLACE
-             and hasattr(running, name) and getattr(args, name) != getattr(running, name)]
+    moved = settings.needs_new_launch(vars(running), vars(args))
     if moved:
         raise ValueError(f"{', '.join(moved)} changed: a running process takes "
                          f"{'it' if len(moved) == 1 else 'them'} only from a new launch")

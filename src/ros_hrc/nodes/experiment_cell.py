@@ -398,6 +398,8 @@ class WarmStack:
         wait_for_master(self.watch)
         init_node_when_master_is_up("hrc_experiment_cell", wait=30.0)
         self.topics = CellTopics(on_status, on_task)
+        # One persistent connection to /hrc/configure for the stack's life, not one per cell.
+        self.call = TriggerCaller(CONFIGURE_TIMEOUT)
         self.cells = 1
 
     def take(self, spec: CellSpec, on_status: Callable, on_task: Optional[Callable] = None
@@ -417,7 +419,7 @@ class WarmStack:
         rospy.set_param("/hrc/config", shown)
         self.topics.listen(on_status, on_task)
         try:
-            ok, text = TriggerCaller(CONFIGURE_TIMEOUT)("/hrc/configure")
+            ok, text = self.call("/hrc/configure")
         except ServiceUnavailable as exc:
             raise CellFailed(f"the warm stack of {self.name} did not take the cell: "
                              f"{exc}") from exc
