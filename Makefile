@@ -49,7 +49,9 @@ experiment: setup
 fit: setup
 	@source env.sh && rosrun ros_hrc hrc_fit --out models/robot/robot_fitted.pomdp $(ARGS) \
 	    && rosrun ros_hrc hrc_fit --prior robot_considerate \
-	       --out models/robot/robot_considerate_fitted.pomdp $(ARGS)
+	       --out models/robot/robot_considerate_fitted.pomdp $(ARGS) \
+	    && rosrun ros_hrc hrc_fit --prior robot_considerate --rewards utility \
+	       --out models/robot/robot_utility_fitted.pomdp $(ARGS)
 
 # A robot model of human types (issue #31, docs/robot_model.md): T and O fitted per human model
 # of the fit set, each a type, on make fit's episodes (results/fit: reused), composed into one

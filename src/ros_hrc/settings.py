@@ -493,7 +493,9 @@ _TABLE: Tuple[Setting, ...] = (
         _s("selector", "str", "fixed", "how the robot chooses its policy before each task: "
            "fixed (robot_model and planner, as without a sequence), fixed:POLICY (one policy "
            "of the library), random, bpr (BPR-EI), bpr-pi (BPR-PI), bpr-fabric (FABRIC's "
-           "BPR), bandit or oracle (told the true type); docs/selectors.md"),
+           "BPR), bandit or oracle (told the true type); docs/selectors.md; or the robot "
+           "that learns its human (robot_model its prior): pomdp_learning (root sampling), "
+           "pomdp_learning_mean (the posterior mean); docs/learning.md"),
         _s("library", "str", AUTO_WORD, "the policy library the selector chooses from: a "
            "manifest (library.toml) or a folder holding one; auto: the task's "
            "(models/fabric/library.toml, models/robot/library.toml)"),
@@ -511,6 +513,18 @@ _TABLE: Tuple[Setting, ...] = (
            "them, so that a switched human is found again (0: the paper's plain Bayes rule; "
            "docs/selectors.md, Forgetting); a robot model of human types carries its type "
            "belief to the next task with the same floor", minimum=0, maximum=0.99),
+        _s("learning_strength", "float", 20.0, "the learning robot's (selector:=pomdp_learning, "
+           "pomdp_learning_mean) prior strength kappa: pseudo-counts per row of its prior, the "
+           "launch's robot_model (docs/learning.md; chosen on the fit set)", minimum=0,
+           maximum=1e9, exclusive_minimum=True),
+        _s("learning_forgetting", "float", 0.1, "the learning robot's forgetting rate: before "
+           "each task's counts are added, those so far are multiplied by 1 - this (0: keep "
+           "everything; 1: only the last task), so that a new human is learnt again "
+           "(docs/learning.md; chosen on the fit set)", minimum=0, maximum=1),
+        _s("learning_draws", "int", 8, "the models pomdp_learning draws from its posterior "
+           "before each task and plans over (root sampling: its belief weighs them as the task "
+           "goes on); pomdp_learning_mean plans on the posterior mean alone", minimum=1,
+           maximum=64),
     ),
     *_group(
         "the terminal",
@@ -530,7 +544,7 @@ SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
 #: The selectors of ``selector:=`` (``fixed`` also as ``fixed:POLICY``); the robot process
 #: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
 SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
-                              "oracle")
+                              "oracle", "pomdp_learning", "pomdp_learning_mean")
 
 #: The settings a running stack can take in place (``/hrc/configure``, a warm stack's next
 #: cell: docs/experiments.md, "Warm stacks"): what its solver processes and its loop are built
@@ -542,7 +556,8 @@ IN_PLACE: FrozenSet[str] = frozenset((
     "step_delay", "max_steps", "on_episode_end", "end_on_goal", "episodes",
     "wait_for_listener", "planner", "policy_file", "time_per_step", "scenarios", "depth",
     "lambda", "max_trials", "reactive_budget", "reactive_wait", "tasks", "schedule",
-    "selector", "library", "selector_model", "task_timeout", "bpr_forgetting"))
+    "selector", "library", "selector_model", "task_timeout", "bpr_forgetting",
+    "learning_strength", "learning_forgetting", "learning_draws"))
 
 
 def needs_new_launch(running: Mapping[str, Any], wanted: Mapping[str, Any]) -> List[str]:

@@ -16,7 +16,8 @@ Who draws: the human MDP process (``despot_mdp``) reseeds its agent from the ``h
 each episode's reset, the robot process (``despot_pomdp``) its planner from ``planner``, and the
 world (``hrc_world``) its generator (the walk-away's heading) from ``world``; a sequence's selector
 (:mod:`ros_hrc.agents.selectors`) its choices from ``selector``, the sequence's number as the
-episode; each learns the
+episode, and a learning robot (:mod:`ros_hrc.agents.learning`) its posterior draws from
+``learning``, numbered the same way; each learns the
 episode's number at that reset, from the coordinator (``reset.episode``; the world through the
 ``/hrc/world/episode`` parameter). A task with observation noise (:mod:`ros_hrc.tasks`) draws
 it in the coordinator from ``observation``, restarted at each episode's start. The number is
@@ -39,7 +40,7 @@ __all__ = ["ROLES", "MAX_SEED", "MAX_EPISODE", "stream", "generator", "stream_se
 
 #: Who draws from a stream. Appending a role keeps every existing stream as it was; reordering
 #: or renaming one changes the streams of every recorded run, so don't.
-ROLES: Tuple[str, ...] = ("human", "world", "planner", "observation", "selector")
+ROLES: Tuple[str, ...] = ("human", "world", "planner", "observation", "selector", "learning")
 
 #: The ROS parameter the coordinator's node (hrc_human) sets to the episode that starts just
 #: before it resets the world (``/hrc/world/reset``, a Trigger); hrc_world reads it there.

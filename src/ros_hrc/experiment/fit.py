@@ -46,6 +46,7 @@ episodes and the same model. ``make fit`` regenerates the shipped
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import inspect
 import json
@@ -56,6 +57,9 @@ from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+import scipy.sparse as sp
 
 from ros_hrc.command_line import own_arguments
 from ros_hrc.errors import HrcError, ModelError
@@ -84,6 +88,7 @@ from ros_hrc.pomdp.output import check_writable, write_text_atomically
 from ros_hrc.pomdp.fit import ExperienceCounts, fit_model, support_lines, write_fitted
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.typed import check_type_name, compose
+from ros_hrc.tasks.utility import utility_rewards
 
 NAME = "hrc_fit"
 POLICY = "explore"
@@ -128,6 +133,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fit T and O per human model, each a type, and compose them into one "
                         "model whose hidden state is (type, state), a uniform prior over the "
                         "types (the same episodes as without --types)")
+    p.add_argument("--rewards", choices=("prior", "utility"), default="prior",
+                   help="the fitted model's rewards: the prior's (prior), or the task's "
+                        "utility per step, as a sequence's tasks are scored (utility: "
+                        "ros_hrc.tasks.utility.utility_rewards, its time per step the "
+                        "episodes' mean); docs/learning.md")
     p.add_argument("--runs", default=None,
                    help="where the episodes are kept, and found again (results/fit for the "
                         "seed, results/fit_TASK for another task)")
@@ -222,7 +232,35 @@ def check_arguments(args: argparse.Namespace) -> Model:
             raise FitError(f"--human-models: {exc}") from None
     if args.types:
         check_types(args.human_models)
+        if args.rewards != "prior":
+            raise FitError("--rewards utility: a model of human types keeps the prior's "
+                           "rewards; fit the pooled model with it")
+    if args.rewards == "utility" and not (which.robot_success_state
+                                          and which.robot_warned_state):
+        raise FitError(f"--rewards utility: task {which.name} names no success or warned "
+                       f"robot state, so its utility has no per-step model")
     return prior
+
+
+def seconds_per_step(episodes: Sequence[EpisodeRow]) -> float:
+    """The simulated seconds an episode's step takes, on average over ``episodes``: the time
+    a model of the utility charges a step (:func:`ros_hrc.tasks.utility.utility_rewards`)."""
+    steps = sum(r.steps for r in episodes)
+    if not steps:
+        raise FitError("the episodes have no steps: no time per step to price")
+    return sum(r.sim_seconds for r in episodes) / steps
+
+
+def with_utility_rewards(model: Model, which: tasks.Task, step_seconds: float) -> Model:
+    """``model`` with the task's utility as its rewards (T, O and the rest kept)."""
+    R = utility_rewards(which, step_seconds)
+    if list(model.states) != list(which.robot_states) or \
+            list(model.actions) != list(which.robot_actions):
+        raise FitError(f"the model's states and actions are not task {which.name}'s in its "
+                       f"order: its utility cannot be written onto it")
+    priced = dataclasses.replace(model, R=[sp.csr_matrix(np.asarray(r)) for r in R])
+    priced.validate()
+    return priced
 
 
 def check_types(human_models: Sequence[str]) -> None:
@@ -468,8 +506,15 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
     else:
         counts = count_experience(prior, episodes, steps)
         fitted = fit_model(prior, counts, args.strength, name=out.stem)
-        write_fitted(fitted, out, header_lines(args, prior_path, len(episodes), len(steps),
-                                               counts))
+        lines = header_lines(args, prior_path, len(episodes), len(steps), counts)
+        if args.rewards == "utility":
+            step_seconds = seconds_per_step(episodes)
+            fitted = with_utility_rewards(fitted, task_of(args), step_seconds)
+            lines[1] = (f"discount, start, names: the prior's; rewards: the task's utility "
+                        f"per step (ros_hrc.tasks.utility.utility_rewards), "
+                        f"{step_seconds:.4f} simulated s a step (the episodes' mean). "
+                        f"Regenerate with `make fit`:")
+        write_fitted(fitted, out, lines)
         for line in support_lines(prior, counts):
             print(f"{NAME}: {line}")
         kind = f"{fitted.n_states} states"

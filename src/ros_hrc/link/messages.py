@@ -12,7 +12,8 @@ Types and their fields (``?`` marks an optional field, left out of the JSON when
                                                            the robot, his state after it acted
     observation  step, observation, bits, state, elapsed?  coordinator -> POMDP (7070)
     decision     step, action, belief [p...], belief_states?, decision_ms?, surprise?, rule?,
-                 action_names?, action_values?, type_names?, type_belief?
+                 action_names?, action_values?, type_names?, type_belief?,
+                 learnt_name?, learnt_value?, learnt_spread?
                                                            POMDP -> coordinator: answers observation
     action       step, action, belief? [p...], belief_states?, decision_ms?
                                                            "carry out this action" (no link
@@ -25,7 +26,8 @@ Types and their fields (``?`` marks an optional field, left out of the JSON when
                  utility                                   coordinator -> POMDP: a task of a
                                                            sequence ended, how
     task_report  selector, policy, robot_model?, type_names?, type_belief?, signature?,
-                 total_disc_reward?                        POMDP -> coordinator: answers
+                 total_disc_reward?, learnt_name?, learnt_value?, learnt_spread?
+                                                           POMDP -> coordinator: answers
                                                            task_end
     next_state   state (int, or null: let the model choose)  human node -> MDP (9090)
     configure    reason?                                   human node -> each solver process:
@@ -243,6 +245,27 @@ class Observation(Message):
             self._set("elapsed", check.number("elapsed", self.elapsed, minimum=0.0))
 
 
+def _validate_learnt(message: Message, check: Checker) -> None:
+    """A learning robot's figure (:class:`Decision`, :class:`TaskReport`): ``learnt_name``
+    (one line saying what it is), ``learnt_value`` (a probability) and ``learnt_spread`` (its
+    standard deviation over the posterior), all three or none."""
+    given = [getattr(message, f) is not None
+             for f in ("learnt_name", "learnt_value", "learnt_spread")]
+    if not any(given):
+        return
+    if not all(given):
+        missing = [f for f, g in zip(("learnt_name", "learnt_value", "learnt_spread"), given)
+                   if not g][0]
+        raise check.fail(missing, "must come with the other learnt_ fields")
+    message._set("learnt_name", check.prose("learnt_name", message.learnt_name))
+    value = check.number("learnt_value", message.learnt_value, minimum=0.0)
+    if value > 1.0:
+        raise check.fail("learnt_value", f"must be a probability (<= 1), got {value}")
+    message._set("learnt_value", value)
+    message._set("learnt_spread", check.number("learnt_spread", message.learnt_spread,
+                                               minimum=0.0))
+
+
 @dataclass(frozen=True)
 class Decision(Message):
     """The robot planner's answer to an :class:`Observation` (observer <- POMDP): the
@@ -255,7 +278,8 @@ class Decision(Message):
     the chosen action's the best: why it chose; both or neither, e.g. a baseline robot has
     none), and ``type_names`` with ``type_belief`` (a robot model of human types,
     :mod:`ros_hrc.pomdp.typed`: its belief over the types; ``belief`` is then over the task's
-    states, the types summed out; both or neither). A reply: it carries ``reply_to`` and
+    states, the types summed out; both or neither), and a learning robot's figure of its
+    learnt model (``learnt_name``, ``learnt_value``, ``learnt_spread``: all or none). A reply: it carries ``reply_to`` and
     ``epoch`` of the observation."""
 
     TYPE: ClassVar[str] = "decision"
@@ -270,8 +294,12 @@ class Decision(Message):
     action_values: Optional[Sequence[float]] = None
     type_names: Optional[Sequence[str]] = None
     type_belief: Optional[Sequence[float]] = None
+    learnt_name: Optional[str] = None
+    learnt_value: Optional[float] = None
+    learnt_spread: Optional[float] = None
 
     def _validate(self, check: Checker) -> None:
+        _validate_learnt(self, check)
         self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         self._set("action", check.text("action", self.action))
         self._set("belief", check.belief_list("belief", self.belief))
@@ -416,8 +444,9 @@ class TaskReport(Message):
     ``robot_model`` (its file; absent for a policy without one), the selector's
     ``type_names`` with its ``type_belief`` after the task (both or neither; a selector
     without a type belief sends neither), the task's ``signature`` (one code 0..63 per
-    step: the human observables the robot saw) and ``total_disc_reward`` (the policy's own
-    discounted reward over the task's true states: FABRIC's figure, not the utility)."""
+    step: the human observables the robot saw), ``total_disc_reward`` (the policy's own
+    discounted reward over the task's true states: FABRIC's figure, not the utility) and a
+    learning robot's figure after learning from the task (``learnt_*``, as a decision's)."""
 
     TYPE: ClassVar[str] = "task_report"
     selector: str
@@ -427,8 +456,12 @@ class TaskReport(Message):
     type_belief: Optional[Sequence[float]] = None
     signature: Optional[Sequence[int]] = None
     total_disc_reward: Optional[float] = None
+    learnt_name: Optional[str] = None
+    learnt_value: Optional[float] = None
+    learnt_spread: Optional[float] = None
 
     def _validate(self, check: Checker) -> None:
+        _validate_learnt(self, check)
         self._set("selector", check.text("selector", self.selector))
         self._set("policy", check.text("policy", self.policy))
         if self.robot_model is not None:

@@ -830,7 +830,8 @@ class Coordinator:
         status = pending[1]
         if isinstance(result, TaskAnswer):
             for name in ("selector", "policy", "robot_model", "type_names", "type_belief",
-                         "signature", "total_disc_reward"):
+                         "signature", "total_disc_reward", "learnt_name", "learnt_value",
+                         "learnt_spread"):
                 setattr(status, name, getattr(result, name))
             if status.type_belief:
                 best = max(range(len(status.type_belief)), key=status.type_belief.__getitem__)

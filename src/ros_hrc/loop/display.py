@@ -285,4 +285,6 @@ def task_line(status) -> str:
         line += f"; policy {status.policy}"
     if status.type_names:
         line += f"; belief: {ranked_types(status.type_names, status.type_belief, TASK_LINE_TYPES)}"
+    if status.learnt_name:
+        line += f"; learnt {status.learnt_value:.2f} \u00b1 {status.learnt_spread:.2f}"
     return line

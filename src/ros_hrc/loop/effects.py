@@ -315,6 +315,10 @@ class StepReport:
     #: robot of no types); ``belief`` is then over the task's states, the types summed out.
     type_names: Tuple[str, ...] = ()
     type_belief: Tuple[float, ...] = ()
+    #: A learning robot's figure of its learnt model (empty name: no learning robot).
+    learnt_name: str = ""
+    learnt_value: float = 0.0
+    learnt_spread: float = 0.0
     sim_time: float = 0.0
     episode_start_time: float = 0.0
     object_holder: str = "none"
@@ -365,6 +369,10 @@ class TaskStatusReport:
     estimation_correct: bool = False
     total_disc_reward: float = 0.0
     signature: Tuple[int, ...] = ()
+    #: A learning robot's figure after learning from the task (empty name: none).
+    learnt_name: str = ""
+    learnt_value: float = 0.0
+    learnt_spread: float = 0.0
     #: Why the robot's part is empty ("" when it answered).
     robot_problem: str = ""
 

@@ -217,6 +217,9 @@ def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
     if status.type_names:   # a robot model of human types: whom it believes it works with
         lines.append(f"robot types       : "
                      f"{ranked_types(status.type_names, status.type_belief, STEP_BLOCK_TYPES)}")
+    if status.learnt_name:   # a learning robot: what it has learnt of this human so far
+        lines.append(f"robot learnt      : {status.learnt_name} = {status.learnt_value:.2f} "
+                     f"\u00b1 {status.learnt_spread:.2f}")
     if status.fault:
         lines.append(f"STEP FAILED       : {status.fault}")
     else:

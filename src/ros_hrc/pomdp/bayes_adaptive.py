@@ -15,6 +15,15 @@ prior row's support (:meth:`DirichletPosterior.sample`). :meth:`DirichletPosteri
 moves the counts towards the prior (``n <- (1 - rate) n``), so that a human who changed is
 learnt again.
 
+Planning on the posterior (:func:`planning_model`): its mean (certainty equivalence), or a
+model that plans for what learning is worth, made by root sampling (BAMCP's idea, as
+BA-POMCP applies it to POMDPs): ``draws`` models drawn from the posterior, composed
+(:func:`ros_hrc.pomdp.typed.compose`) into one POMDP whose hidden state is (draw, state) with a
+uniform prior over the draws. A planner's scenarios then each start in one draw's dynamics,
+and its belief update weighs the draws by how well each explains what the task shows, so a
+tree search values an action also for what it reveals of this human. The draws are names
+``d0``, ``d1``, ... and mean nothing beyond the task.
+
 Steps are ``(action, observation)`` pairs by index: ``action`` is the one taken before
 ``observation`` was made (the robot's previous action; for a task's first step its idle
 action), as the robot's belief update takes them. No task is known here.
@@ -32,8 +41,14 @@ import scipy.sparse as sp
 from ros_hrc.errors import ModelError
 from ros_hrc.pomdp.fit import posterior_table
 from ros_hrc.pomdp.model import Model
+from ros_hrc.pomdp.typed import compose
 
-__all__ = ["expected_counts", "DirichletPosterior", "check_strength", "check_forgetting"]
+__all__ = ["expected_counts", "DirichletPosterior", "check_strength", "check_forgetting",
+           "check_draws", "planning_model", "reach_probability", "PLANNING"]
+
+#: How a robot plans on its posterior: ``sampled`` (root sampling over ``draws`` models drawn
+#: from it) or ``mean`` (the posterior mean alone).
+PLANNING = ("sampled", "mean")
 
 Step = Tuple[int, int]
 
@@ -106,6 +121,29 @@ def check_strength(strength: float) -> float:
 def check_forgetting(rate: float) -> float:
     """A forgetting rate: from 0 (keep everything) to 1 (back to the prior)."""
     return _checked(rate, "the forgetting rate", "from 0 to 1", lambda r: 0.0 <= r <= 1.0)
+
+
+def check_draws(draws: int) -> int:
+    """Root sampling's number of models drawn: a whole number from 1 to 64 (each adds the
+    prior's states once more to the model the planner plans on)."""
+    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) \
+            or not 1 <= int(draws) <= 64:
+        raise ValueError(f"the number of posterior draws must be a whole number from 1 to 64, "
+                         f"not {draws!r}")
+    return int(draws)
+
+
+def reach_probability(model: Model, start: int, action: int, target: int, steps: int) -> float:
+    """P(the state is ``target`` after at most ``steps`` steps of ``action`` from ``start``)
+    under ``model``'s T, with ``target`` made absorbing (reaching it is what counts)."""
+    T = model.dense_T[action].copy()
+    T[target] = 0.0
+    T[target, target] = 1.0
+    p = np.zeros(model.n_states)
+    p[start] = 1.0
+    for _ in range(steps):
+        p = p @ T
+    return float(p[target])
 
 
 @dataclass
@@ -188,3 +226,16 @@ class DirichletPosterior:
         O = [draw(prior.O[a], self.observations[a]) for a in range(prior.n_actions)] \
             if self.learn_observations else [sp.csr_matrix(o, copy=True) for o in prior.O]
         return self._model(T, O, f"{prior.name or 'model'}-posterior-draw")
+
+
+def planning_model(posterior: DirichletPosterior, planning: str, draws: int,
+                   rng: np.random.Generator) -> Model:
+    """The model a planner plans the next task on (see the module docstring): the posterior
+    mean (``planning="mean"``), or ``draws`` posterior draws composed by root sampling
+    (``"sampled"``), their states ``<state>__d<i>``."""
+    if planning == "mean":
+        return posterior.mean()
+    if planning != "sampled":
+        raise ValueError(f"planning must be one of {', '.join(PLANNING)}, not {planning!r}")
+    models = {f"d{i}": posterior.sample(rng) for i in range(check_draws(draws))}
+    return compose(models, name=f"{posterior.prior.name or 'model'}-posterior-draws")

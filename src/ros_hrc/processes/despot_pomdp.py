@@ -59,6 +59,7 @@ relative ``--model`` or ``--policy`` given by hand is taken from the directory i
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import threading
@@ -87,6 +88,7 @@ from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
 from ros_hrc.pomdp.typed import TypeLayout, ranked_types
+from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of
 from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
@@ -104,11 +106,16 @@ class RobotAgent:
     (:attr:`type_belief`)."""
 
     def __init__(self, model: Model, planner: Planner, first_action: str = "rIdle",
-                 seed: int = 0) -> None:
+                 seed: int = 0, reports_types: bool = True) -> None:
         self.model = model
         self.planner = planner
         self.seed = seed
         self.layout = TypeLayout.of(model)
+        #: Whether its hidden types are human types worth reporting (a learning robot's
+        #: root-sampled model has draws there, which mean nothing beyond the task).
+        self.reports_types = reports_types and self.layout is not None
+        #: The (action, observation) indices of the belief updates since the last reset.
+        self.history: List[Tuple[int, int]] = []
         self.episode: Optional[int] = None
         self.first_action = model.index("action", first_action) if first_action in model.actions else 0
         self.reset()
@@ -124,6 +131,7 @@ class RobotAgent:
         self.planner.reset(belief)
         self.last_action = self.first_action
         self.surprises = 0
+        self.history = []
 
     def step(self, observation: str, elapsed: Optional[float] = None):
         """Belief update with (previous action, observation), then plan: (action, ms, note).
@@ -135,6 +143,7 @@ class RobotAgent:
         if observe_time is not None:
             observe_time(elapsed)
         started = time.perf_counter()
+        self.history.append((self.last_action, o))
         self.planner.update(self.last_action, o)
         if self.planner.last_update_zero_probability:
             self.surprises += 1
@@ -161,8 +170,9 @@ class RobotAgent:
 
     @property
     def type_belief(self) -> Optional[np.ndarray]:
-        """P(type) in the order of ``layout.types`` (None: a model of no types)."""
-        return None if self.layout is None else self.layout.type_marginal(self.belief)
+        """P(type) in the order of ``layout.types`` (None: a model of no types, or of types
+        not worth reporting)."""
+        return self.layout.type_marginal(self.belief) if self.reports_types else None
 
     def expected_reward(self, state: str, action: int) -> Optional[float]:
         """R(state, action) of a true state named as the task names it (None: a state the
@@ -174,7 +184,7 @@ class RobotAgent:
             return None
         at = self.layout.states.index(state)
         per_type = self.layout.blocks(self.model.R_sa[action])[:, at]
-        return float(self.type_belief @ per_type)
+        return float(self.layout.type_marginal(self.belief) @ per_type)
 
 
 @dataclass
@@ -205,8 +215,18 @@ class SequenceRobot:
 
     def __init__(self, task: Task, agents: Mapping[str, RobotAgent],
                  robot_models: Mapping[str, str], selection: Optional[Selection] = None,
-                 seed: int = 0, forgetting: float = 0.0) -> None:
+                 seed: int = 0, forgetting: float = 0.0,
+                 learner: Optional[LearntHuman] = None,
+                 new_planner=None) -> None:
         self.task = task
+        #: The learning robot's model of its human (None: a robot that does not learn), and
+        #: how a planner is made for the model it plans each task on.
+        self.learner = learner
+        self.new_planner = new_planner
+        self.learner_name = ""
+        self.learn_ms = 0.0
+        #: What the learnt model says now (None: no learner, or a task without the figure).
+        self.figure: Optional[LearntFigure] = learner.figure() if learner is not None else None
         self.agents = dict(agents)
         self.robot_models = dict(robot_models)
         self.selection = selection
@@ -221,8 +241,11 @@ class SequenceRobot:
     @property
     def name(self) -> str:
         """The selector's name (``fixed`` for the launch's one robot)."""
-        return self.selector.name if self.selector is not None else (
-            self.selection.spec if self.selection is not None else "fixed")
+        if self.selector is not None:
+            return self.selector.name
+        if self.selection is not None:
+            return self.selection.spec
+        return self.learner_name or "fixed"
 
     def start_task(self, index: int, episode: int, true_type: str) -> str:
         """A reset starts task ``index`` (of episode ``episode``; its human ``true_type``):
@@ -237,6 +260,8 @@ class SequenceRobot:
             self.type_belief_at_end.clear()    # a new sequence: nothing carried over
         if self.selection is None:
             policy = next(iter(self.agents))
+            if self.learner is not None:
+                self._plan_on_posterior(policy, index, episode)
         else:
             if self.selector is None or index == 1:
                 # A new sequence (its first task): a fresh selector on its own stream.
@@ -248,6 +273,21 @@ class SequenceRobot:
             policy = self.selector.choose()
         self.record = TaskRecord(index, policy, self._start_belief(policy))
         return policy
+
+    def _plan_on_posterior(self, policy: str, index: int, episode: int) -> None:
+        """The learning robot's new task: back to its prior for a new sequence (the draws'
+        stream of (seed, the sequence's first episode, "learning")), then an agent on the
+        model the posterior gives for this task."""
+        learner = self.learner
+        if index == 1:
+            learner.restart(stream_seed(self.seed, episode, "learning"))
+        model = learner.model_for_task()
+        old = self.agents[policy]
+        self.agents[policy] = RobotAgent(model, self.new_planner(model), seed=self.seed,
+                                         first_action=self.task.robot_idle_action,
+                                         reports_types=False)
+        self.agents[policy].episode = old.episode
+        self.figure = learner.figure()
 
     def _start_belief(self, policy: str) -> Optional[np.ndarray]:
         """The belief ``policy``'s agent starts a new task from: the type belief it ended its
@@ -287,18 +327,25 @@ class SequenceRobot:
             names = tuple(self.selector.type_names)
             belief = tuple(float(p) for p in self.selector.belief())
         agent = self.agents[record.policy]
-        if agent.layout is not None:
+        if self.learner is not None:
+            started = time.perf_counter()
+            self.learner.learn(agent.history)
+            self.figure = self.learner.figure()
+            self.learn_ms = (time.perf_counter() - started) * 1000.0
+        if agent.reports_types:
             self.type_belief_at_end[record.policy] = agent.type_belief
             if not names:    # the selector's own type belief, when it has one, is the report's
                 names = agent.layout.types
                 belief = tuple(float(p) for p in agent.type_belief)
         self.tasks_ended += 1
         record.ended = True
+        figure = self.figure
         return TaskReport(selector=self.name, policy=record.policy,
                           robot_model=self.robot_models.get(record.policy) or None,
                           type_names=list(names) or None, type_belief=list(belief) or None,
                           signature=list(record.signature),
-                          total_disc_reward=record.reward)
+                          total_disc_reward=record.reward,
+                          **figure_fields(figure))
 
 
 class PomdpProcess:
@@ -404,8 +451,9 @@ class PomdpProcess:
                         surprise=bool(note), rule=rule or None,
                         action_names=[model.actions[a] for a, _ in values] or None,
                         action_values=[v for _, v in values] or None,
-                        type_names=list(layout.types) if layout is not None else None,
+                        type_names=list(layout.types) if type_belief is not None else None,
                         type_belief=type_belief.tolist() if type_belief is not None else None,
+                        **figure_fields(self.sequence.figure if self.sequence else None),
                         epoch=msg.epoch, reply_to=msg.id)
 
     def on_task_end(self, msg: TaskEnd, peer: Peer) -> Message:
@@ -420,11 +468,10 @@ class PomdpProcess:
         print(f"\n##### TASK {msg.task_index} over: {msg.outcome}, utility {msg.utility:.2f}; "
               f"policy {report.policy}{'; belief ' + belief if belief else ''} #####",
               flush=True)
-        return TaskReport(selector=report.selector, policy=report.policy,
-                          robot_model=report.robot_model, type_names=report.type_names,
-                          type_belief=report.type_belief, signature=report.signature,
-                          total_disc_reward=report.total_disc_reward, epoch=msg.epoch,
-                          reply_to=msg.id)
+        if self.sequence.figure is not None:
+            print(f"- Learnt: {figure_text(self.sequence.figure)} (learnt from the task in "
+                  f"{self.sequence.learn_ms:.1f} ms)", flush=True)
+        return dataclasses.replace(report, epoch=msg.epoch, reply_to=msg.id)
 
     def _belief_text(self) -> str:
         """The belief over the task's states, one line each, and a model of types' belief
@@ -434,7 +481,23 @@ class PomdpProcess:
         type_belief = self.agent.type_belief
         if type_belief is not None:
             lines.append(f"- Type belief: {ranked_types(self.agent.layout.types, type_belief)}")
+        figure = self.sequence.figure if self.sequence is not None else None
+        if figure is not None:
+            lines.append(f"- Learnt: {figure_text(figure)}")
         return "\n".join(lines)
+
+
+def figure_fields(figure: Optional[LearntFigure]) -> Dict[str, object]:
+    """A decision's or a task report's fields of the learnt model's figure (none without)."""
+    if figure is None:
+        return {}
+    return {"learnt_name": figure.name, "learnt_value": figure.value,
+            "learnt_spread": figure.spread}
+
+
+def figure_text(figure: LearntFigure) -> str:
+    """The figure in one line: ``P(...) = 0.42 +- 0.08``."""
+    return f"{figure.name} = {figure.value:.2f} \u00b1 {figure.spread:.2f}"
 
 
 def build_planner(model: Model, args: argparse.Namespace) -> Planner:
@@ -487,6 +550,9 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "library")
     settings.add_argument(p, "selector_model")
     settings.add_argument(p, "bpr_forgetting")
+    settings.add_argument(p, "learning_strength")
+    settings.add_argument(p, "learning_forgetting")
+    settings.add_argument(p, "learning_draws")
     add_token_arguments(p)
     return p
 
@@ -515,6 +581,30 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
     the library's policies, one agent (and planner) each, built now. Raises HrcError or
     ValueError (one line)."""
     first = task.robot_idle_action
+    planning = planning_of(args.selector)
+    if planning is not None:
+        # The learning robot: the launch's robot model is its prior; the planner is made
+        # again for each task's model (build_planner with the launch's options).
+        if args.planner != "despot":
+            raise ValueError(f"selector:={args.selector} plans with DESPOT on its posterior: "
+                             f"planner:={args.planner} cannot")
+        learner = LearntHuman(model, task, args.learning_strength, args.learning_forgetting,
+                              planning, args.learning_draws,
+                              seed=stream_seed(args.seed, 0, "learning"))
+        name = fixed_policy_name(args)
+        first_model = learner.model_for_task()
+        agent = RobotAgent(first_model, build_planner(first_model, args), first_action=first,
+                           seed=args.seed, reports_types=False)
+        robot = SequenceRobot(task, {name: agent}, {name: model.source or ""}, seed=args.seed,
+                              learner=learner,
+                              new_planner=lambda m: build_planner(m, args))
+        robot.learner_name = args.selector
+        print(f"{NAME}: selector {args.selector}: learns its human from the prior "
+              f"{shown_model(model.source or args.robot_model)}, strength "
+              f"{learner.strength:g}, forgetting {learner.forgetting:g}"
+              + (f", {learner.draws} posterior draws a task" if planning == "sampled" else
+                 ", the posterior mean"), flush=True)
+        return robot
     if not uses_library(args.selector):
         name = fixed_policy_name(args)
         agent = RobotAgent(model, planner, first_action=first, seed=args.seed)

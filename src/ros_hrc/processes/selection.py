@@ -19,6 +19,7 @@ from typing import Optional
 from ros_hrc import settings
 from ros_hrc.agents.library import PolicyLibrary, load_library
 from ros_hrc.agents.selector_model import SelectorModel, load_selector_model
+from ros_hrc.agents.learning import planning_of
 from ros_hrc.agents.selectors import NEEDS_MODEL, Selector, make_selector
 from ros_hrc.errors import HrcError
 from ros_hrc.model_files import user_path
@@ -49,8 +50,9 @@ class Selection:
 
 def uses_library(selector: str) -> bool:
     """Whether ``selector`` (the setting's value) chooses from a library: every selector but
-    ``fixed`` alone (today's single robot)."""
-    return selector.strip() != "fixed"
+    ``fixed`` alone (today's single robot) and the learning robot's (one robot, its model
+    learnt: ros_hrc.agents.learning)."""
+    return selector.strip() != "fixed" and planning_of(selector.strip()) is None
 
 
 def auto_selector_model(library: PolicyLibrary) -> Path:

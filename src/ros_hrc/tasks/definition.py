@@ -230,6 +230,15 @@ class Task:
     #: The robot state that labels a success (someone holds the object): where hrc_fit ends a
     #: successful episode's last transition.
     robot_success_state: str = ""
+    #: The robot state of a human who has just failed once and may recover alone (the seed's
+    #: S2): where a learning robot's figure starts (``recovery_steps`` steps of the idle
+    #: action to the success state; docs/learning.md). "" for none.
+    recovery_state: str = ""
+    recovery_steps: int = 3
+    #: The robot state of a human who warned the robot: acting in it is acting against a
+    #: warning, which a model of the task's utility prices (ros_hrc.tasks.utility.
+    #: utility_rewards). "" for none.
+    robot_warned_state: str = ""
     # -- its study (hrc_experiment --task): what a grid runs when not told otherwise
     #: The robot policies of its study (empty: the experiment's default, the seed's).
     study_policies: Tuple[str, ...] = ()
@@ -273,6 +282,10 @@ class Task:
         if self.robot_success_state and self.robot_success_state not in self.robot_states:
             raise ValueError(f"task {self.name}: success {self.robot_success_state} is not a "
                              "robot state")
+        for label, name, names in (("recovery", self.recovery_state, self.robot_states),
+                                   ("warned", self.robot_warned_state, self.robot_states)):
+            if name and name not in names:
+                raise ValueError(f"task {self.name}: {label} {name} is not one of its robot's")
         if self.robot_idle_action not in self.robot_action_services:
             raise ValueError(f"task {self.name}: idle {self.robot_idle_action} is not a "
                              "robot action")

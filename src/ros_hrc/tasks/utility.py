@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["OUTCOMES", "WHO_SUCCEEDED", "TaskOutcome", "task_utility", "sim_span"]
+__all__ = ["OUTCOMES", "WHO_SUCCEEDED", "TaskOutcome", "task_utility", "sim_span",
+           "utility_rewards", "UTILITY_REWARD_SCALE", "AGAINST_WARNING_COST"]
 
 #: How a task ends.
 OUTCOMES = ("success", "fail", "timeout")
@@ -70,3 +71,57 @@ def task_utility(outcome: TaskOutcome) -> float:
     return ((1.0 if outcome.outcome == "success" else 0.0)
             - 0.5 * min(outcome.duration / outcome.timeout, 1.0)
             - 0.1 * outcome.warnings - 0.5 * outcome.preemptions)
+
+
+#: Reward units per unit of utility in a model of the utility (:func:`utility_rewards`): a
+#: success is worth 20, as in the considerate robot model, so DESPOT's pruning constant
+#: (lambda 0.1) weighs the same against it.
+UTILITY_REWARD_SCALE = 20.0
+#: What acting against a warning costs in a model of the utility, in utility units. The
+#: utility does not price it (a warning's own -0.1 has been paid by then), but the studies
+#: require that a robot never does it (docs/learning.md), so it is priced above any success.
+AGAINST_WARNING_COST = 1.5
+
+
+def utility_rewards(task, step_seconds: float, timeout: float = 0.0,
+                    scale: float = UTILITY_REWARD_SCALE) -> list:
+    """R[a][s][s'] of the task's robot model (its actions and states in the task's order) that
+    prices a step as :func:`task_utility` prices a task, times ``scale``: +1 on the step into
+    the success state (whoever brought it about); -0.5 more when the robot's grasp brought it
+    about from a state that needed no help (a pre-emption); -0.1 on a step into the warned
+    state (a warning); -0.5 x ``step_seconds`` / ``timeout`` on every step before success (the
+    share of the timeout used; ``timeout`` 0: the task's); and :data:`AGAINST_WARNING_COST` for
+    any action but idling or stopping in the warned state. Nested lists of floats."""
+    if not step_seconds > 0:
+        raise ValueError(f"step_seconds must be > 0, not {step_seconds!r}")
+    timeout = timeout or task.task_timeout
+    states, actions = list(task.robot_states), list(task.robot_actions)
+    success = task.robot_success_state
+    warned = task.robot_warned_state
+    if not success or not warned:
+        raise ValueError(f"task {task.name} names no success or warned robot state: its "
+                         f"utility has no model")
+    grasps = task.robot_actions_calling("grasp")
+    quiet = {task.robot_idle_action} | set(task.robot_actions_calling("cancel_action"))
+    time_cost = 0.5 * min(step_seconds / timeout, 1.0)
+    R = []
+    for a in actions:
+        rows = []
+        for s in states:
+            row = []
+            for s2 in states:
+                r = 0.0
+                if s != success:
+                    r -= time_cost
+                    if s2 == success:
+                        r += 1.0
+                        if a in grasps and s not in task.needs_help_states:
+                            r -= 0.5
+                    if s2 == warned and s != warned:
+                        r -= 0.1
+                if s == warned and a not in quiet:
+                    r -= AGAINST_WARNING_COST
+                row.append(r * scale)
+            rows.append(row)
+        R.append(rows)
+    return R

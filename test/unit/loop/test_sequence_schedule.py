@@ -137,7 +137,9 @@ def test_a_task_play_of_a_file_model_is_labelled_by_its_stem():
 
 
 def test_the_selector_settings_are_the_selectors_module_s():
+    from ros_hrc.agents.learning import LEARNING_SELECTORS
     from ros_hrc.agents.selectors import DEFAULT_FORGETTING, SELECTOR_NAMES
 
-    assert settings.SELECTORS == SELECTOR_NAMES
+    # The library's selectors, then the learning robot's (one robot, its model learnt).
+    assert settings.SELECTORS == SELECTOR_NAMES + tuple(LEARNING_SELECTORS)
     assert settings.default("bpr_forgetting") == DEFAULT_FORGETTING

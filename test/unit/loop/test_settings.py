@@ -29,6 +29,7 @@ DEFAULTS = {
     "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
     "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
     "selector_model": "auto", "task_timeout": None, "bpr_forgetting": 0.05,
+    "learning_strength": 20.0, "learning_forgetting": 0.1, "learning_draws": 8,
 }
 
 

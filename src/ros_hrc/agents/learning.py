@@ -1,0 +1,117 @@
+"""The robot that learns the human it works with, across a sequence (issue #40).
+
+Its model of the human is a Dirichlet posterior over the robot model's transition rows
+(:class:`ros_hrc.pomdp.bayes_adaptive.DirichletPosterior`): the prior is a pooled robot model
+(e.g. ``robot_utility_fitted``: fitted on the zoo's fit set, priced by the task's utility), of
+``strength`` pseudo-counts per row. After each task the posterior takes the task's expected
+transitions (forward-backward over the robot's own actions and observations; the true state
+is never read), after the counts so far were moved towards the prior by ``forgetting``. Before
+each task the robot plans on the posterior: its mean (``planning="mean"``,
+``pomdp_learning_mean``) or root sampling over ``draws`` posterior draws (``"sampled"``,
+``pomdp_learning``), which plans for what an action reveals of this human.
+
+What it believes of the human, in one figure (:meth:`LearntHuman.figure`): the probability
+that a human who has just failed once recovers alone within the task's ``recovery_steps``
+steps while the robot idles (the seed's S2 to S1 under rIdle), under the posterior, with its
+spread over posterior draws. docs/learning.md says why this figure.
+
+No ROS; a task's names come from its :class:`~ros_hrc.tasks.definition.Task`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+
+from ros_hrc.pomdp.bayes_adaptive import (PLANNING, DirichletPosterior, check_draws,
+                                          check_forgetting, check_strength, planning_model,
+                                          reach_probability)
+from ros_hrc.pomdp.model import Model
+from ros_hrc.tasks.definition import Task
+
+__all__ = ["LEARNING_SELECTORS", "planning_of", "LearntFigure", "LearntHuman",
+           "FIGURE_DRAWS"]
+
+#: ``selector:=`` values of the learning robot, and how each plans on its posterior.
+LEARNING_SELECTORS = {"pomdp_learning": "sampled", "pomdp_learning_mean": "mean"}
+#: Posterior draws the figure's spread is computed from.
+FIGURE_DRAWS = 32
+
+
+def planning_of(selector: str) -> Optional[str]:
+    """How the ``selector:=`` value plans on a posterior (None: not a learning robot)."""
+    return LEARNING_SELECTORS.get(selector)
+
+
+@dataclass(frozen=True)
+class LearntFigure:
+    """The learnt model's key figure: its ``name`` (one line), its value under the posterior
+    mean and its spread (the standard deviation over posterior draws)."""
+    name: str
+    value: float
+    spread: float
+
+
+class LearntHuman:
+    """A learning robot's model of its human, carried from task to task of one sequence.
+
+    ``prior``: the pooled robot model (checked against ``task`` by whoever loaded it);
+    ``strength``, ``forgetting``, ``draws`` as the module docstring says; ``seed``: the
+    stream the draws come from (a new sequence starts it again: :meth:`restart`)."""
+
+    def __init__(self, prior: Model, task: Task, strength: float, forgetting: float,
+                 planning: str, draws: int, seed: int = 0) -> None:
+        if planning not in PLANNING:
+            raise ValueError(f"planning must be one of {', '.join(PLANNING)}, not {planning!r}")
+        self.prior = prior
+        self.task = task
+        self.strength = check_strength(strength)
+        self.forgetting = check_forgetting(forgetting)
+        self.planning = planning
+        self.draws = check_draws(draws)
+        self.tasks_learnt = 0
+        self._recovery = self._figure_indices(prior, task)
+        self.restart(seed)
+
+    @staticmethod
+    def _figure_indices(model: Model, task: Task) -> Optional[Tuple[int, int, int, int]]:
+        if not (task.recovery_state and task.robot_success_state):
+            return None
+        return (model.index("state", task.recovery_state),
+                model.index("action", task.robot_idle_action),
+                model.index("state", task.robot_success_state), task.recovery_steps)
+
+    def restart(self, seed: int) -> None:
+        """Back to the prior (a new sequence: a new human), drawing from ``seed``'s stream."""
+        self.posterior = DirichletPosterior(self.prior, self.strength)
+        self.rng = np.random.default_rng(seed)
+        self.tasks_learnt = 0
+
+    def model_for_task(self) -> Model:
+        """The model the next task is planned on (a new draw for root sampling each task)."""
+        return planning_model(self.posterior, self.planning, self.draws, self.rng)
+
+    def learn(self, steps: Sequence[Tuple[int, int]]) -> None:
+        """The task that ended: its ``(action, observation)`` steps, as the robot's belief
+        update took them. The counts so far are moved towards the prior first, so the newest
+        task counts whole."""
+        self.posterior.forget(self.forgetting)
+        self.posterior.learn(steps)
+        self.tasks_learnt += 1
+
+    def figure(self) -> Optional[LearntFigure]:
+        """The key figure under the posterior now (None: the task names no recovery)."""
+        if self._recovery is None:
+            return None
+        start, idle, success, k = self._recovery
+        value = reach_probability(self.posterior.mean(), start, idle, success, k)
+        # Its spread: draws from their own stream, so showing the figure changes no plan.
+        rng = np.random.default_rng(self.tasks_learnt)
+        draws = [reach_probability(self.posterior.sample(rng), start, idle, success, k)
+                 for _ in range(FIGURE_DRAWS)]
+        spread = float(np.std(draws, ddof=1)) if len(draws) > 1 else 0.0
+        name = (f"P(recovers alone from {self.task.recovery_state} within {k} steps of "
+                f"{self.task.robot_idle_action})")
+        return LearntFigure(name, value, spread if math.isfinite(spread) else 0.0)
