@@ -517,8 +517,8 @@ _TABLE: Tuple[Setting, ...] = (
            "pomdp_learning_mean) prior strength kappa: pseudo-counts per row of its prior, the "
            "launch's robot_model (docs/learning.md; chosen on the fit set)", minimum=0,
            maximum=1e9, exclusive_minimum=True),
-        _s("learning_forgetting", "float", 0.1, "the learning robot's forgetting rate: before "
-           "each task's counts are added, those so far are multiplied by 1 - this (0: keep "
+        _s("learning_forgetting", "float", 0.1, "the learning robot's forgetting rate: when "
+           "a task's counts are added, those so far are first multiplied by 1 - this (0: keep "
            "everything; 1: only the last task), so that a new human is learnt again "
            "(docs/learning.md; chosen on the fit set)", minimum=0, maximum=1),
         _s("learning_draws", "int", 8, "the models pomdp_learning draws from its posterior "
@@ -543,8 +543,11 @@ SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
 
 #: The selectors of ``selector:=`` (``fixed`` also as ``fixed:POLICY``); the robot process
 #: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
+#: The learning robot's (ros_hrc.agents.learning): one robot whose model of the human is
+#: learnt, root-sampled or its posterior mean; it plans with DESPOT (planner:=despot).
+LEARNING_SELECTORS: Tuple[str, ...] = ("pomdp_learning", "pomdp_learning_mean")
 SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
-                              "oracle", "pomdp_learning", "pomdp_learning_mean")
+                              "oracle") + LEARNING_SELECTORS
 
 #: The settings a running stack can take in place (``/hrc/configure``, a warm stack's next
 #: cell: docs/experiments.md, "Warm stacks"): what its solver processes and its loop are built
@@ -660,6 +663,10 @@ def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: task
         raise SettingError("selector", values.get("selector"),
                            f"must be one of {', '.join(SELECTORS)}, or fixed:POLICY (a policy "
                            "of the library)")
+    if selector in LEARNING_SELECTORS and out["planner"] != "despot":
+        raise SettingError("selector", values.get("selector"),
+                           f"plans with DESPOT on what it learns: it needs planner:=despot, "
+                           f"not {out['planner']}")
     if out["tasks"] is None:
         for name, word in (("selector", "fixed"), ("schedule", "")):
             if out[name] != word:

@@ -25,6 +25,7 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
+from ros_hrc import settings
 from ros_hrc.pomdp.bayes_adaptive import (PLANNING, DirichletPosterior, check_draws,
                                           check_forgetting, check_strength, planning_model,
                                           reach_probability)
@@ -34,8 +35,9 @@ from ros_hrc.tasks.definition import Task
 __all__ = ["LEARNING_SELECTORS", "planning_of", "LearntFigure", "LearntHuman",
            "FIGURE_DRAWS"]
 
-#: ``selector:=`` values of the learning robot, and how each plans on its posterior.
-LEARNING_SELECTORS = {"pomdp_learning": "sampled", "pomdp_learning_mean": "mean"}
+#: ``selector:=`` values of the learning robot (``settings.LEARNING_SELECTORS``), and how
+#: each plans on its posterior.
+LEARNING_SELECTORS = dict(zip(settings.LEARNING_SELECTORS, ("sampled", "mean")))
 #: Posterior draws the figure's spread is computed from.
 FIGURE_DRAWS = 32
 
@@ -95,10 +97,10 @@ class LearntHuman:
 
     def learn(self, steps: Sequence[Tuple[int, int]]) -> None:
         """The task that ended: its ``(action, observation)`` steps, as the robot's belief
-        update took them. The counts so far are moved towards the prior first, so the newest
-        task counts whole."""
-        self.posterior.forget(self.forgetting)
-        self.posterior.learn(steps)
+        update took them. Its expected counts come from the posterior the task was planned
+        on; the counts so far are then moved towards the prior, and the task's added whole:
+        ``n <- (1 - forgetting) n + the task's``."""
+        self.posterior.learn(steps, forget_first=self.forgetting)
         self.tasks_learnt += 1
 
     def figure(self) -> Optional[LearntFigure]:

@@ -171,9 +171,14 @@ class DirichletPosterior:
             raise ModelError(f"the counts are not sized for the prior's {A} actions, {S} "
                              f"states and {n_obs} observations")
 
-    def learn(self, steps: Sequence[Step], belief: Optional[np.ndarray] = None) -> None:
-        """Add a task's expected counts, computed under the posterior mean."""
+    def learn(self, steps: Sequence[Step], belief: Optional[np.ndarray] = None,
+              forget_first: float = 0.0) -> None:
+        """Add a task's expected counts, computed under the posterior mean; with
+        ``forget_first``, the counts so far are moved towards the prior by that rate
+        (:meth:`forget`) after the task's were computed and before they are added."""
         transitions, observations = expected_counts(self.mean(), steps, belief)
+        if forget_first:
+            self.forget(forget_first)
         self.transitions += transitions
         if self.learn_observations:
             self.observations += observations

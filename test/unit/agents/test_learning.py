@@ -1,0 +1,126 @@
+"""The learning robot's model of its human (ros_hrc.agents.learning, issue #40): carried and
+forgotten across tasks, its refusals, its figure, and with a prior of infinite strength the
+pooled robot's decisions."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ros_hrc import settings, tasks
+from ros_hrc.agents.learning import LearntHuman
+from ros_hrc.models import load_robot_model, model_path
+from ros_hrc.pomdp.bayes_adaptive import expected_counts
+from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
+from ros_hrc.pomdp.typed import TypeLayout
+
+SEED = tasks.get("seed")
+
+
+@pytest.fixture(scope="module")
+def pooled():
+    """The seed task's learning prior: the pooled fit priced by the task's utility."""
+    return load_robot_model(str(model_path("robot_utility_fitted", "robot", SEED)), SEED)
+
+
+def steps_of(model, actions, observations):
+    """(action, observation) index pairs as the robot's belief update takes them."""
+    return [(model.index("action", a), model.index("observation", o))
+            for a, o in zip(actions, observations)]
+
+
+def failed_then_recovered(model):
+    """A human who fails a grasp, then takes the object while the robot idles."""
+    return steps_of(model, ["rIdle", "rIdle", "rIdle"], ["O7", "O7", "O11"])
+
+
+def test_the_counts_are_carried_from_task_to_task_and_forgotten(pooled):
+    """After each task: n <- (1 - rate) n + the task's expected counts (under the posterior
+    mean as it was when the task ended)."""
+    task = failed_then_recovered(pooled)
+    for rate in (0.0, 0.5, 1.0):
+        learner = LearntHuman(pooled, SEED, strength=10, forgetting=rate, planning="mean",
+                              draws=1)
+        learner.learn(task)
+        first = learner.posterior.transitions.copy()
+        assert first.sum() == pytest.approx(len(task))
+        second, _ = expected_counts(learner.posterior.mean(), task)
+        learner.learn(task)
+        assert np.allclose(learner.posterior.transitions, (1 - rate) * first + second)
+        assert learner.tasks_learnt == 2
+    learner.restart(seed=3)                                        # a new sequence: the prior
+    assert learner.posterior.transitions.sum() == 0 and learner.tasks_learnt == 0
+
+
+@pytest.mark.parametrize("strength, forgetting, draws, says", [
+    (0, 0.1, 8, "the prior's strength must be a finite number > 0"),
+    (-1, 0.1, 8, "the prior's strength must be a finite number > 0"),
+    (float("inf"), 0.1, 8, "the prior's strength must be a finite number > 0"),
+    (10, -0.1, 8, "the forgetting rate must be from 0 to 1"),
+    (10, 1.5, 8, "the forgetting rate must be from 0 to 1"),
+    (10, 0.1, 0, "the number of posterior draws must be a whole number from 1 to 64"),
+])
+def test_bad_numbers_are_refused_in_one_line(pooled, strength, forgetting, draws, says):
+    with pytest.raises(ValueError) as caught:
+        LearntHuman(pooled, SEED, strength, forgetting, "sampled", draws)
+    assert says in str(caught.value) and "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize("word, value, says", [
+    ("learning_strength", "0", "learning_strength"),
+    ("learning_forgetting", "1.5", "learning_forgetting"),
+    ("learning_draws", "0", "learning_draws"),
+])
+def test_the_launch_refuses_bad_learning_settings(word, value, says):
+    with pytest.raises(settings.SettingError) as caught:
+        settings.resolve({word: value, "tasks": "5", "selector": "pomdp_learning"}, environ={})
+    assert says in str(caught.value)
+
+
+def test_the_learning_robot_needs_despot():
+    with pytest.raises(settings.SettingError) as caught:
+        settings.resolve({"tasks": "5", "selector": "pomdp_learning", "planner": "reactive"},
+                         environ={})
+    assert "planner:=despot" in str(caught.value)
+
+
+def test_the_figure_is_a_probability_that_moves_with_what_the_task_showed(pooled):
+    learner = LearntHuman(pooled, SEED, strength=5, forgetting=0.0, planning="mean", draws=1)
+    before = learner.figure()
+    assert "S2" in before.name and "rIdle" in before.name
+    assert 0.0 <= before.value <= 1.0 and before.spread > 0.0
+    for _ in range(5):
+        learner.learn(failed_then_recovered(pooled))
+    after = learner.figure()
+    assert after.value > before.value        # it saw a failed grasp recovered from alone
+    assert after.spread < before.spread      # and is surer of it
+
+
+def test_root_sampling_plans_on_draws_of_the_posterior(pooled):
+    learner = LearntHuman(pooled, SEED, strength=10, forgetting=0.0, planning="sampled",
+                          draws=4, seed=1)
+    model = learner.model_for_task()
+    layout = TypeLayout.of(model)
+    assert layout.types == ("d0", "d1", "d2", "d3")
+    assert model.n_states == 4 * pooled.n_states
+    assert np.allclose(layout.type_marginal(np.asarray(model.initial_belief)), 0.25)
+
+
+def test_an_infinitely_strong_prior_decides_as_the_pooled_robot(pooled):
+    """With kappa -> inf nothing a task shows moves the model: on a pinned seeded run the
+    learning robot (posterior mean) makes the pooled robot's every decision."""
+    learner = LearntHuman(pooled, SEED, strength=1e12, forgetting=0.0, planning="mean",
+                          draws=1)
+    for _ in range(3):
+        learner.learn(failed_then_recovered(pooled))
+    learnt = learner.model_for_task()
+    config = DespotConfig(scenarios=200, depth=30, time_per_step=float("inf"), max_trials=80)
+    ours, theirs = DespotPlanner(learnt, config, seed=7), DespotPlanner(pooled, config, seed=7)
+    observations = ["O7", "O7", "O35", "O2", "O7", "O19", "O35", "O11"]
+    last = pooled.index("action", "rIdle")
+    for name in observations:
+        o = pooled.index("observation", name)
+        ours.update(last, o)
+        theirs.update(last, o)
+        mine, pooled_action = ours.act(), theirs.act()
+        assert mine == pooled_action
+        last = mine
