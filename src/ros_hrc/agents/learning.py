@@ -39,7 +39,7 @@ __all__ = ["LEARNING_SELECTORS", "planning_of", "LearntFigure", "LearntHuman",
 #: each plans on its posterior.
 LEARNING_SELECTORS = dict(zip(settings.LEARNING_SELECTORS, ("sampled", "mean")))
 #: Posterior draws the figure's spread is computed from.
-FIGURE_DRAWS = 32
+FIGURE_DRAWS = 200
 
 
 def planning_of(selector: str) -> Optional[str]:
@@ -108,10 +108,11 @@ class LearntHuman:
         if self._recovery is None:
             return None
         start, idle, success, k = self._recovery
-        value = reach_probability(self.posterior.mean(), start, idle, success, k)
+        posterior = self.posterior
+        value = reach_probability(posterior.mean_transitions(idle), start, success, k)
         # Its spread: draws from their own stream, so showing the figure changes no plan.
         rng = np.random.default_rng(self.tasks_learnt)
-        draws = [reach_probability(self.posterior.sample(rng), start, idle, success, k)
+        draws = [reach_probability(posterior.sample_transitions(idle, rng), start, success, k)
                  for _ in range(FIGURE_DRAWS)]
         spread = float(np.std(draws, ddof=1)) if len(draws) > 1 else 0.0
         name = (f"P(recovers alone from {self.task.recovery_state} within {k} steps of "

@@ -133,17 +133,34 @@ def check_draws(draws: int) -> int:
     return int(draws)
 
 
-def reach_probability(model: Model, start: int, action: int, target: int, steps: int) -> float:
-    """P(the state is ``target`` after at most ``steps`` steps of ``action`` from ``start``)
-    under ``model``'s T, with ``target`` made absorbing (reaching it is what counts)."""
-    T = model.dense_T[action].copy()
+def reach_probability(transitions: np.ndarray, start: int, target: int, steps: int) -> float:
+    """P(the state is ``target`` after at most ``steps`` steps from ``start``) under one
+    action's transition table ``transitions[s, s']`` (dense), ``target`` made absorbing
+    (reaching it is what counts)."""
+    T = np.array(transitions, dtype=float, copy=True)
     T[target] = 0.0
     T[target, target] = 1.0
-    p = np.zeros(model.n_states)
+    p = np.zeros(T.shape[0])
     p[start] = 1.0
     for _ in range(steps):
         p = p @ T
     return float(p[target])
+
+
+def _dirichlet_rows(p: np.ndarray, counts: np.ndarray, k: float,
+                    rng: np.random.Generator) -> np.ndarray:
+    """A Dirichlet draw of every row at once (normalised Gamma draws) on the support of the
+    prior rows ``p``, with parameters ``k p + counts``."""
+    support = p > 0
+    gammas = np.zeros_like(p)
+    gammas[support] = rng.standard_gamma(k * p[support] + counts[support])
+    totals = gammas.sum(axis=1, keepdims=True)
+    # A row whose every Gamma draw underflowed to 0 (tiny parameters) keeps its mean.
+    empty = totals[:, 0] <= 0
+    if empty.any():
+        gammas[empty] = (k * p[empty] + counts[empty]) * support[empty]
+        totals = gammas.sum(axis=1, keepdims=True)
+    return gammas / totals
 
 
 @dataclass
@@ -211,6 +228,17 @@ class DirichletPosterior:
             [sp.csr_matrix(o, copy=True) for o in prior.O]
         return self._model(T, O, f"{prior.name or 'model'}-posterior-mean")
 
+    def mean_transitions(self, action: int) -> np.ndarray:
+        """The posterior mean of one action's T, dense ``[s, s']``."""
+        return posterior_table(self.prior.T[action], self.transitions[action],
+                               self.strength).toarray()
+
+    def sample_transitions(self, action: int, rng: np.random.Generator) -> np.ndarray:
+        """One action's T drawn from the posterior, dense ``[s, s']`` (as :meth:`sample`
+        draws every table)."""
+        return _dirichlet_rows(sp.csr_matrix(self.prior.T[action]).toarray().astype(float),
+                               self.transitions[action], self.strength, rng)
+
     def sample(self, rng: np.random.Generator) -> Model:
         """A model drawn from the posterior: every row a Dirichlet draw on the prior row's
         support (a transition the prior rules out stays ruled out), as a scenario of root
@@ -218,12 +246,8 @@ class DirichletPosterior:
         k, prior = self.strength, self.prior
 
         def draw(table: sp.csr_matrix, counts: np.ndarray) -> sp.csr_matrix:
-            p = sp.csr_matrix(table).toarray().astype(float)
-            out = np.zeros_like(p)
-            for row in range(p.shape[0]):
-                support = p[row] > 0
-                out[row, support] = rng.dirichlet(k * p[row, support] + counts[row, support])
-            drawn = sp.csr_matrix(out)
+            drawn = sp.csr_matrix(_dirichlet_rows(sp.csr_matrix(table).toarray().astype(float),
+                                                  counts, k, rng))
             drawn.eliminate_zeros()
             return drawn
 
