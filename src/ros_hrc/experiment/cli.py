@@ -58,7 +58,9 @@ from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder, open_res
 from ros_hrc.experiment.stack import MAX_EPISODES, check_launch_settings
 from ros_hrc.experiment.statistics import summarize, write_summary
 from ros_hrc.experiment.store import ResultsStore
-from ros_hrc.experiment.sequences import (MAX_SEQUENCE, MODEL_SELECTORS, PER_TYPE,
+from ros_hrc.model_files import user_path
+from ros_hrc.experiment.sequence_rows import CEILING
+from ros_hrc.experiment.sequences import (ceiling_model, MAX_SEQUENCE, MODEL_SELECTORS, PER_TYPE,
                                           SELECTOR_MODEL_FILE,
                                           check_trained_elsewhere, expand_selectors,
                                           load_study_library, resolve_schedules,
@@ -190,7 +192,8 @@ DEFAULT_SELECTORS = "bpr,bandit,random,oracle,fixed"
 #: independent repetitions" (each sequence is L tasks, paired task by task across selectors).
 DEFAULT_SEQUENCES = 5
 #: Options that mean something only in a sequence study, and those only in an episode one.
-SEQUENCE_ONLY = ("selectors", "library", "schedule", "selector_model")
+SEQUENCE_ONLY = ("selectors", "library", "schedule", "selector_model", "ceiling_models",
+                 "learning_strength", "learning_forgetting", "learning_draws")
 EPISODE_ONLY = ("policies", "reactive_budgets")
 
 
@@ -204,7 +207,11 @@ def add_sequence_arguments(p: argparse.ArgumentParser) -> None:
                         f"({DEFAULT_SEQUENCES})")
     p.add_argument("--selectors", type=names_argument, default=None,
                    help=f"with --sequence: selectors, comma-separated ({DEFAULT_SELECTORS}); "
-                        "fixed stands for every library policy as fixed:<policy>")
+                        "fixed stands for every library policy as fixed:<policy>; also "
+                        "bpr-pi, bpr-fabric, pomdp_types (the robot model of human types), "
+                        "pomdp_learning and pomdp_learning_mean (the robot that learns its "
+                        "human) and pomdp_ceiling (a robot fitted on its human: "
+                        "--ceiling-models)")
     p.add_argument("--library", default=None,
                    help="with --sequence: the policy library, a manifest or a folder holding "
                         "library.toml (auto: the task's)")
@@ -212,6 +219,15 @@ def add_sequence_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"with --sequence: who plays the tasks, comma-separated: {PER_TYPE} "
                         "(one cell per --human-models type, the default), fabric (FABRIC's "
                         "10 types x 30 tasks; --sequence 300 plays it whole) or a schedule file")
+    p.add_argument("--ceiling-models", default=None, metavar="DIR",
+                   help="with --sequence and --selectors pomdp_ceiling: a folder of robot "
+                        "models, <human>.pomdp each fitted on other seeds of that human (the "
+                        "ceiling: a robot that knows its human; docs/learning.md)")
+    for name in ("learning_strength", "learning_forgetting", "learning_draws"):
+        # The learning robot's settings, as hrc.launch takes them (checked by its table).
+        settings.add_argument(p, name, default=None,
+                              help=f"with --sequence: the learning robot's {name} "
+                                   f"(hrc.launch's; default {settings.default(name)})")
     p.add_argument("--selector-model", default=None,
                    help="with --sequence: the selector model of the BPRs and the oracle (auto: "
                         "selector_model.json beside the library's manifest; make "
@@ -237,6 +253,8 @@ def check_mode(args: argparse.Namespace, words: Sequence[str]) -> None:
     args.library = args.library or "auto"
     args.schedule = args.schedule or [PER_TYPE]
     args.selector_model = args.selector_model or "auto"
+    if args.ceiling_models:
+        args.ceiling_models = str(user_path(args.ceiling_models))
 
 
 def validate_sequences(args: argparse.Namespace) -> List[str]:
@@ -257,6 +275,13 @@ def validate_sequences(args: argparse.Namespace) -> List[str]:
     args.library_policies = library.names()
     args.selectors = expand_selectors(args.selectors, library.names())
     resolve_schedules(args)
+    if CEILING in args.selectors:
+        # The ceiling knows its one human: per type only, each human's model checked now.
+        if args.schedule != [PER_TYPE]:
+            raise GridError(f"--selectors {CEILING}: the ceiling knows one human, so it plays "
+                            f"--schedule {PER_TYPE} alone")
+        for human in dict.fromkeys(args.human_models):
+            ceiling_model(args, human)
     args.selector_model_file = selector_model_file(args, library)
     users = [s for s in args.selectors if s in MODEL_SELECTORS]
     warnings: List[str] = []

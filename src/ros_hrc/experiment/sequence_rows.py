@@ -36,7 +36,7 @@ TASK_COLUMNS: Tuple[str, ...] = (
     "schedule", "selector", "seed", "episode", "task_index", "human_model", "true_type",
     "policy", "success", "utility", "outcome", "who_succeeded", "belief_argmax",
     "estimation_correct", "warnings", "preemptions", "steps", "duration", "total_disc_reward",
-    "end_reason", "task_episode", "type_names", "type_belief", "signature")
+    "end_reason", "task_episode", "type_names", "type_belief", "signature", "learnt_figure")
 
 SEQUENCE_COLUMNS: Tuple[str, ...] = (
     "schedule", "selector", "seed", "episode", "tasks", "successes", "mean_utility", "steps",
@@ -58,7 +58,9 @@ class TaskRow(Row):
     names (a drifting one says where it is: ``A>B@0.40``). ``policy`` is the library policy
     the selector chose; ``belief_argmax`` the selector's most likely type after the task
     ("" for a selector without a type belief). ``type_names``, ``type_belief`` and
-    ``signature`` (the task's signature codes) are space-separated lists in one cell.
+    ``signature`` (the task's signature codes) are space-separated lists in one cell, and so
+    is ``learnt_figure``: a learning robot's figure after the task and its spread
+    (``/hrc/task_status``'s ``learnt_value``, ``learnt_spread``; empty for any other robot).
     """
 
     COLUMNS: ClassVar[Tuple[str, ...]] = TASK_COLUMNS
@@ -87,6 +89,12 @@ class TaskRow(Row):
     type_names: str = ""
     type_belief: str = ""
     signature: str = ""
+    learnt_figure: str = ""
+
+    @property
+    def learnt(self) -> Tuple[float, ...]:
+        """A learning robot's figure after the task and its spread (empty: none)."""
+        return tuple(float(v) for v in _words(self.learnt_figure))
 
     @property
     def key(self) -> tuple:
@@ -221,11 +229,17 @@ def belief_argmax(type_names: Sequence[str], belief: Sequence[float]) -> str:
     return str(type_names[int(np.argmax(np.asarray(belief, dtype=float)))])
 
 
+#: The study's robot that knows its human, labelled as such: the launch's one robot on a
+#: model fitted on that very human (other seeds of it), never a competitor (docs/learning.md).
+CEILING = "pomdp_ceiling"
+
+
 def launched_selector(selector: str) -> str:
     """The ``selector:=`` a cell's stack runs for the study's selector ``selector``: itself,
-    but ``fixed`` for ``pomdp_types`` (no library policy: the launch's one robot, on the
-    model of human types, plays every task)."""
-    return "fixed" if selector == TYPES_POLICY else selector
+    but ``fixed`` for ``pomdp_types`` and ``pomdp_ceiling`` (no library policy: the launch's
+    one robot, on the model of human types or on the model fitted on this human, plays every
+    task)."""
+    return "fixed" if selector in (TYPES_POLICY, CEILING) else selector
 
 
 def task_row(status: Any, schedule: str, selector: str, seed: int, sequence: int) -> TaskRow:
@@ -250,7 +264,9 @@ def task_row(status: Any, schedule: str, selector: str, seed: int, sequence: int
         total_disc_reward=float(status.total_disc_reward), end_reason=status.end_reason,
         task_episode=int(status.episode), type_names=" ".join(names),
         type_belief=" ".join(repr(v) for v in belief),
-        signature=" ".join(str(c) for c in signature_codes(status.signature)))
+        signature=" ".join(str(c) for c in signature_codes(status.signature)),
+        learnt_figure=(f"{float(status.learnt_value)!r} {float(status.learnt_spread)!r}"
+                       if status.learnt_name else ""))
 
 
 def signature_codes(signature: Any) -> Tuple[int, ...]:

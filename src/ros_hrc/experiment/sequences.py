@@ -32,7 +32,9 @@ from ros_hrc.agents.selectors import NEEDS_MODEL, SELECTOR_NAMES
 from ros_hrc.experiment.episode import TYPES_POLICY
 from ros_hrc.experiment.grid import (GridError, resolve_files, robot_model_of, task_launch_args,
                                      task_of)
-from ros_hrc.experiment.sequence_rows import launched_selector
+from ros_hrc.experiment.provenance import file_sha256, read_fitted_on
+from ros_hrc.experiment.sequence_rows import CEILING, launched_selector
+from ros_hrc.settings import LEARNING_SELECTORS
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
 from ros_hrc.model_files import user_path
 from ros_hrc.models import model_path
@@ -68,11 +70,12 @@ def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]
                 raise GridError(f"--selectors: {name}: no policy {policy!r} in the library "
                                 f"(its policies: {', '.join(policies)})")
             out.append(name)
-        elif name in known or name == TYPES_POLICY:
+        elif name in known or name in (TYPES_POLICY, CEILING) + LEARNING_SELECTORS:
             out.append(name)
         else:
             raise GridError(f"--selectors: unknown selector {name!r}; known: "
-                            f"{', '.join(known)}, fixed:<policy>, {TYPES_POLICY}")
+                            f"{', '.join(known)}, fixed:<policy>, {TYPES_POLICY}, "
+                            f"{', '.join(LEARNING_SELECTORS)}, {CEILING}")
     return list(dict.fromkeys(out))
 
 
@@ -156,6 +159,11 @@ def sequence_launch_args(args: argparse.Namespace, selector: str, schedule: str)
         words.append(f"selector_model:={args.selector_model_file}")
     if schedule != PER_TYPE:
         words.append(f"schedule:={schedule}")
+    if selector in LEARNING_SELECTORS:
+        for name in ("learning_strength", "learning_forgetting", "learning_draws"):
+            value = getattr(args, name, None)
+            if value is not None:
+                words.append(f"{name}:={value}")
     return words
 
 
@@ -166,6 +174,53 @@ def cell_humans(args: argparse.Namespace, schedule: str) -> List[Tuple[str, str]
         return [(human, args.human_files[human]) for human in args.human_models]
     task = task_of(args)
     return [(schedule_label(schedule), str(model_path(task.default_human_model, "human", task)))]
+
+
+def ceiling_model(args: argparse.Namespace, human: str) -> str:
+    """The ceiling's robot model for ``human`` (``--ceiling-models DIR``: ``DIR/<human>.pomdp``,
+    ``hrc_fit --human-models <human>`` on another seed), checked: it exists and was fitted on
+    that human on none of the study's seeds. GridError (one line) otherwise."""
+    folder = getattr(args, "ceiling_models", None)
+    if not folder:
+        raise GridError(f"--selectors {CEILING}: give --ceiling-models DIR, a folder of robot "
+                        f"models each fitted on one human (docs/learning.md)")
+    path = Path(folder) / f"{human}.pomdp"
+    if not path.is_file():
+        raise GridError(f"--selectors {CEILING}: no model fitted on human {human} ({path}); "
+                        f"fit one on other seeds of that human: hrc_fit --human-models {human} "
+                        f"--seed S --prior robot_considerate --rewards utility --out {path}")
+    try:
+        fitted = read_fitted_on(path)
+    except (OSError, ValueError) as exc:
+        raise GridError(f"--ceiling-models: {exc}") from None
+    digest = file_sha256(args.human_files[human])
+    mine = [f for f in fitted if f.sha256 == digest]
+    if not mine:
+        raise GridError(f"--selectors {CEILING}: {path} was not fitted on human {human} (its "
+                        f"fitted-on lines name no other seeds of it)")
+    shared = sorted({f.seed for f in mine} & set(args.seeds))
+    if shared:
+        raise GridError(f"--selectors {CEILING}: {path} was fitted on seed {shared[0]} of "
+                        f"human {human}, which this study evaluates: it needs other seeds")
+    return str(path)
+
+
+def cell_robot_model(args: argparse.Namespace, selector: str, human: str) -> str:
+    """The robot model a cell's stack runs: the model of human types for ``pomdp_types``,
+    the task's learning prior for the learning robots, the ceiling's model of this human for
+    ``pomdp_ceiling``, else the study's ``--robot-model``."""
+    task = task_of(args)
+    if selector == TYPES_POLICY:
+        return robot_model_of(TYPES_POLICY, args.robot_model, task)
+    if selector in LEARNING_SELECTORS:
+        if not task.learning_prior:
+            raise GridError(f"--selectors {selector}: task {task.name} has no learning prior "
+                            f"yet (a pooled fit priced by its utility: hrc_fit --rewards "
+                            f"utility)")
+        return str(model_path(task.learning_prior, "robot", task))
+    if selector == CEILING:
+        return ceiling_model(args, human)
+    return args.robot_model
 
 
 def plan_sequence_cells(args: argparse.Namespace, done: Set[tuple]) -> List[CellSpec]:
@@ -189,9 +244,7 @@ def plan_sequence_cells(args: argparse.Namespace, done: Set[tuple]) -> List[Cell
                             episodes=missing, step_limit=args.step_limit,
                             log_dir=str(Path(args.out) / "logs"),
                             human_model_file=human_file,
-                            robot_model=(robot_model_of(TYPES_POLICY, args.robot_model,
-                                                        task_of(args))
-                                         if selector == TYPES_POLICY else args.robot_model),
+                            robot_model=cell_robot_model(args, selector, label),
                             human_choice=args.human_choice,
                             max_trials=args.max_trials, reactive_budget=args.reactive_budget,
                             scenarios=args.scenarios, depth=args.depth, lambda_=args.lambda_,

@@ -235,6 +235,9 @@ class Task:
     #: action to the success state; docs/learning.md). "" for none.
     recovery_state: str = ""
     recovery_steps: int = 3
+    #: The robot model the learning robot's study starts from (its prior: a pooled fit priced
+    #: by the task's utility, ``hrc_fit --rewards utility``); "" for none yet.
+    learning_prior: str = ""
     #: The robot state of a human who warned the robot: acting in it is acting against a
     #: warning, which a model of the task's utility prices (ros_hrc.tasks.utility.
     #: utility_rewards). "" for none.

@@ -205,6 +205,7 @@ SEED = Task(
     needs_help_states=NEEDS_HELP_STATES,
     robot_success_state="S1",
     recovery_state="S2",
+    learning_prior="robot_utility_fitted",
     robot_warned_state="S6",
     observations=OBSERVATIONS,
     predicate_bits=PREDICATE_BITS,

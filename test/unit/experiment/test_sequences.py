@@ -78,7 +78,8 @@ def test_an_unknown_selector_or_library_policy_is_one_line_naming_the_known():
         expand_selectors(["bpr", "ucb"], POLICIES)
     assert str(unknown.value) == ("--selectors: unknown selector 'ucb'; known: fixed, random, "
                                   "bpr, bpr-pi, bpr-fabric, bandit, oracle, fixed:<policy>, "
-                                  "pomdp_types")
+                                  "pomdp_types, pomdp_learning, pomdp_learning_mean, "
+                                  "pomdp_ceiling")
     with pytest.raises(GridError) as foreign:
         expand_selectors(["fixed:policy2"], POLICIES)
     assert str(foreign.value) == ("--selectors: fixed:policy2: no policy 'policy2' in the "
@@ -108,7 +109,8 @@ def status(**fields):
                   type_belief=[0.25, 0.75], estimation_correct=True, outcome="success",
                   who_succeeded="robot", warnings=1, preemptions=0, steps=14, duration=21.5,
                   utility=0.63, total_disc_reward=4.2, end_reason="success",
-                  signature=bytes([3, 3, 35, 7]))
+                  signature=bytes([3, 3, 35, 7]), learnt_name="", learnt_value=0.0,
+                  learnt_spread=0.0)
     values.update(fields)
     return SimpleNamespace(**values)
 
@@ -439,3 +441,57 @@ def test_a_selector_that_needs_a_model_without_one_names_make_train_selector(tmp
     assert done.stderr == (f"hrc_experiment: --selectors oracle: no selector model "
                            f"{tmp_path / 'lib' / 'selector_model.json'}; make train-selector "
                            "writes it, or give --selector-model\n")
+
+
+def test_the_learning_robot_is_launched_as_itself_on_its_prior_and_its_figure_is_kept():
+    """pomdp_learning in a sequence study: the stack runs selector:=pomdp_learning with the
+    study's learning settings on the task's learning prior; each task's row keeps the learnt
+    figure and its spread."""
+    assert expand_selectors(["pomdp_learning", "fixed:base"], POLICIES) == [
+        "pomdp_learning", "fixed:base"]
+    args = SimpleNamespace(library="auto", sequence=30, selector_model="auto", task="seed",
+                           learning_strength=3.0, learning_forgetting=None, learning_draws=4)
+    words = sequence_launch_args(args, "pomdp_learning", "per-type")
+    assert "selector:=pomdp_learning" in words
+    assert "learning_strength:=3.0" in words and "learning_draws:=4" in words
+    assert not any(w.startswith("learning_forgetting") for w in words)
+    assert not any(w.startswith("learning_") for w in sequence_launch_args(args, "bpr",
+                                                                          "per-type"))
+    row = task_row(status(selector="pomdp_learning", type_names=[], type_belief=[],
+                          learnt_name="P(recovers alone from S2 within 3 steps of rIdle)",
+                          learnt_value=0.25, learnt_spread=0.125),
+                   "tired", "pomdp_learning", 2, 0)
+    assert row.learnt == (0.25, 0.125)
+    assert task_row(status(), "tired", "bpr", 2, 0).learnt == ()
+
+
+def test_the_ceiling_needs_a_model_of_its_human_fitted_on_other_seeds(tmp_path):
+    """pomdp_ceiling: DIR/<human>.pomdp, fitted (its hrc-fitted-on lines) on that human and
+    on none of the study's seeds; each way it is not is one line naming what to do."""
+    from ros_hrc.experiment.provenance import FittedStreams, file_sha256
+    from ros_hrc.experiment.sequences import ceiling_model
+    from ros_hrc.models import model_path
+    from ros_hrc import tasks as task_registry
+    human_file = str(model_path("tired", "human", task_registry.get("seed")))
+    args = SimpleNamespace(ceiling_models=None, seeds=[2], human_files={"tired": human_file},
+                           task="seed")
+    with pytest.raises(GridError, match="give --ceiling-models DIR"):
+        ceiling_model(args, "tired")
+    args.ceiling_models = str(tmp_path)
+    with pytest.raises(GridError, match="no model fitted on human tired .* hrc_fit "
+                                        "--human-models tired"):
+        ceiling_model(args, "tired")
+
+    def fitted_on(seed, sha):
+        line = FittedStreams("tired", sha, seed, (0, 100)).line()
+        (tmp_path / "tired.pomdp").write_text(f"# {line}\ndiscount: 0.9\n")
+
+    fitted_on(1, "0" * 64)
+    with pytest.raises(GridError, match="was not fitted on human tired"):
+        ceiling_model(args, "tired")
+    fitted_on(2, file_sha256(human_file))
+    with pytest.raises(GridError, match="fitted on seed 2 of human tired, which this study "
+                                        "evaluates"):
+        ceiling_model(args, "tired")
+    fitted_on(1, file_sha256(human_file))
+    assert ceiling_model(args, "tired") == str(tmp_path / "tired.pomdp")
