@@ -232,14 +232,16 @@ def belief_argmax(type_names: Sequence[str], belief: Sequence[float]) -> str:
 #: The study's robot that knows its human, labelled as such: the launch's one robot on a
 #: model fitted on that very human (other seeds of it), never a competitor (docs/learning.md).
 CEILING = "pomdp_ceiling"
+#: The learning robot's prior planned on as it is, never learnt: what learning starts from.
+POOLED = "pomdp_pooled"
 
 
 def launched_selector(selector: str) -> str:
     """The ``selector:=`` a cell's stack runs for the study's selector ``selector``: itself,
-    but ``fixed`` for ``pomdp_types`` and ``pomdp_ceiling`` (no library policy: the launch's
-    one robot, on the model of human types or on the model fitted on this human, plays every
-    task)."""
-    return "fixed" if selector in (TYPES_POLICY, CEILING) else selector
+    but ``fixed`` for ``pomdp_types``, ``pomdp_ceiling`` and ``pomdp_pooled`` (no library
+    policy: the launch's one robot, on the model of human types, on the model fitted on this
+    human, or on the learning robot's prior, plays every task)."""
+    return "fixed" if selector in (TYPES_POLICY, CEILING, POOLED) else selector
 
 
 def task_row(status: Any, schedule: str, selector: str, seed: int, sequence: int) -> TaskRow:

@@ -33,7 +33,7 @@ from ros_hrc.experiment.episode import TYPES_POLICY
 from ros_hrc.experiment.grid import (GridError, resolve_files, robot_model_of, task_launch_args,
                                      task_of)
 from ros_hrc.experiment.provenance import file_sha256, read_fitted_on
-from ros_hrc.experiment.sequence_rows import CEILING, launched_selector
+from ros_hrc.experiment.sequence_rows import CEILING, POOLED, launched_selector
 from ros_hrc.settings import LEARNING_SELECTORS
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
 from ros_hrc.model_files import user_path
@@ -70,12 +70,12 @@ def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]
                 raise GridError(f"--selectors: {name}: no policy {policy!r} in the library "
                                 f"(its policies: {', '.join(policies)})")
             out.append(name)
-        elif name in known or name in (TYPES_POLICY, CEILING) + LEARNING_SELECTORS:
+        elif name in known or name in (TYPES_POLICY, CEILING, POOLED) + LEARNING_SELECTORS:
             out.append(name)
         else:
             raise GridError(f"--selectors: unknown selector {name!r}; known: "
                             f"{', '.join(known)}, fixed:<policy>, {TYPES_POLICY}, "
-                            f"{', '.join(LEARNING_SELECTORS)}, {CEILING}")
+                            f"{', '.join(LEARNING_SELECTORS)}, {POOLED}, {CEILING}")
     return list(dict.fromkeys(out))
 
 
@@ -207,12 +207,13 @@ def ceiling_model(args: argparse.Namespace, human: str) -> str:
 
 def cell_robot_model(args: argparse.Namespace, selector: str, human: str) -> str:
     """The robot model a cell's stack runs: the model of human types for ``pomdp_types``,
-    the task's learning prior for the learning robots, the ceiling's model of this human for
-    ``pomdp_ceiling``, else the study's ``--robot-model``."""
+    the task's learning prior for the learning robots and for ``pomdp_pooled`` (that prior,
+    never learnt), the ceiling's model of this human for ``pomdp_ceiling``, else the study's
+    ``--robot-model``."""
     task = task_of(args)
     if selector == TYPES_POLICY:
         return robot_model_of(TYPES_POLICY, args.robot_model, task)
-    if selector in LEARNING_SELECTORS:
+    if selector in LEARNING_SELECTORS + (POOLED,):
         if not task.learning_prior:
             raise GridError(f"--selectors {selector}: task {task.name} has no learning prior "
                             f"yet (a pooled fit priced by its utility: hrc_fit --rewards "

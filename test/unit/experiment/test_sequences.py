@@ -79,7 +79,7 @@ def test_an_unknown_selector_or_library_policy_is_one_line_naming_the_known():
     assert str(unknown.value) == ("--selectors: unknown selector 'ucb'; known: fixed, random, "
                                   "bpr, bpr-pi, bpr-fabric, bandit, oracle, fixed:<policy>, "
                                   "pomdp_types, pomdp_learning, pomdp_learning_mean, "
-                                  "pomdp_ceiling")
+                                  "pomdp_pooled, pomdp_ceiling")
     with pytest.raises(GridError) as foreign:
         expand_selectors(["fixed:policy2"], POLICIES)
     assert str(foreign.value) == ("--selectors: fixed:policy2: no policy 'policy2' in the "
