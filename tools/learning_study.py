@@ -95,6 +95,7 @@ def summary(group: Sequence[TaskRow]) -> Dict[str, float]:
     n = len(group)
     return {"n": n, "success": sum(r.success for r in group),
             "preemptions": sum(r.preemptions for r in group),
+            "against_warning": sum(r.against_warning for r in group),
             "utility": float(np.mean([r.utility for r in group])) if n else math.nan}
 
 
@@ -109,8 +110,8 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
         by[(r.schedule, r.selector)].append(r)
     humans = sorted({r.schedule for r in rows})
     selectors = sorted({r.selector for r in rows})
-    out = [f"Tasks {first}..end of each sequence; success and pre-emptions as counts over "
-           f"the tasks, utility as the mean per task.\n"]
+    out = [f"Tasks {first}..end of each sequence; success, pre-emptions and actions against "
+           f"a warning (a.w.) as counts over the tasks, utility as the mean per task.\n"]
     head = "| human | " + " | ".join(f"`{s}`" for s in selectors) + " |"
     out += [head, "|---|" + "--:|" * len(selectors)]
     for h in humans + ["(pooled)"]:
@@ -122,7 +123,7 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
                 continue
             m = summary(group)
             cells.append(f"{m['success']}/{m['n']}, {m['preemptions']} pre., "
-                         f"{m['utility']:.3f}")
+                         f"{m['against_warning']} a.w., {m['utility']:.3f}")
         out.append(f"| {h} | " + " | ".join(cells) + " |")
     # The learner against the best fixed policy, per human, and every other robot.
     out.append("")

@@ -175,24 +175,13 @@ def wasted_actions(steps: Sequence, task: Optional[Task] = None) -> int:
 
 
 def against_warning(steps: Sequence, task: Optional[Task] = None) -> int:
-    """Grasps and points while a warning is in force.
-
-    A warning is in force from the step whose observation carries the warning bit (16) (the
-    robot decides after that observation, so its action at that step counts) until the robot
-    observes the human act on the object again: a grasp attempt (bit 4) or the human holding
-    it (bit 8). Idling, looking round or walking away after a warning do not lift it: the
-    human said "stop" and has not taken the task back. A reset (a new episode) lifts it.
-    """
+    """Grasps and points while a warning is in force (:meth:`Task.warning_in_force`: from
+    the observation that carries the warning until the human acts on the object again; a
+    reset, a new episode, lifts it)."""
     task = task or task_of_steps(steps)
-    warning = task.bit("warning")
-    acting = task.bit("grasp_attempt") | task.bit("has_object", "object_taken")
     count, in_force = 0, False
     for step in steps:
-        bits = int(step.observation_bits)
-        if bits & warning:
-            in_force = True
-        elif bits & acting:
-            in_force = False
+        in_force = task.warning_in_force(in_force, int(step.observation_bits))
         if in_force and step.robot_action in task.helping_actions:
             count += 1
     return count

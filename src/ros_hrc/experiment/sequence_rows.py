@@ -36,7 +36,8 @@ TASK_COLUMNS: Tuple[str, ...] = (
     "schedule", "selector", "seed", "episode", "task_index", "human_model", "true_type",
     "policy", "success", "utility", "outcome", "who_succeeded", "belief_argmax",
     "estimation_correct", "warnings", "preemptions", "steps", "duration", "total_disc_reward",
-    "end_reason", "task_episode", "type_names", "type_belief", "signature", "learnt_figure")
+    "end_reason", "task_episode", "type_names", "type_belief", "signature", "learnt_figure",
+    "against_warning")
 
 SEQUENCE_COLUMNS: Tuple[str, ...] = (
     "schedule", "selector", "seed", "episode", "tasks", "successes", "mean_utility", "steps",
@@ -90,6 +91,7 @@ class TaskRow(Row):
     type_belief: str = ""
     signature: str = ""
     learnt_figure: str = ""
+    against_warning: int = 0
 
     @property
     def learnt(self) -> Tuple[float, ...]:
@@ -268,7 +270,8 @@ def task_row(status: Any, schedule: str, selector: str, seed: int, sequence: int
         type_belief=" ".join(repr(v) for v in belief),
         signature=" ".join(str(c) for c in signature_codes(status.signature)),
         learnt_figure=(f"{float(status.learnt_value)!r} {float(status.learnt_spread)!r}"
-                       if status.learnt_name else ""))
+                       if status.learnt_name else ""),
+        against_warning=int(status.against_warning))
 
 
 def signature_codes(signature: Any) -> Tuple[int, ...]:

@@ -236,6 +236,9 @@ class Coordinator:
         self.task_index = 0             # the task under way (0: none yet)
         self.play: Optional[TaskPlay] = None   # who plays it
         self._task_warnings = 0
+        #: Grasps and points while a warning was in force in this task (Task.warning_in_force).
+        self._task_against_warning = 0
+        self._task_warning_in_force = False
         self._task_preempted = False
         self._task_ending: Optional[Tuple[int, TaskStatusReport]] = None   # (call id, report)
 
@@ -506,6 +509,10 @@ class Coordinator:
         report.end_reason = reason
         if report.human_action == self.task.human_warning_action:
             self._task_warnings += 1
+        self._task_warning_in_force = self.task.warning_in_force(
+            self._task_warning_in_force, int(report.observation_bits))
+        if self._task_warning_in_force and report.robot_action in self.task.helping_actions:
+            self._task_against_warning += 1
         if report.object_holder == "robot" and ctx.decided_on not in self.task.needs_help_states:
             self._task_preempted = True   # it took the object from a human who needed no help
         reacts = self.task.reacts
@@ -770,6 +777,7 @@ class Coordinator:
         if self.config.tasks:
             task = f", task {self.task_index}/{self.config.tasks} ({self.play.true_type})"
             self._task_warnings, self._task_preempted = 0, False
+            self._task_against_warning, self._task_warning_in_force = 0, False
         self._note("info", f"RESET ({self._reset_reason}): episode {self.episode}, "
                            f"epoch {self.epoch}{task}")
         if self.seat is not None:
@@ -816,6 +824,7 @@ class Coordinator:
             epoch=self.epoch, human_model=type_name(self.play.human_model),
             true_type=self.play.true_type, outcome=outcome, who_succeeded=who,
             warnings=measured.warnings, preemptions=measured.preemptions,
+            against_warning=self._task_against_warning,
             steps=report.step + 1, duration=duration, utility=utility, end_reason=reason)
         call = self._call(EndTask, None, task_index=self.task_index, outcome=measured,
                           steps=status.steps, utility=utility)

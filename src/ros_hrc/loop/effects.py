@@ -361,6 +361,9 @@ class TaskStatusReport:
     duration: float
     utility: float
     end_reason: str
+    #: The robot's grasps and points while a warning was in force (not in the utility: the
+    #: studies require none).
+    against_warning: int = 0
     selector: str = ""
     policy: str = ""
     robot_model: str = ""

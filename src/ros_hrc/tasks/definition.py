@@ -337,6 +337,18 @@ class Task:
         point): the ones that intrude on a human who needs no help."""
         return self.robot_actions_calling("grasp", "point_to_obj")
 
+    def warning_in_force(self, in_force: bool, bits: int) -> bool:
+        """Whether a warning is in force after an observation of ``bits``, given whether one
+        was before: from the observation that carries the warning bit (the robot decides
+        after it, so its action then counts) until the robot sees the human act on the object
+        again (a grasp attempt, or holding it). Idling, looking round or walking away do not
+        lift it: the human said "stop" and has not taken the task back. A reset lifts it."""
+        if bits & self.bit("warning"):
+            return True
+        if bits & (self.bit("grasp_attempt") | self.bit("has_object", "object_taken")):
+            return False
+        return in_force
+
     def bit(self, *names: str) -> int:
         """The observation bit of the first of ``names`` the task has (e.g. ``"has_object"``
         or fabric's ``"object_taken"``); ValueError when it has none of them."""

@@ -110,7 +110,7 @@ def status(**fields):
                   who_succeeded="robot", warnings=1, preemptions=0, steps=14, duration=21.5,
                   utility=0.63, total_disc_reward=4.2, end_reason="success",
                   signature=bytes([3, 3, 35, 7]), learnt_name="", learnt_value=0.0,
-                  learnt_spread=0.0)
+                  learnt_spread=0.0, against_warning=0)
     values.update(fields)
     return SimpleNamespace(**values)
 

@@ -124,6 +124,26 @@ def test_warnings_and_a_preemption_are_counted_in_the_task():
     assert (end.outcome.warnings, end.outcome.preemptions) == (0, 0)
 
 
+def test_grasps_and_points_while_a_warning_is_in_force_are_counted_in_the_task():
+    """From the observation that carries the warning until the human acts on the object
+    again (episode.against_warning's rule, Task.warning_in_force): a point then counts, an
+    idle does not; after the human's grasp attempt a point counts no more; a new task
+    starts with no warning in force."""
+    d, _ = sequence()
+    d.play_step(action="warnRobot", state="warningTheRobot", observe=snap("is_ov", "is_h4"),
+                decision=Decision("rPoint_obj"))                       # against: 1
+    d.play_step(observe=snap("is_ov"), decision=Decision("rIdle"))      # idle: not counted
+    d.play_step(observe=snap("is_ov"), decision=Decision("rPoint_obj"))  # still in force: 2
+    d.play_step(action="graspAttempt", state="grasping", observe=snap("is_ov", "is_a0"),
+                decision=Decision("rPoint_obj"))                       # lifted: not counted
+    _, end = end_task(d, snap("is_ho", holder="human", sim_time=START + 9.0))
+    after = d.answer(end, REPORT)
+    assert one(after, PublishTask).report.against_warning == 2
+    d.finish_reset(after)
+    _, end = end_task(d, snap("is_ho", holder="human", sim_time=START + 2.0))
+    assert one(d.answer(end, REPORT), PublishTask).report.against_warning == 0
+
+
 def test_a_robot_that_takes_the_object_from_a_human_who_needs_help_preempts_nothing():
     d, _ = sequence()
     for _ in range(3):   # evaluating four steps in a row, never having grasped: S3
