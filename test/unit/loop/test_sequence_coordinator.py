@@ -134,7 +134,7 @@ def test_grasps_and_points_while_a_warning_is_in_force_are_counted_in_the_task()
                 decision=Decision("rPoint_obj"))                       # against: 1
     d.play_step(observe=snap("is_ov"), decision=Decision("rIdle"))      # idle: not counted
     d.play_step(observe=snap("is_ov"), decision=Decision("rPoint_obj"))  # still in force: 2
-    d.play_step(action="graspAttempt", state="grasping", observe=snap("is_ov", "is_a0"),
+    d.play_step(action="graspAttempt", state="evaluating", observe=snap("is_ov", "is_a0"),
                 decision=Decision("rPoint_obj"))                       # lifted: not counted
     _, end = end_task(d, snap("is_ho", holder="human", sim_time=START + 9.0))
     after = d.answer(end, REPORT)
