@@ -247,3 +247,25 @@ def test_types_writes_into_the_tasks_robot_models_by_default():
     for args in (pooled, types):
         fit.check_arguments(args)
     assert fit.configuration(types) == fit.configuration(pooled)
+
+
+def test_utility_rewards_replace_the_priors_and_keep_t_and_o(robot):
+    """--rewards utility: the fitted T and O, the task's utility as rewards, priced at the
+    episodes' mean seconds a step."""
+    from ros_hrc import tasks
+    from ros_hrc.tasks.utility import utility_rewards
+    episodes = [episode(0, steps=2), episode(1, steps=6)]       # 1.0 s each: 0.25 s a step
+    assert fit.seconds_per_step(episodes) == pytest.approx(0.25)
+    seed = tasks.get("seed")
+    priced = fit.with_utility_rewards(robot, seed, 0.25)
+    assert all(np.array_equal(p.toarray(), r.toarray()) for p, r in zip(priced.T, robot.T))
+    assert all(np.array_equal(p.toarray(), r.toarray()) for p, r in zip(priced.O, robot.O))
+    assert np.allclose(np.array([r.toarray() for r in priced.R]),
+                       np.array(utility_rewards(seed, 0.25)))
+
+
+def test_utility_rewards_are_refused_for_a_model_of_types(tmp_path, capsys):
+    assert fit.main(["--types", "--rewards", "utility", "--runs", str(tmp_path),
+                     "--out", str(tmp_path / "t.pomdp")]) == 2
+    assert "--rewards utility: a model of human types keeps the prior's rewards" in \
+        capsys.readouterr().err
