@@ -48,6 +48,8 @@ from ros_hrc.models import load_robot_model
 from ros_hrc.pomdp.bayes_adaptive import reach_probability
 
 POOLED, CEILING = "pomdp_pooled", "pomdp_ceiling"
+#: Tasks per point of the learning curves.
+BLOCK = 5
 
 
 def load(runs: Sequence[str]) -> List[TaskRow]:
@@ -190,28 +192,38 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
     return "\n".join(out)
 
 
-def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str) -> None:
+def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str,
+          prefix: str = "") -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     folder.mkdir(parents=True, exist_ok=True)
-    selectors = sorted({r.selector for r in rows})
-    fig, ax = plt.subplots(figsize=(9, 5.5))
-    for s in selectors:
-        by_index = defaultdict(list)
-        for r in rows:
-            if r.selector == s:
-                by_index[r.task_index].append(r.utility)
-        xs = sorted(by_index)
-        style = "-" if not s.startswith("fixed:") else ":"
-        width = 2.4 if s in (learner, CEILING) else 1.2
-        ax.plot(xs, [np.mean(by_index[x]) for x in xs], style, lw=width, label=s)
-    ax.set_xlabel("task of the sequence")
-    ax.set_ylabel("mean utility (pooled over the humans and sequences)")
-    ax.set_title("Learning curves", fontsize=11)
-    ax.legend(fontsize=7, ncol=2, loc="lower right")
+    # One line per robot that is not a library policy, and "each human's best fixed
+    # policy" (chosen per human on the same tasks), in blocks of BLOCK tasks.
+    humans = sorted({r.schedule for r in rows})
+    best = {h: best_fixed([r for r in rows if r.schedule == h]) for h in humans}
+    lines = {"best fixed policy in hindsight (each human's)":
+             [r for r in rows if r.selector == best.get(r.schedule)]}
+    for s in sorted({r.selector for r in rows if not r.selector.startswith("fixed:")}):
+        lines[s] = [r for r in rows if r.selector == s]
+    fig, ax = plt.subplots(figsize=(9, 5))
+    for label, group in lines.items():
+        by_block = defaultdict(list)
+        for r in group:
+            by_block[(r.task_index - 1) // BLOCK].append(r.utility)
+        xs = sorted(by_block)
+        mids = [BLOCK * x + (BLOCK + 1) / 2 for x in xs]
+        width = 2.6 if label in (learner, CEILING) else 1.4
+        style = "--" if label.startswith("best fixed") else "-"
+        ax.plot(mids, [np.mean(by_block[x]) for x in xs], style, lw=width, marker="o", ms=3,
+                label=label)
+    ax.set_xlabel(f"task of the sequence (mean over blocks of {BLOCK} tasks)")
+    ax.set_ylabel("mean utility a task (the humans and sequences pooled)")
+    ax.set_title(f"Learning curves: {', '.join(humans) if len(humans) < 4 else f'{len(humans)} humans'}",
+                 fontsize=10)
+    ax.legend(fontsize=8, loc="lower right")
     fig.tight_layout()
-    fig.savefig(folder / "learning_curves.png", dpi=110)
+    fig.savefig(folder / f"{prefix}learning_curves.png", dpi=110)
     plt.close(fig)
     # The learnt figure per human against the ceiling model's.
     seed = tasks.get("seed")
@@ -250,7 +262,7 @@ def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str) ->
                  f"steps of {seed.robot_idle_action}): what {learner} learnt, after each task",
                  fontsize=10)
     fig.tight_layout()
-    fig.savefig(folder / "learnt_figure.png", dpi=110)
+    fig.savefig(folder / f"{prefix}learnt_figure.png", dpi=110)
     plt.close(fig)
 
 
@@ -261,11 +273,12 @@ def main(argv=None) -> int:
     p.add_argument("--learner", default="pomdp_learning")
     p.add_argument("--plots", default=None)
     p.add_argument("--ceiling-models", default="")
+    p.add_argument("--prefix", default="", help="the plots' file names start with it")
     args = p.parse_args(argv)
     rows = load(args.runs)
     print(tables(rows, args.first, args.learner))
     if args.plots:
-        plots(rows, Path(args.plots), args.learner, args.ceiling_models)
+        plots(rows, Path(args.plots), args.learner, args.ceiling_models, args.prefix)
     return 0
 
 
