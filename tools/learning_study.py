@@ -101,8 +101,14 @@ def summary(group: Sequence[TaskRow]) -> Dict[str, float]:
             "utility": float(np.mean([r.utility for r in group])) if n else math.nan}
 
 
-def gap_share(learning: float, low: float, high: float) -> float:
-    return (learning - low) / (high - low) if abs(high - low) > 1e-9 else math.nan
+def gap_share(learning: float, low: float, high: float) -> str:
+    """The share of the gap from ``low`` to ``high`` that ``learning`` closes; none when
+    ``high`` is not above ``low`` (the ceiling itself misses: judge against the ceiling)."""
+    if not all(map(math.isfinite, (learning, low, high))):
+        return "-"
+    if high - low <= 0.005:
+        return "none: the ceiling is not above it"
+    return f"{100 * (learning - low) / (high - low):.0f} %"
 
 
 def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
@@ -185,10 +191,8 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
         else:
             bf = mean_of(best_fixed([r for r in rows if r.schedule == h]))
         pooled, lrn, ceil = mean_of(POOLED), mean_of(learner), mean_of(CEILING)
-        share = [gap_share(lrn, bf, ceil), gap_share(lrn, pooled, ceil)]
         out.append(f"| {h} | {bf:.3f} | {pooled:.3f} | {lrn:.3f} | {ceil:.3f} | "
-                   + " | ".join("-" if not math.isfinite(x) else f"{100 * x:.0f} %"
-                                for x in share) + " |")
+                   f"{gap_share(lrn, bf, ceil)} | {gap_share(lrn, pooled, ceil)} |")
     return "\n".join(out)
 
 
