@@ -408,6 +408,7 @@ FABRIC = TaskWithWorld(
     needs_help_states=NEEDS_HELP_STATES,
     robot_success_state="GlobalSuccess",
     recovery_state="MayNotBeCapable",
+    learning_prior="robot_utility_fitted",
     robot_warned_state="WarningReceived",
     observations=OBSERVATIONS,
     predicate_bits=PREDICATE_BITS,
