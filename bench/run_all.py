@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["pomdp", "world", "link", "loop", "experiment"]
+ORDER = ["pomdp", "world", "link", "loop", "experiment", "learning"]
 
 
 def main() -> int:
