@@ -42,3 +42,22 @@ def still_world() -> Iterator[World]:
     """The default scene with the belt stopped, so the object stays where it is put."""
     with World(WorldConfig(seed=3, belt_speed=0.0)) as w:
         yield w
+
+
+# -- pytest-xdist's groups ----------------------------------------------------------------
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config, items):
+    """``--dist loadgroup`` sends the tests of one ``xdist_group`` to one worker by the suffix
+    ``@<group>`` that pytest-xdist adds to their node ids in each worker. pytest-xdist 3.8.0
+    sets ``item._nodeid``, which pytest 9 no longer reads (a node's id is ``item._id``): no
+    test was grouped, and the Ray tests met each other's cluster on their loopback address
+    and ports. The suffix is added here wherever xdist's did not take."""
+    if not getattr(config.option, "loadgroup", False):   # set in a loadgroup worker only
+        return
+    from _pytest.nodeid import NodeId   # pytest 9
+    for item in items:
+        names = sorted({str(mark.args[0] if mark.args else mark.kwargs.get("name", "default"))
+                        for mark in item.iter_markers("xdist_group")})
+        if names and "@" not in item.nodeid.rpartition("]")[2]:
+            item._id = NodeId.parse(f"{item.nodeid}@{'_'.join(names)}")
