@@ -51,7 +51,10 @@ if [[ $part != rostest ]]; then
   # -n 2: a worker per core (xdist); --dist loadgroup: tests marked with one xdist_group
   # (those that share something only one may use at a time) run on one worker, in turn.
   # --durations: the ten slowest, where the next speed-up is to be had.
-  python -m pytest -q -p no:cacheprovider -n 2 --dist loadgroup --durations=10
+  # --no-loadscope-reorder: in the order of collection, which test/conftest.py sets (the
+  # longest first).
+  python -m pytest -q -p no:cacheprovider -n 2 --dist loadgroup --no-loadscope-reorder \
+    --durations=10
   rc=$?
   if [[ $rc -eq 5 ]]; then echo "pytest collected no tests: failing"; status=1
   elif [[ $rc -ne 0 ]]; then status=1; fi
