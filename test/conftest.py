@@ -1,10 +1,19 @@
 """Fixtures shared by the tests of every folder (test/unit, test/nodes, test/integration)."""
-from typing import Iterator
+import os
 
-import pytest
+# OpenBLAS's own threads, one per core, spin between products: beside the other pytest worker
+# and the launched tests they take the cores the work needs (the solve of
+# robot_considerate_fitted.pomdp took 58 s of CPU with them, 15 s without, under load). One
+# thread in the tests and every process they start (set before numpy is first imported;
+# tools/run_tests.sh sets it too, for the launched tests).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from ros_hrc.link.token import mint_token, read_token
-from ros_hrc.world import World, WorldConfig
+from typing import Iterator  # noqa: E402
+
+import pytest  # noqa: E402
+
+from ros_hrc.link.token import mint_token, read_token  # noqa: E402
+from ros_hrc.world import World, WorldConfig  # noqa: E402
 
 
 @pytest.fixture

@@ -16,6 +16,9 @@ cd "$repo"
 # shellcheck source=/dev/null
 set +u; source env.sh; set -u
 export ROS_LOG_DIR="$repo/.ws/log"
+# One OpenBLAS thread per process: its extra threads spin between products and, beside the
+# other lanes, take the cores the work needs (test/conftest.py says the same for pytest).
+export OPENBLAS_NUM_THREADS=1
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
