@@ -48,6 +48,10 @@ next_rostest() {   # the queue's next file (removed from it), or nothing
 }
 rostest_lane() {
   local t out began
+  # A log folder of the lane's own: roslaunch replaces the folder's "latest" link at each
+  # start, and two starting at once in one folder print "cannot create a symlink to latest
+  # log directory" (seen: a launch refusal test of pytest, which reads its one line).
+  export ROS_LOG_DIR="$ROS_LOG_DIR/rostest_lane$1"
   while t=$(next_rostest) && [[ -n $t ]]; do
     out="$work/$(basename "$t").txt"
     began=$SECONDS
@@ -62,9 +66,9 @@ rostest_lane() {
 }
 rostests() {
   local lanes=() n
-  rm -f "$ROS_LOG_DIR/fuzz_counts.txt"
+  rm -f "$ROS_LOG_DIR"/rostest_lane*/fuzz_counts.txt
   rostest_queue > "$work/rostest.queue"
-  for ((n = 0; n < ${ROSTEST_LANES:-2}; n++)); do rostest_lane & lanes+=($!); done
+  for ((n = 0; n < ${ROSTEST_LANES:-2}; n++)); do rostest_lane "$n" & lanes+=($!); done
   wait "${lanes[@]}"
 }
 
@@ -102,7 +106,9 @@ while read -r outcome t seconds; do
 done < <(cat "$work/rostest.results" 2>/dev/null)
 if ((passed + failed == 0)); then echo "no rostest files: failing"; status=1; fi
 # The fuzz test's counts (sent, error replies, closed, survived), which rostest keeps in a file.
-if [[ -f "$ROS_LOG_DIR/fuzz_counts.txt" ]]; then cat "$ROS_LOG_DIR/fuzz_counts.txt"; fi
+for counts in "$ROS_LOG_DIR"/rostest_lane*/fuzz_counts.txt; do
+  if [[ -f $counts ]]; then cat "$counts"; fi
+done
 # CI keeps only the end of this output: say there which tests failed, and how.
 for t in "${failed_names[@]}"; do
   echo "--- FAILED rostest $t:"
