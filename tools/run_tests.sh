@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test of the package: pytest on the folders of pytest.ini (test/unit, test/nodes,
 # test/integration) on both cores and, beside it, each launched test in test/rostest/*.test
-# under rostest, one after another. Fails when any test fails or when nothing ran. Says how
-# long the tests took.
+# under rostest, in two lanes (the longest first). Fails when any test fails or when nothing
+# ran. Says how long the tests took.
 # Usage: run_tests.sh [all|unit|rostest]   (make test, make unit, make rostest)
 set -uo pipefail
 part=${1:-all}
@@ -16,17 +16,43 @@ cd "$repo"
 # shellcheck source=/dev/null
 set +u; source env.sh; set -u
 export ROS_LOG_DIR="$repo/.ws/log"
+# One OpenBLAS thread per process: its extra threads spin between products and, beside the
+# other lanes, take the cores the work needs (test/conftest.py says the same for pytest).
+export OPENBLAS_NUM_THREADS=1
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-# The launched tests, one after another (rostest's master takes its one port, 22422, and the
-# stacks the tests start take hrc.launch's own ports): each one's output in $work, then a
-# line "passed|failed <file> <seconds>" in $work/rostest.results.
-rostests() {
+# The launched tests, in ROSTEST_LANES lanes (2 by default) that take the next file of one
+# queue, the longest first (a file not in LONGEST_ROSTESTS goes first of all: it may be
+# long). Each rostest's master takes a free port of its own, and the stacks the tests start
+# take free ports too (hrc_stack.start_stack, pick_ports), so two run side by side. Each
+# one's output in $work, then a line "passed|failed <file> <seconds>" in
+# $work/rostest.results.
+LONGEST_ROSTESTS=(loop_faults experiment_streams clean_end hrc experiment experiment_sequence
+                  fuzz sequence fabric viz window world_sim_time world)
+rostest_queue() {
   shopt -s nullglob
-  local tests=(test/rostest/*.test) t out began
-  rm -f "$ROS_LOG_DIR/fuzz_counts.txt"
-  for t in "${tests[@]}"; do
+  local t name known=() unknown=()
+  for name in "${LONGEST_ROSTESTS[@]}"; do
+    [[ -f test/rostest/$name.test ]] && known+=("test/rostest/$name.test")
+  done
+  for t in test/rostest/*.test; do
+    name=$(basename "$t" .test)
+    [[ " ${LONGEST_ROSTESTS[*]} " == *" $name "* ]] || unknown+=("$t")
+  done
+  printf '%s\n' "${unknown[@]}" "${known[@]}" | grep -v '^$'
+}
+next_rostest() {   # the queue's next file (removed from it), or nothing
+  ( flock 9; head -n 1 "$work/rostest.queue"; sed -i 1d "$work/rostest.queue" ) \
+    9> "$work/rostest.lock"
+}
+rostest_lane() {
+  local t out began
+  # A log folder of the lane's own: roslaunch replaces the folder's "latest" link at each
+  # start, and two starting at once in one folder print "cannot create a symlink to latest
+  # log directory" (seen: a launch refusal test of pytest, which reads its one line).
+  export ROS_LOG_DIR="$ROS_LOG_DIR/rostest_lane$1"
+  while t=$(next_rostest) && [[ -n $t ]]; do
     out="$work/$(basename "$t").txt"
     began=$SECONDS
     # Not --text: with it rostest exits 0 even when a test fails. Without it the nodes'
@@ -37,6 +63,13 @@ rostests() {
       echo "failed $t $((SECONDS - began))" >> "$work/rostest.results"
     fi
   done
+}
+rostests() {
+  local lanes=() n
+  rm -f "$ROS_LOG_DIR"/rostest_lane*/fuzz_counts.txt
+  rostest_queue > "$work/rostest.queue"
+  for ((n = 0; n < ${ROSTEST_LANES:-2}; n++)); do rostest_lane "$n" & lanes+=($!); done
+  wait "${lanes[@]}"
 }
 
 started=$SECONDS
@@ -51,7 +84,10 @@ if [[ $part != rostest ]]; then
   # -n 2: a worker per core (xdist); --dist loadgroup: tests marked with one xdist_group
   # (those that share something only one may use at a time) run on one worker, in turn.
   # --durations: the ten slowest, where the next speed-up is to be had.
-  python -m pytest -q -p no:cacheprovider -n 2 --dist loadgroup --durations=10
+  # --no-loadscope-reorder: in the order of collection, which test/conftest.py sets (the
+  # longest first).
+  python -m pytest -q -p no:cacheprovider -n 2 --dist loadgroup --no-loadscope-reorder \
+    --durations=10
   rc=$?
   if [[ $rc -eq 5 ]]; then echo "pytest collected no tests: failing"; status=1
   elif [[ $rc -ne 0 ]]; then status=1; fi
@@ -70,7 +106,9 @@ while read -r outcome t seconds; do
 done < <(cat "$work/rostest.results" 2>/dev/null)
 if ((passed + failed == 0)); then echo "no rostest files: failing"; status=1; fi
 # The fuzz test's counts (sent, error replies, closed, survived), which rostest keeps in a file.
-if [[ -f "$ROS_LOG_DIR/fuzz_counts.txt" ]]; then cat "$ROS_LOG_DIR/fuzz_counts.txt"; fi
+for counts in "$ROS_LOG_DIR"/rostest_lane*/fuzz_counts.txt; do
+  if [[ -f $counts ]]; then cat "$counts"; fi
+done
 # CI keeps only the end of this output: say there which tests failed, and how.
 for t in "${failed_names[@]}"; do
   echo "--- FAILED rostest $t:"

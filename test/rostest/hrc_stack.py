@@ -11,7 +11,7 @@ import time
 
 import rospy
 
-from ros_hrc.experiment.stack import stop_launched
+from ros_hrc.experiment.stack import pick_ports, stop_launched
 from ros_hrc.tasks import seed as task
 from ros_hrc.nodes.guard import children_of
 from ros_hrc.process_tree import parent_of
@@ -63,6 +63,12 @@ def start_stack(*args, name="hrc", cwd=None):
     directory ``cwd`` (this process's by default), as a user runs it from there."""
     cmd = ["roslaunch", "ros_hrc", "hrc.launch", "gui:=false", "real_time_factor:=0",
            "step_delay:=0", "time_per_step:=0.05", "max_trials:=200", "seed:=3"] + list(args)
+    # The links' ports: free ones unless the test names them, never hrc.launch's own 7070
+    # and 9090, so that launched tests (and anyone's stack) can run beside each other.
+    if not any(word.startswith("pomdp_port:=") or word.startswith("human_port:=")
+               for word in args):
+        ports = pick_ports()
+        cmd += [f"pomdp_port:={ports['pomdp']}", f"human_port:={ports['human']}"]
     log_dir = os.environ.get("ROS_LOG_DIR") or tempfile.gettempdir()
     os.makedirs(log_dir, exist_ok=True)
     log = open(os.path.join(log_dir, f"test_{name}_launch_{time.strftime('%H%M%S')}_"

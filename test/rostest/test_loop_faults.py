@@ -347,7 +347,8 @@ class TestLoopFaults(unittest.TestCase):
         once (STEP FAILED in the block, the fault on /hrc/status), and the run goes on from a
         reset."""
         for _attempt in range(3):
-            old = node_pids(self.proc, "despot_pomdp")
+            # (The one the test before restarted may still be starting on a loaded machine.)
+            old = wait_for_pids(self.proc, "despot_pomdp")
             self.assertTrue(old, "no despot_pomdp process in the launch")
             offset = os.path.getsize(self.launch_log)
             self.log.clear()

@@ -208,10 +208,16 @@ def _kill(proc) -> None:
 
 @pytest.mark.skipif(not (HAS_RAY and HAS_STACK), reason="needs Ray and the built stack")
 @ONE_RAY_CLUSTER_AT_A_TIME
-def test_a_cluster_plays_sequences_and_grids_through_lost_nodes(tmp_path):
+def test_a_cluster_plays_sequences_and_grids_through_lost_nodes(tmp_path, monkeypatch):
     """One cluster, three studies in turn: a sequence cell with the driver's library; a grid
     equal to the local pool's though a node is lost mid-cell; a cell that fails with the
     reason once no living node offers ros_hrc."""
+    # The head sees a lost node (its raylet killed: every health check refused at once) after
+    # three checks a second apart instead of Ray's five, 3 s apart: each loss below costs
+    # about 3 s of waiting, not 15. A check still waits Ray's 10 s for a slow but living
+    # node's answer. (Ray's own settings, read by the nodes' processes from the environment.)
+    monkeypatch.setenv("RAY_health_check_period_ms", "1000")
+    monkeypatch.setenv("RAY_health_check_failure_threshold", "3")
     # The local pool's run, while the cluster starts.
     local = _start(experiment(*GRID, "--jobs", "2", "--out", str(tmp_path / "local")),
                    tmp_path / "local.out")

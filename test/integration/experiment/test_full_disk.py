@@ -26,7 +26,10 @@ from ros_hrc.experiment.disk import DiskWatch, mount_point
 from ros_hrc.experiment.store import ResultsStore, ResultsWarning
 
 HAS_STACK = importlib.util.find_spec("rospy") is not None and shutil.which("roslaunch")
-pytestmark = pytest.mark.skipif(not HAS_STACK, reason="needs the built stack")
+pytestmark = [pytest.mark.skipif(not HAS_STACK, reason="needs the built stack"),
+              # One pytest worker for the module: its filled run (a module fixture) is then
+              # made once, not once on each worker (two stacks, 20-30 s, each time).
+              pytest.mark.xdist_group("full_disk")]
 
 #: Long enough for a grid of these sizes on a loaded machine; a run that hangs (as before the
 #: fix, for good) ends the test here.

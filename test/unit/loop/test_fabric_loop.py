@@ -19,6 +19,10 @@ from ros_hrc.loop.effects import Decision, MdpRefused, PublishStep, ReactionRequ
 from local_loop import LocalLoop, record
 from loop_fakes import Driver, of, one, snap
 
+#: One pytest worker for the module: its runs (module fixtures) are then played once, not once
+#: on each worker.
+pytestmark = pytest.mark.xdist_group("fabric_loop")
+
 FABRIC = tasks.get("fabric")
 PINNED = Path(__file__).resolve().parent / "data" / "fabric_run.json"
 PINNED_STEPS = 60
