@@ -29,7 +29,7 @@ trap 'rm -rf "$work"' EXIT
 # one's output in $work, then a line "passed|failed <file> <seconds>" in
 # $work/rostest.results.
 LONGEST_ROSTESTS=(loop_faults experiment_streams clean_end hrc experiment experiment_sequence
-                  fuzz sequence fabric viz window world_sim_time world)
+                  fuzz sequence learning fabric viz window world_sim_time world)
 rostest_queue() {
   shopt -s nullglob
   local t name known=() unknown=()
