@@ -546,6 +546,9 @@ SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
 #: The learning robot's (ros_hrc.agents.learning): one robot whose model of the human is
 #: learnt, root-sampled or its posterior mean; it plans with DESPOT (planner:=despot).
 LEARNING_SELECTORS: Tuple[str, ...] = ("pomdp_learning", "pomdp_learning_mean")
+#: The learning robot's own settings (its prior strength, forgetting rate and draws).
+LEARNING_SETTINGS: Tuple[str, ...] = ("learning_strength", "learning_forgetting",
+                                      "learning_draws")
 SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
                               "oracle") + LEARNING_SELECTORS
 
@@ -560,7 +563,7 @@ IN_PLACE: FrozenSet[str] = frozenset((
     "wait_for_listener", "planner", "policy_file", "time_per_step", "scenarios", "depth",
     "lambda", "max_trials", "reactive_budget", "reactive_wait", "tasks", "schedule",
     "selector", "library", "selector_model", "task_timeout", "bpr_forgetting",
-    "learning_strength", "learning_forgetting", "learning_draws"))
+    *LEARNING_SETTINGS))
 
 
 def needs_new_launch(running: Mapping[str, Any], wanted: Mapping[str, Any]) -> List[str]:
@@ -652,6 +655,14 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     return out
 
 
+def learning_planner_problem(selector: str, planner: str) -> str:
+    """Why ``selector`` cannot run with ``planner`` ("" when it can): the learning robot
+    plans with DESPOT on its posterior."""
+    if selector in LEARNING_SELECTORS and planner != "despot":
+        return f"plans with DESPOT on what it learns: it needs planner:=despot, not {planner}"
+    return ""
+
+
 def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: tasks.Task) -> None:
     """The sequence's settings (docs/sequences.md), checked together: a selector or a schedule
     only with ``tasks``, a selector of :data:`SELECTORS`, a schedule whose types are the
@@ -663,10 +674,9 @@ def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: task
         raise SettingError("selector", values.get("selector"),
                            f"must be one of {', '.join(SELECTORS)}, or fixed:POLICY (a policy "
                            "of the library)")
-    if selector in LEARNING_SELECTORS and out["planner"] != "despot":
-        raise SettingError("selector", values.get("selector"),
-                           f"plans with DESPOT on what it learns: it needs planner:=despot, "
-                           f"not {out['planner']}")
+    problem = learning_planner_problem(selector, out["planner"])
+    if problem:
+        raise SettingError("selector", values.get("selector"), problem)
     if out["tasks"] is None:
         for name, word in (("selector", "fixed"), ("schedule", "")):
             if out[name] != word:

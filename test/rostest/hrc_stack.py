@@ -15,7 +15,7 @@ from ros_hrc.experiment.stack import pick_ports, stop_launched
 from ros_hrc.tasks import seed as task
 from ros_hrc.nodes.guard import children_of
 from ros_hrc.process_tree import parent_of
-from ros_hrc.msg import Status, WorldState
+from ros_hrc.msg import Status, TaskStatus, WorldState
 
 HUMAN_STATES = list(task.HUMAN_STATES)
 HUMAN_ACTIONS = set(task.HUMAN_ACTION_SERVICES)
@@ -55,6 +55,26 @@ class StatusLog:
     def clear(self):
         with self.cond:
             self.statuses.clear()
+
+
+class TaskLog:
+    """Collects /hrc/task_status (one message per task of a sequence)."""
+
+    def __init__(self):
+        self.cond = threading.Condition()
+        self.items = []
+        rospy.Subscriber("/hrc/task_status", TaskStatus, self._on, queue_size=100)
+
+    def _on(self, msg):
+        with self.cond:
+            self.items.append(msg)
+            self.cond.notify_all()
+
+    def wait_for(self, count, timeout=WAIT):
+        """The messages so far, once there are ``count`` (or ``timeout`` s have passed)."""
+        with self.cond:
+            self.cond.wait_for(lambda: len(self.items) >= count, timeout)
+            return list(self.items)
 
 
 def start_stack(*args, name="hrc", cwd=None):

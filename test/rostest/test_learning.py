@@ -10,38 +10,17 @@ step's /hrc/status carries the figure the robot planned that task with.
 """
 import math
 import sys
-import threading
 import unittest
 
 import rospy
 import rostest
 
-from hrc_stack import StatusLog, start_stack, stop_stack
+from hrc_stack import StatusLog, TaskLog, start_stack, stop_stack
 from ros_hrc.link.transport import free_port
-from ros_hrc.msg import TaskStatus
 
 TASKS = 5
 #: Safety net for the whole sequence (not an assertion about speed).
 WAIT = 400.0
-
-
-class TaskLog:
-    """Collects /hrc/task_status."""
-
-    def __init__(self):
-        self.cond = threading.Condition()
-        self.items = []
-        rospy.Subscriber("/hrc/task_status", TaskStatus, self._on, queue_size=100)
-
-    def _on(self, msg):
-        with self.cond:
-            self.items.append(msg)
-            self.cond.notify_all()
-
-    def wait_for(self, count, timeout=WAIT):
-        with self.cond:
-            self.cond.wait_for(lambda: len(self.items) >= count, timeout)
-            return list(self.items)
 
 
 class TestLearning(unittest.TestCase):
@@ -62,7 +41,7 @@ class TestLearning(unittest.TestCase):
         stop_stack(cls.proc)
 
     def test_five_tasks_each_with_the_learnt_figure_which_moves(self):
-        reports = self.tasks.wait_for(TASKS)
+        reports = self.tasks.wait_for(TASKS, timeout=WAIT)
         self.assertEqual(len(reports), TASKS, f"only {len(reports)} task statuses came")
         self.assertEqual([r.task_index for r in reports], list(range(1, TASKS + 1)))
         for report in reports:

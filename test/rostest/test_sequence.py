@@ -13,20 +13,18 @@ task's first /hrc/status is its step 0, the object on the belt); the tasks' step
 import math
 import sys
 import tempfile
-import threading
 import unittest
 from pathlib import Path
 
 import rospy
 import rostest
 
-from hrc_stack import StatusLog, start_stack, stop_stack
+from hrc_stack import StatusLog, TaskLog, start_stack, stop_stack
 from ros_hrc import tasks
 from ros_hrc.agents.library import load_library
 from ros_hrc.agents.selector_model import TrainingTask, from_tasks, write_selector_model
 from ros_hrc.link.transport import free_port
 from ros_hrc.model_files import model_names
-from ros_hrc.msg import TaskStatus
 from ros_hrc.tasks.utility import OUTCOMES
 
 FABRIC = tasks.get("fabric")
@@ -55,25 +53,6 @@ def fixture_selector_model(path):
     return policies, types
 
 
-class TaskLog:
-    """Collects /hrc/task_status."""
-
-    def __init__(self):
-        self.cond = threading.Condition()
-        self.items = []
-        rospy.Subscriber("/hrc/task_status", TaskStatus, self._on, queue_size=100)
-
-    def _on(self, msg):
-        with self.cond:
-            self.items.append(msg)
-            self.cond.notify_all()
-
-    def wait_for(self, count, timeout=WAIT):
-        with self.cond:
-            self.cond.wait_for(lambda: len(self.items) >= count, timeout)
-            return list(self.items)
-
-
 class TestSequence(unittest.TestCase):
 
     @classmethod
@@ -95,7 +74,7 @@ class TestSequence(unittest.TestCase):
         cls.folder.cleanup()
 
     def test_five_tasks_each_with_its_policy_and_belief_the_world_reset_between(self):
-        reports = self.tasks.wait_for(TASKS)
+        reports = self.tasks.wait_for(TASKS, timeout=WAIT)
         self.assertEqual(len(reports), TASKS, f"only {len(reports)} task statuses came")
         self.assertEqual([r.task_index for r in reports], list(range(1, TASKS + 1)))
         for report in reports:

@@ -19,14 +19,13 @@ No ROS; a task's names come from its :class:`~ros_hrc.tasks.definition.Task`.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
 from ros_hrc import settings
-from ros_hrc.pomdp.bayes_adaptive import (PLANNING, DirichletPosterior, check_draws,
+from ros_hrc.pomdp.bayes_adaptive import (DirichletPosterior, check_draws,
                                           check_forgetting, check_strength, planning_model,
                                           reach_probability)
 from ros_hrc.pomdp.model import Model
@@ -40,6 +39,11 @@ __all__ = ["LEARNING_SELECTORS", "planning_of", "LearntFigure", "LearntHuman",
 LEARNING_SELECTORS = dict(zip(settings.LEARNING_SELECTORS, ("sampled", "mean")))
 #: Posterior draws the figure's spread is computed from.
 FIGURE_DRAWS = 200
+
+
+def selector_of(planning: str) -> str:
+    """The ``selector:=`` value of a learning robot that plans so."""
+    return next(name for name, how in LEARNING_SELECTORS.items() if how == planning)
 
 
 def planning_of(selector: str) -> Optional[str]:
@@ -65,8 +69,6 @@ class LearntHuman:
 
     def __init__(self, prior: Model, task: Task, strength: float, forgetting: float,
                  planning: str, draws: int, seed: int = 0) -> None:
-        if planning not in PLANNING:
-            raise ValueError(f"planning must be one of {', '.join(PLANNING)}, not {planning!r}")
         self.prior = prior
         self.task = task
         self.strength = check_strength(strength)
@@ -114,7 +116,6 @@ class LearntHuman:
         rng = np.random.default_rng(self.tasks_learnt)
         draws = [reach_probability(posterior.sample_transitions(idle, rng), start, success, k)
                  for _ in range(FIGURE_DRAWS)]
-        spread = float(np.std(draws, ddof=1)) if len(draws) > 1 else 0.0
         name = (f"P(recovers alone from {self.task.recovery_state} within {k} steps of "
                 f"{self.task.robot_idle_action})")
-        return LearntFigure(name, value, spread if math.isfinite(spread) else 0.0)
+        return LearntFigure(name, value, float(np.std(draws, ddof=1)))

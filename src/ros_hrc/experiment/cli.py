@@ -192,8 +192,8 @@ DEFAULT_SELECTORS = "bpr,bandit,random,oracle,fixed"
 #: independent repetitions" (each sequence is L tasks, paired task by task across selectors).
 DEFAULT_SEQUENCES = 5
 #: Options that mean something only in a sequence study, and those only in an episode one.
-SEQUENCE_ONLY = ("selectors", "library", "schedule", "selector_model", "ceiling_models",
-                 "learning_strength", "learning_forgetting", "learning_draws")
+SEQUENCE_ONLY = ("selectors", "library", "schedule", "selector_model",
+                 "ceiling_models") + settings.LEARNING_SETTINGS
 EPISODE_ONLY = ("policies", "reactive_budgets")
 
 
@@ -223,7 +223,7 @@ def add_sequence_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --sequence and --selectors pomdp_ceiling: a folder of robot "
                         "models, <human>.pomdp each fitted on other seeds of that human (the "
                         "ceiling: a robot that knows its human; docs/learning.md)")
-    for name in ("learning_strength", "learning_forgetting", "learning_draws"):
+    for name in settings.LEARNING_SETTINGS:
         # The learning robot's settings, as hrc.launch takes them (checked by its table).
         settings.add_argument(p, name, default=None,
                               help=f"with --sequence: the learning robot's {name} "

@@ -354,12 +354,18 @@ def fit_types(prior: Model, experience: Mapping[str, TypeExperience], strength: 
 
 
 def header_lines(args: argparse.Namespace, prior_path: str, episodes: int, steps: int,
-                 counts: ExperienceCounts) -> List[str]:
+                 counts: ExperienceCounts, step_seconds: Optional[float] = None) -> List[str]:
+    """The pooled fit's header; ``step_seconds``: its rewards are the task's utility, a step
+    priced at that many simulated seconds (``--rewards utility``)."""
+    kept = ("rewards, discount, start, names: the prior's" if step_seconds is None else
+            f"discount, start, names: the prior's; rewards: the task's utility per step "
+            f"(ros_hrc.tasks.utility.utility_rewards), {step_seconds:.4f} simulated s a step "
+            f"(the episodes' mean)")
     return [
         f"The robot model fitted to the world by hrc_fit: T and O are Dirichlet posterior "
         f"means of {prior_path} (strength {args.strength:g} pseudo-counts per row) and "
         f"{episodes} episodes of the stack;",
-        "rewards, discount, start, names: the prior's. Regenerate with `make fit`:",
+        f"{kept}. Regenerate with `make fit`:",
         *how_lines(args),
         f"experience: {steps} steps; {counts.n_transitions} transitions, "
         f"{counts.n_observations_counted} observations",
@@ -506,15 +512,11 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
     else:
         counts = count_experience(prior, episodes, steps)
         fitted = fit_model(prior, counts, args.strength, name=out.stem)
-        lines = header_lines(args, prior_path, len(episodes), len(steps), counts)
-        if args.rewards == "utility":
-            step_seconds = seconds_per_step(episodes)
+        step_seconds = seconds_per_step(episodes) if args.rewards == "utility" else None
+        if step_seconds is not None:
             fitted = with_utility_rewards(fitted, task_of(args), step_seconds)
-            lines[1] = (f"discount, start, names: the prior's; rewards: the task's utility "
-                        f"per step (ros_hrc.tasks.utility.utility_rewards), "
-                        f"{step_seconds:.4f} simulated s a step (the episodes' mean). "
-                        f"Regenerate with `make fit`:")
-        write_fitted(fitted, out, lines)
+        write_fitted(fitted, out, header_lines(args, prior_path, len(episodes), len(steps),
+                                               counts, step_seconds))
         for line in support_lines(prior, counts):
             print(f"{NAME}: {line}")
         kind = f"{fitted.n_states} states"

@@ -34,7 +34,7 @@ from ros_hrc.experiment.grid import (GridError, resolve_files, robot_model_of, t
                                      task_of)
 from ros_hrc.experiment.provenance import file_sha256, read_fitted_on
 from ros_hrc.experiment.sequence_rows import CEILING, POOLED, launched_selector
-from ros_hrc.settings import LEARNING_SELECTORS
+from ros_hrc.settings import LEARNING_SELECTORS, LEARNING_SETTINGS
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
 from ros_hrc.model_files import user_path
 from ros_hrc.models import model_path
@@ -160,7 +160,7 @@ def sequence_launch_args(args: argparse.Namespace, selector: str, schedule: str)
     if schedule != PER_TYPE:
         words.append(f"schedule:={schedule}")
     if selector in LEARNING_SELECTORS:
-        for name in ("learning_strength", "learning_forgetting", "learning_draws"):
+        for name in LEARNING_SETTINGS:
             value = getattr(args, name, None)
             if value is not None:
                 words.append(f"{name}:={value}")

@@ -245,18 +245,19 @@ class Observation(Message):
             self._set("elapsed", check.number("elapsed", self.elapsed, minimum=0.0))
 
 
+#: A learning robot's figure, in a decision and a task report: all three or none.
+LEARNT_FIELDS = ("learnt_name", "learnt_value", "learnt_spread")
+
+
 def _validate_learnt(message: Message, check: Checker) -> None:
     """A learning robot's figure (:class:`Decision`, :class:`TaskReport`): ``learnt_name``
     (one line saying what it is), ``learnt_value`` (a probability) and ``learnt_spread`` (its
     standard deviation over the posterior), all three or none."""
-    given = [getattr(message, f) is not None
-             for f in ("learnt_name", "learnt_value", "learnt_spread")]
-    if not any(given):
+    missing = [f for f in LEARNT_FIELDS if getattr(message, f) is None]
+    if len(missing) == len(LEARNT_FIELDS):
         return
-    if not all(given):
-        missing = [f for f, g in zip(("learnt_name", "learnt_value", "learnt_spread"), given)
-                   if not g][0]
-        raise check.fail(missing, "must come with the other learnt_ fields")
+    if missing:
+        raise check.fail(missing[0], "must come with the other learnt_ fields")
     message._set("learnt_name", check.prose("learnt_name", message.learnt_name))
     value = check.number("learnt_value", message.learnt_value, minimum=0.0)
     if value > 1.0:
@@ -279,7 +280,8 @@ class Decision(Message):
     none), and ``type_names`` with ``type_belief`` (a robot model of human types,
     :mod:`ros_hrc.pomdp.typed`: its belief over the types; ``belief`` is then over the task's
     states, the types summed out; both or neither), and a learning robot's figure of its
-    learnt model (``learnt_name``, ``learnt_value``, ``learnt_spread``: all or none). A reply: it carries ``reply_to`` and
+    learnt model (``learnt_name``, ``learnt_value``, ``learnt_spread``: all or none). A
+    reply: it carries ``reply_to`` and
     ``epoch`` of the observation."""
 
     TYPE: ClassVar[str] = "decision"

@@ -269,6 +269,11 @@ TASK_LINE_TYPES = 3
 STEP_BLOCK_TYPES = 5
 
 
+def learnt_text(status) -> str:
+    """A learning robot's figure in a step's or a task's status: ``0.41 ± 0.15``."""
+    return f"{status.learnt_value:.2f} \u00b1 {status.learnt_spread:.2f}"
+
+
 def task_line(status) -> str:
     """The terminal's one line for a finished task of a sequence (anything with the fields of
     ``ros_hrc/TaskStatus``), e.g. ``task 3/5 (expert_tired_noncollaborative): success (robot)
@@ -286,5 +291,5 @@ def task_line(status) -> str:
     if status.type_names:
         line += f"; belief: {ranked_types(status.type_names, status.type_belief, TASK_LINE_TYPES)}"
     if status.learnt_name:
-        line += f"; learnt {status.learnt_value:.2f} \u00b1 {status.learnt_spread:.2f}"
+        line += f"; learnt {learnt_text(status)}"
     return line

@@ -96,7 +96,7 @@ from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import settings, tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
                                       WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig)
-from ros_hrc.loop.display import STEP_BLOCK_TYPES, action_values_text, task_line
+from ros_hrc.loop.display import STEP_BLOCK_TYPES, action_values_text, learnt_text, task_line
 from ros_hrc.pomdp.typed import ranked_types
 from ros_hrc.loop.effects import (DECISION_IN_REPORT, ReactionRequest, STEP_TIMINGS, StepReport,
                                   StepRequest, TaskStatusReport)
@@ -218,8 +218,7 @@ def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
         lines.append(f"robot types       : "
                      f"{ranked_types(status.type_names, status.type_belief, STEP_BLOCK_TYPES)}")
     if status.learnt_name:   # a learning robot: what it has learnt of this human so far
-        lines.append(f"robot learnt      : {status.learnt_name} = {status.learnt_value:.2f} "
-                     f"\u00b1 {status.learnt_spread:.2f}")
+        lines.append(f"robot learnt      : {status.learnt_name} = {learnt_text(status)}")
     if status.fault:
         lines.append(f"STEP FAILED       : {status.fault}")
     else:

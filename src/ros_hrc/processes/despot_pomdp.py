@@ -88,7 +88,7 @@ from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
 from ros_hrc.pomdp.typed import TypeLayout, ranked_types
-from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of
+from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of, selector_of
 from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
@@ -223,7 +223,6 @@ class SequenceRobot:
         #: how a planner is made for the model it plans each task on.
         self.learner = learner
         self.new_planner = new_planner
-        self.learner_name = ""
         self.learn_ms = 0.0
         #: What the learnt model says now (None: no learner, or a task without the figure).
         self.figure: Optional[LearntFigure] = learner.figure() if learner is not None else None
@@ -245,7 +244,7 @@ class SequenceRobot:
             return self.selector.name
         if self.selection is not None:
             return self.selection.spec
-        return self.learner_name or "fixed"
+        return selector_of(self.learner.planning) if self.learner is not None else "fixed"
 
     def start_task(self, index: int, episode: int, true_type: str) -> str:
         """A reset starts task ``index`` (of episode ``episode``; its human ``true_type``):
@@ -282,11 +281,9 @@ class SequenceRobot:
         if index == 1:
             learner.restart(stream_seed(self.seed, episode, "learning"))
         model = learner.model_for_task()
-        old = self.agents[policy]
         self.agents[policy] = RobotAgent(model, self.new_planner(model), seed=self.seed,
                                          first_action=self.task.robot_idle_action,
                                          reports_types=False)
-        self.agents[policy].episode = old.episode
         self.figure = learner.figure()
 
     def _start_belief(self, policy: str) -> Optional[np.ndarray]:
@@ -330,8 +327,8 @@ class SequenceRobot:
         if self.learner is not None:
             started = time.perf_counter()
             self.learner.learn(agent.history)
-            self.figure = self.learner.figure()
             self.learn_ms = (time.perf_counter() - started) * 1000.0
+            self.figure = self.learner.figure()
         if agent.reports_types:
             self.type_belief_at_end[record.policy] = agent.type_belief
             if not names:    # the selector's own type belief, when it has one, is the report's
@@ -339,13 +336,12 @@ class SequenceRobot:
                 belief = tuple(float(p) for p in agent.type_belief)
         self.tasks_ended += 1
         record.ended = True
-        figure = self.figure
         return TaskReport(selector=self.name, policy=record.policy,
                           robot_model=self.robot_models.get(record.policy) or None,
                           type_names=list(names) or None, type_belief=list(belief) or None,
                           signature=list(record.signature),
                           total_disc_reward=record.reward,
-                          **figure_fields(figure))
+                          **figure_fields(self.figure))
 
 
 class PomdpProcess:
@@ -550,9 +546,8 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "library")
     settings.add_argument(p, "selector_model")
     settings.add_argument(p, "bpr_forgetting")
-    settings.add_argument(p, "learning_strength")
-    settings.add_argument(p, "learning_forgetting")
-    settings.add_argument(p, "learning_draws")
+    for name in settings.LEARNING_SETTINGS:
+        settings.add_argument(p, name)
     add_token_arguments(p)
     return p
 
@@ -585,20 +580,19 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
     if planning is not None:
         # The learning robot: the launch's robot model is its prior; the planner is made
         # again for each task's model (build_planner with the launch's options).
-        if args.planner != "despot":
-            raise ValueError(f"selector:={args.selector} plans with DESPOT on its posterior: "
-                             f"planner:={args.planner} cannot")
+        problem = settings.learning_planner_problem(args.selector, args.planner)
+        if problem:
+            raise ValueError(f"selector:={args.selector} {problem}")
         learner = LearntHuman(model, task, args.learning_strength, args.learning_forgetting,
                               planning, args.learning_draws,
                               seed=stream_seed(args.seed, 0, "learning"))
         name = fixed_policy_name(args)
-        first_model = learner.model_for_task()
-        agent = RobotAgent(first_model, build_planner(first_model, args), first_action=first,
-                           seed=args.seed, reports_types=False)
+        # Until the first task's reset, the agent is the prior's: each task then gets an
+        # agent on the model the posterior gives for it (_plan_on_posterior).
+        agent = RobotAgent(model, planner, first_action=first, seed=args.seed)
         robot = SequenceRobot(task, {name: agent}, {name: model.source or ""}, seed=args.seed,
                               learner=learner,
                               new_planner=lambda m: build_planner(m, args))
-        robot.learner_name = args.selector
         print(f"{NAME}: selector {args.selector}: learns its human from the prior "
               f"{shown_model(model.source or args.robot_model)}, strength "
               f"{learner.strength:g}, forgetting {learner.forgetting:g}"
