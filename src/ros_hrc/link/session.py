@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import collections
 import logging
+import random
 import socket
 import time
 from typing import Any, Dict, Optional
@@ -46,9 +47,38 @@ HELLO_TIMEOUT = 10.0
 _REMEMBERED_NONCES = 65536
 
 
+#: Where :func:`free_port` looks first: below the kernel's ephemeral range (Linux's default
+#: 32768-60999), from which every client socket and every server bound to port 0 (a
+#: roslaunch's own XML-RPC server, for one) takes its port, so that another stack's
+#: roslaunch cannot take a port picked here before it is bound.
+PICKED_PORTS = range(20000, 32768)
+#: Random tries there before falling back to a port the kernel picks.
+PICK_TRIES = 64
+
+
+def _ephemeral_low() -> int:
+    """The first port of the kernel's ephemeral range (32768 when it cannot be read)."""
+    try:
+        with open("/proc/sys/net/ipv4/ip_local_port_range") as f:
+            return int(f.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 32768
+
+
 def free_port(host: str = DEFAULT_HOST) -> int:
     """A TCP port free on ``host`` now: for a stack of one's own (its roscore and links)
-    beside others on the same machine. Another process may take it before it is bound."""
+    beside others on the same machine. It is drawn outside the kernel's ephemeral range
+    when that leaves room (:data:`PICKED_PORTS`), so only another explicit pick can take it
+    before it is bound, never an ephemeral one; else the kernel's choice."""
+    low = _ephemeral_low()
+    ports = [p for p in (random.choice(PICKED_PORTS) for _ in range(PICK_TRIES)) if p < low]
+    for port in ports:
+        with socket.socket() as s:
+            try:
+                s.bind((host, port))
+            except OSError:
+                continue
+            return port
     with socket.socket() as s:
         s.bind((host, 0))
         return s.getsockname()[1]

@@ -184,15 +184,19 @@ def test_a_link_that_cannot_bind_fails_its_cell_at_once(tmp_path, fake_ros):
 #: A stack lost in the middle of its cell's first attempt (after two episodes): the wrapper
 #: starts the real roslaunch, then SIGKILLs its process group, itself and roslaunch included
 #: (not the nodes: roslaunch starts each in a session of its own). Every later attempt is the
-#: real roslaunch.
+#: real roslaunch. A real roslaunch that ends on its own before that (it could not start)
+#: ends the wrapper with its status, as the stack's watch expects of a roslaunch, instead of
+#: leaving a wrapper that waits for rows that never come.
 LOST_FIRST_ROSLAUNCH = """#!/bin/sh
 echo "start $$ $*" >> "$FAKE_ROSLAUNCH_LOG"
 if [ -e "$FAKE_ROSLAUNCH_LOG.first" ]; then exec "$REAL_ROSLAUNCH" "$@"; fi
 : > "$FAKE_ROSLAUNCH_LOG.first"
 "$REAL_ROSLAUNCH" "$@" &
+real=$!
 rows=0
 while [ "$rows" -lt 3 ]; do
   sleep 0.05
+  if ! kill -0 "$real" 2>/dev/null; then wait "$real"; exit $?; fi
   if [ -f "$EPISODES_CSV" ]; then rows=$(wc -l < "$EPISODES_CSV"); fi
 done
 kill -9 0
