@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from typing import Callable, List, Optional, Sequence, TextIO
 
@@ -81,11 +82,18 @@ def reread_launch_options(parser: argparse.ArgumentParser, argv: Optional[Sequen
     return args
 
 
+#: A line's end: its newline, then any terminal escape sequences (colour codes) written after
+#: it. rospy colours a line on a terminal as colour + text + newline + colour reset, so the
+#: reset comes after the newline: that text has ended its line, and must not wait for the next.
+_LINE_END = re.compile(r"\n(?:\x1b\[[0-9;?]*[A-Za-z])*\Z")
+
+
 class WholeLines:
     """A text stream that passes text on to ``stream`` a whole line at a time, each in one
     write, flushed: ``print(text)`` (the text, then its newline) becomes one write, however
     many lines ``text`` has; a write that does not end a line waits for the rest (or
-    :meth:`flush`). Everything else is ``stream``'s."""
+    :meth:`flush`). A newline followed only by terminal escape sequences (rospy's colour
+    reset after a warning's newline) ends a line too. Everything else is ``stream``'s."""
 
     def __init__(self, stream: TextIO) -> None:
         self._stream = stream
@@ -93,7 +101,7 @@ class WholeLines:
 
     def write(self, text: str) -> int:
         self._pending += text
-        if self._pending.endswith("\n"):
+        if _LINE_END.search(self._pending):
             self.flush()
         return len(text)
 
