@@ -9,8 +9,10 @@ ARGS ?=
 setup:
 	@bash tools/setup.sh
 
+# roslaunch as the terminal's foreground job (tools/foreground.py): Ctrl-C reaches it alone,
+# and `make run` ends with its status (0), not make's own 130 for an interrupt.
 run: setup
-	@source env.sh && roslaunch ros_hrc hrc.launch $(ARGS)
+	@source env.sh && python3 tools/foreground.py roslaunch ros_hrc hrc.launch $(ARGS)
 
 test: setup
 	@bash tools/run_tests.sh
