@@ -10,7 +10,16 @@
     └── LinkError            the websocket link failed
         └── ProtocolError    a message is malformed, unknown or too large
 """
-from typing import Optional
+import difflib
+from typing import Iterable, Optional
+
+
+def did_you_mean(name: object, known: Iterable[str]) -> str:
+    """``did you mean <the nearest known name>?`` (difflib's nearest), or "" when no known
+    name is close: the one hint of every line that refuses a mistyped name (a launch
+    argument, a model, a library policy)."""
+    near = difflib.get_close_matches(str(name), list(known), n=1)
+    return f"did you mean {near[0]}?" if near else ""
 
 
 class HrcError(Exception):

@@ -9,6 +9,8 @@ import os
 from pathlib import Path
 from typing import List, Sequence
 
+from ros_hrc.errors import did_you_mean
+
 #: models/ of the package (the source tree; the devel space uses it in place).
 MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 
@@ -54,8 +56,10 @@ def resolve_model(name_or_path: str, kind: str,
     known = sorted({name for place in folders for name in model_names(place)})
     where = ", ".join(shown_path(place) for place in folders) if len(folders) > 1 \
         else str(folders[0])
+    hint = did_you_mean(name_or_path, known)
     raise FileNotFoundError(f"no {kind + ' ' if kind else ''}model named {name_or_path!r} in "
-                            f"{where}; known: {', '.join(known) or 'none'}")
+                            f"{where}; {hint + ' ' if hint else ''}"
+                            f"known: {', '.join(known) or 'none'}")
 
 
 def shown_path(path) -> str:

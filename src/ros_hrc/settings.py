@@ -41,7 +41,7 @@ from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 from ros_hrc import tasks
 from ros_hrc.tasks import fabric_reactive
 from ros_hrc.tasks.schedule import ScheduleError, parse_schedule
-from ros_hrc.errors import HrcError
+from ros_hrc.errors import HrcError, did_you_mean
 from ros_hrc.streams import LIVE, EpisodeSchedule
 from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, user_path
 
@@ -577,12 +577,16 @@ def needs_new_launch(running: Mapping[str, Any], wanted: Mapping[str, Any]) -> L
 PORTS: Tuple[str, ...] = ("pomdp_port", "human_port")
 
 
+def _no_such_argument(name: str) -> str:
+    hint = did_you_mean(name, SETTINGS)
+    return f"no such argument; {hint + ' ' if hint else ''}known: {', '.join(SETTINGS)}"
+
+
 def _setting(name: str, value: Any = "") -> Setting:
     try:
         return SETTINGS[name]
     except KeyError:
-        raise SettingError(name, value, f"no such argument; known: {', '.join(SETTINGS)}") \
-            from None
+        raise SettingError(name, value, _no_such_argument(name)) from None
 
 
 def parse(name: str, value: Any) -> Any:
@@ -609,8 +613,7 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     unknown = [n for n in values if n not in SETTINGS]
     if unknown:
         if len(unknown) == 1:
-            raise SettingError(unknown[0], values[unknown[0]],
-                               f"no such argument; known: {', '.join(SETTINGS)}")
+            raise SettingError(unknown[0], values[unknown[0]], _no_such_argument(unknown[0]))
         raise SettingError(", ".join(unknown), "",
                            f"no such arguments; known: {', '.join(SETTINGS)}")
     out = {name: setting.parse(values.get(name)) for name, setting in SETTINGS.items()}

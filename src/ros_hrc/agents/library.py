@@ -35,7 +35,6 @@ the manifest says it, the line; nothing is loaded. No ROS.
 """
 from __future__ import annotations
 
-import difflib
 import os
 import re
 import tomllib
@@ -44,7 +43,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 
 from ros_hrc import settings, tasks
-from ros_hrc.errors import HrcError
+from ros_hrc.errors import HrcError, did_you_mean
 from ros_hrc.model_files import MODELS_DIR, user_path
 from ros_hrc.models import load_robot_model, shown_path
 from ros_hrc.tasks.definition import Task
@@ -121,8 +120,8 @@ class PolicyLibrary:
             if policy.name == name:
                 return policy
         known = self.names()
-        near = difflib.get_close_matches(str(name), known, n=1)
-        hint = f"; did you mean {near[0]}?" if near else ""
+        hint = did_you_mean(name, known)
+        hint = f"; {hint}" if hint else ""
         raise UnknownPolicy(f"no policy {name!r} in the library {shown_path(self.manifest)}"
                             f"{hint} (known: {', '.join(known)})")
 

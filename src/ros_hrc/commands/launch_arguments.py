@@ -15,13 +15,13 @@ it from the command line) outside an ``<include>`` (whose ``<arg>`` children pas
 """
 from __future__ import annotations
 
-import difflib
 import os
 from pathlib import Path
 from typing import Iterable, List, Optional, Sequence, Tuple
 
 from defusedxml import ElementTree as SafeElementTree
 
+from ros_hrc.errors import did_you_mean
 from ros_hrc.model_files import MODELS_DIR
 
 #: This package's name and directory, where ``roslaunch ros_hrc FILE`` finds FILE.
@@ -99,8 +99,7 @@ def unknown_argument_line(assignments: Iterable[str], declared: Sequence[str],
         name = word.partition(":=")[0]
         if name in declared:
             continue
-        near = difflib.get_close_matches(name, list(declared), n=1)
-        hint = f"did you mean {near[0]}?" if near else f"the arguments: {where_listed}"
+        hint = did_you_mean(name, declared) or f"the arguments: {where_listed}"
         parts.append(f"{word}: no such argument ({hint})")
     return "; ".join(parts) if parts else None
 

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional, Sequence, Tuple
 
+from ros_hrc.errors import did_you_mean
+
 __all__ = ["ScheduleError", "Block", "TaskPlay", "Schedule", "parse_schedule", "nearest_type",
            "FABRIC_SCHEDULE_NAME", "FABRIC_HUMANS", "FABRIC_TASKS_PER_HUMAN"]
 
@@ -137,7 +139,9 @@ def type_name(model: str) -> str:
 
 def _check_type(name: str, known: Sequence[str], where: str) -> str:
     if name not in known:
-        raise ScheduleError(f"{where}unknown human type {name!r}; known: {', '.join(known)}")
+        hint = did_you_mean(name, known)
+        raise ScheduleError(f"{where}unknown human type {name!r}; {hint + ' ' if hint else ''}"
+                            f"known: {', '.join(known)}")
     return name
 
 

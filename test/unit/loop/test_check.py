@@ -348,6 +348,21 @@ def test_a_model_of_another_task_is_refused_in_one_line(words, line):
         assert said.endswith(f"; it is a model of task {other} (task:={other})"), said
 
 
+@pytest.mark.parametrize("words, hint", [
+    (("human_model:=tierd",), "human_model:=tierd: no human model named 'tierd' in "
+                              f"{ROOT / 'models' / 'human'}; did you mean tired? known: beginner, "),
+    (("task:=fabric", "robot_model:=bse"), "did you mean base? known: "),
+    (("human_modle:=tired",), "human_modle:=tired: no such argument; did you mean human_model? "
+                              "known: human_model, "),
+    (("tasks:=2", "schedule:=tierd*2"), "unknown human type 'tierd'; did you mean tired? known:"),
+])
+def test_a_mistyped_name_is_refused_with_the_nearest_known_one(words, hint):
+    # As a mistyped launch argument is (commands/launch_arguments.py): one hint, difflib's.
+    said = refused("--no-port-check", *words)
+    assert hint in said, said
+    assert "\n" not in said.strip()
+
+
 def test_the_hand_run_commands_carry_the_task(tmp_path, monkeypatch, capsys):
     import shlex
 
