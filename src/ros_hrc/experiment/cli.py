@@ -61,6 +61,7 @@ from ros_hrc.experiment.store import ResultsStore
 from ros_hrc.model_files import user_path
 from ros_hrc.experiment.sequence_rows import CEILING
 from ros_hrc.experiment.sequences import (ceiling_model, MAX_SEQUENCE, MODEL_SELECTORS, PER_TYPE,
+                                          STUDY_SELECTORS,
                                           SELECTOR_MODEL_FILE,
                                           check_trained_elsewhere, expand_selectors,
                                           load_study_library, resolve_schedules,
@@ -206,12 +207,11 @@ def add_sequence_arguments(p: argparse.ArgumentParser) -> None:
                         f"--episodes N is then N independent sequences per cell "
                         f"({DEFAULT_SEQUENCES})")
     p.add_argument("--selectors", type=names_argument, default=None,
-                   help=f"with --sequence: selectors, comma-separated ({DEFAULT_SELECTORS}); "
-                        "fixed stands for every library policy as fixed:<policy>; also "
-                        "bpr-pi, bpr-fabric, pomdp_types (the robot model of human types), "
-                        "pomdp_learning and pomdp_learning_mean (the robot that learns its "
-                        "human), pomdp_pooled (its prior, never learnt) and pomdp_ceiling (a "
-                        "robot fitted on its human: --ceiling-models)")
+                   help=f"with --sequence: selectors, comma-separated, of "
+                        f"{', '.join(STUDY_SELECTORS)} and fixed:<policy> (default "
+                        f"{DEFAULT_SELECTORS}); fixed stands for every library policy as "
+                        "fixed:<policy>; docs/selectors.md and docs/learning.md say what each is "
+                        f"({CEILING} needs --ceiling-models)")
     p.add_argument("--library", default=None,
                    help="with --sequence: the policy library, a manifest or a folder holding "
                         "library.toml (auto: the task's)")

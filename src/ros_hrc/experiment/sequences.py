@@ -36,6 +36,7 @@ from ros_hrc.experiment.provenance import file_sha256, read_fitted_on
 from ros_hrc.experiment.sequence_rows import CEILING, POOLED, launched_selector
 from ros_hrc.settings import LEARNING_SELECTORS, LEARNING_SETTINGS
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
+from ros_hrc.errors import did_you_mean
 from ros_hrc.model_files import user_path
 from ros_hrc.models import model_path
 
@@ -45,6 +46,11 @@ FABRIC = "fabric"
 SCHEDULE_WORDS = (PER_TYPE, FABRIC)
 #: The selector that stands for every library policy (``fixed:<policy>`` each).
 FIXED = "fixed"
+#: Every name ``--selectors`` takes besides ``fixed:<policy>`` (one library policy): the robot
+#: process's selectors, the robot of human types, the learning robots, the pooled prior and
+#: the ceiling. The help and the refusal of an unknown name list these, in this order.
+STUDY_SELECTORS: Tuple[str, ...] = tuple(dict.fromkeys(
+    (*SELECTOR_NAMES, TYPES_POLICY, *LEARNING_SELECTORS, POOLED, CEILING)))
 #: Selectors whose choices rest on the trained selector model (the held-out rule applies).
 MODEL_SELECTORS = tuple(sorted(NEEDS_MODEL))
 #: The selector model's file name, beside the library's manifest (``models/fabric/`` and
@@ -59,7 +65,6 @@ def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]
     library policy (in the library's order), ``fixed:<policy>`` is checked against the
     library, the others against the known selectors. GridError (one line naming the known
     ones) for an unknown name."""
-    known = SELECTOR_NAMES
     out: List[str] = []
     for name in names:
         if name == FIXED:
@@ -70,12 +75,12 @@ def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]
                 raise GridError(f"--selectors: {name}: no policy {policy!r} in the library "
                                 f"(its policies: {', '.join(policies)})")
             out.append(name)
-        elif name in known or name in (TYPES_POLICY, CEILING, POOLED) + LEARNING_SELECTORS:
+        elif name in STUDY_SELECTORS:
             out.append(name)
         else:
-            raise GridError(f"--selectors: unknown selector {name!r}; known: "
-                            f"{', '.join(known)}, fixed:<policy>, {TYPES_POLICY}, "
-                            f"{', '.join(LEARNING_SELECTORS)}, {POOLED}, {CEILING}")
+            hint = did_you_mean(name, STUDY_SELECTORS)
+            raise GridError(f"--selectors: unknown selector {name!r}; {hint + ' ' if hint else ''}"
+                            f"known: {', '.join(STUDY_SELECTORS)}, {FIXED}:<policy>")
     return list(dict.fromkeys(out))
 
 

@@ -77,9 +77,29 @@ def test_an_unknown_selector_or_library_policy_is_one_line_naming_the_known():
     with pytest.raises(GridError) as unknown:
         expand_selectors(["bpr", "ucb"], POLICIES)
     assert str(unknown.value) == ("--selectors: unknown selector 'ucb'; known: fixed, random, "
-                                  "bpr, bpr-pi, bpr-fabric, bandit, oracle, fixed:<policy>, "
-                                  "pomdp_types, pomdp_learning, pomdp_learning_mean, "
-                                  "pomdp_pooled, pomdp_ceiling")
+                                  "bpr, bpr-pi, bpr-fabric, bandit, oracle, pomdp_types, "
+                                  "pomdp_learning, pomdp_learning_mean, pomdp_pooled, "
+                                  "pomdp_ceiling, fixed:<policy>")
+    with pytest.raises(GridError) as near:
+        expand_selectors(["bpr_pi"], POLICIES)
+    assert "unknown selector 'bpr_pi'; did you mean bpr-pi? known: " in str(near.value)
+
+
+def test_the_help_lists_every_selector_the_study_takes(capsys):
+    """--help's list of selectors is the one the study checks --selectors against: every
+    selector of the robot process (SELECTOR_NAMES) and the study's own robots, none missing,
+    none that would be refused."""
+    from ros_hrc.agents.selectors import SELECTOR_NAMES
+
+    with pytest.raises(SystemExit):
+        cli.build_parser().parse_args(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    listed = text.split("selectors, comma-separated, of ", 1)[1].split(" and fixed:<policy>")[0]
+    names = listed.split(", ")
+    assert set(SELECTOR_NAMES) | {"pomdp_types", "pomdp_learning", "pomdp_pooled",
+                                  "pomdp_ceiling"} <= set(names)
+    assert expand_selectors([n for n in names if n != "fixed"], POLICIES) == \
+        [n for n in names if n != "fixed"]
     with pytest.raises(GridError) as foreign:
         expand_selectors(["fixed:policy2"], POLICIES)
     assert str(foreign.value) == ("--selectors: fixed:policy2: no policy 'policy2' in the "
