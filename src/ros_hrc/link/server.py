@@ -449,7 +449,7 @@ class MessageServer:
         """Record the client as known and tell the owner; under the dispatch lock."""
         with self._peers_changed:
             self._greeted.add(peer.id)
-        self._log.info("%s: %r says hello", self.name, peer)
+        self._log.debug("%s: %r says hello", self.name, peer)
         if self._on_connect is not None:
             self._call_back(self._on_connect, peer)
 

@@ -428,3 +428,43 @@ def test_the_window_under_xvfb_closes_with_esc_and_the_world_says_so():
     assert run.returncode == 0, run.stderr[-2000:]
     assert results == ["overlay True", "titled 1", "closed True running False", "ticket WindowClosed",
                        "run WindowClosed", "listener 1", "done"], run.stdout[-3000:]
+
+
+#: A world started and closed, as hrc_world does, with a line of our own on each stream.
+_START_SCRIPT = textwrap.dedent("""
+    import sys, time
+    from ros_hrc.world import World, WorldConfig
+    world = World(WorldConfig(gui=sys.argv[1] == "gui"))
+    world.start()
+    while world.sim_time < 1.0:      # the window draws meanwhile
+        time.sleep(0.05)
+    print("ours: the world is up", flush=True)
+    print("ours: on stderr", file=sys.stderr, flush=True)
+    world.close()
+    print("ours: closed", flush=True)
+    """)
+#: What PyBullet's C code printed on its own (issue #41): with its window, and headless.
+_CHATTER = ("argv[0]=", "GL_VENDOR=", "ven = ", "b3Printf: Selected demo", "semaphore destroyed",
+            "pybullet build time", "startThreads", "Thread TERMINATED")
+
+
+def _started_and_closed(gui, env=None):
+    run = subprocess.run([sys.executable, "-c", _START_SCRIPT, "gui" if gui else "direct"],
+                         env=env, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.splitlines() == ["ours: the world is up", "ours: closed"], run.stdout
+    assert run.stderr.splitlines() == ["ours: on stderr"], run.stderr
+
+
+def test_a_headless_world_prints_nothing_of_pybullets_own():
+    _started_and_closed(gui=False)
+
+
+@pytest.mark.skipif(not shutil.which("Xvfb"), reason="needs Xvfb")
+def test_a_world_with_its_window_prints_nothing_of_pybullets_own():
+    server, number = _start_xvfb()
+    try:
+        _started_and_closed(gui=True, env=dict(os.environ, DISPLAY=f":{number}"))
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
