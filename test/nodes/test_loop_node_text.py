@@ -105,3 +105,48 @@ def test_hrc_human_reads_the_world_s_end_as_the_run_s_end_and_other_errors_as_fa
     with pytest.raises(ServiceUnavailable):
         with world_call():
             raise ServiceUnavailable("service /robot/grasp is not available: timeout")
+
+
+def test_a_failed_robot_action_says_why_in_the_step_block():
+    """The reason of a failed grasp (out of reach, how far) was only in a solver's log; the
+    block said rGrasp_obj, then "on the belt"."""
+    why = ("cannot grasp: the object is out of reach, 0.99 m from the right shoulder (the arm "
+           "reaches 0.83 m)")
+    status = a_step(sim_time=5.0, episode_start_time=1.0)
+    status.robot_action, status.object_holder = "rGrasp_obj", "none"
+    status.robot_result, status.robot_failed = why, True
+    lines = format_step(status).splitlines()
+    at = lines.index("robot action      : rGrasp_obj")
+    assert lines[at + 1] == f"robot failed      : {why}"
+    status.robot_failed = False           # one that worked: no such line
+    assert not any(line.startswith("robot failed") for line in format_step(status).splitlines())
+
+
+def test_the_step_report_carries_whether_the_robot_failed(monkeypatch):
+    from ros_hrc.loop.effects import StepReport
+    from ros_hrc.nodes.human_node import status_message
+
+    monkeypatch.setattr(rospy.Time, "now", staticmethod(lambda: rospy.Time(1)))  # no master
+    report = StepReport(epoch=1, episode=1, step=0, human_action="idle", human_state="s",
+                        robot_action="rGrasp_obj", robot_acted=False,
+                        robot_result="cannot grasp: the object is out of reach")
+    assert status_message(report, "auto").robot_failed
+    assert not status_message(StepReport(epoch=1, episode=1, step=0, human_action="idle",
+                                         human_state="s"), "auto").robot_failed
+
+
+def test_the_readme_s_example_block_is_the_first_step_s_as_printed():
+    """The README showed "step 1" where the first block printed is step 0; its lines must be
+    the block's, in the block's order."""
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    example = readme.split("Every step prints one block\nin the ROS terminal:\n\n```\n", 1)[1]
+    example = example.split("```", 1)[0].splitlines()
+    first = Status(step=0, episode=1, human_action="graspAttempt", robot_observation="O7",
+                   observation_bits=7, robot_action="rGrasp_obj", belief_states=["S0"],
+                   belief=[1.0], action_names=["rGrasp_obj", "rIdle"], action_values=[2.0, 1.0])
+    printed = format_step(first).splitlines()
+    assert example[0] == printed[0]
+    assert [line.split(":")[0] for line in example[1:]] == \
+        [line.split(":")[0] for line in printed[1:]]

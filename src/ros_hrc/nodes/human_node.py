@@ -211,6 +211,8 @@ def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
         f"robot action      : {status.robot_action or '-'}",
         f"robot belief      : {belief or '-'}",
     ]
+    if status.robot_failed and status.robot_result:   # why (a grasp out of reach: how far)
+        lines.insert(-1, f"robot failed      : {status.robot_result}")
     values = action_values_text(status)
     if values:   # why the robot chose its action (a baseline robot sends no values)
         lines.insert(-1, f"robot values      : {values}")
@@ -262,6 +264,7 @@ def status_message(report: StepReport, mode: str) -> Status:
                  "episode_start_time", "human_result", "robot_result", "episode_over",
                  "end_reason", "fault"):
         setattr(status, name, getattr(report, name))
+    status.robot_failed = not report.robot_acted
     for name in DECISION_IN_REPORT.values():   # the planner's decision, as declared
         value = getattr(report, name)
         setattr(status, name, list(value) if isinstance(value, tuple) else value)
