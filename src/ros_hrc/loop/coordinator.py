@@ -115,6 +115,12 @@ RESET_JOIN_WINDOW = 1.0
 WAIT_NOTE_EVERY = 5.0
 #: Seconds a step waits for one call to the world before it fails.
 WORLD_CALL_TIMEOUT = 30.0
+#: A call to the robot executor is normal for this many of the task's robot actions
+#: (``Task.robot_action_seconds``, simulated, at the default real-time factor 1): it may wait
+#: behind the robot's previous action still under way (FABRIC's grasp is answered as it
+#: starts, then plans and carries on) and then take its own. Its first wait line comes after
+#: that, or after ``wait_note_every`` when that is longer (docs/loop.md).
+ROBOT_WAIT_ACTIONS = 2
 
 
 @dataclass(frozen=True)
@@ -271,9 +277,15 @@ class Coordinator:
         every = self.config.wait_note_every
         if isinstance(call, (ActHuman, ObserveWorld)):
             every = min(every, self.config.world_call_timeout - waited)
+        elif isinstance(call, ActRobot) and not waited:
+            every = max(every, self._normal_robot_wait())
         timer = next(self._ids)
         self._wait_timers[timer] = (call_id, waited + every)
         self._emit(Timer(timer, every))
+
+    def _normal_robot_wait(self) -> float:
+        """The longest normal wait for the robot executor, s (:data:`ROBOT_WAIT_ACTIONS`)."""
+        return ROBOT_WAIT_ACTIONS * self.task.robot_action_seconds
 
     def _note(self, level: str, text: str) -> None:
         self._emit(Note(level, text))
@@ -643,7 +655,10 @@ class Coordinator:
             return self._fail_step(
                 f"{_what(call)} has not answered in {waited:g} s (world_call_timeout): the "
                 "world may be serving other callers of its services first")
-        self._note("warn", f"step {call.step} waits for {_what(call)}: {waited:g} s so far")
+        normal = self._normal_robot_wait() if isinstance(call, ActRobot) else 0.0
+        past = (f" (more than {ROBOT_WAIT_ACTIONS} of the task's robot actions take: "
+                f"{normal:g} s simulated)") if normal > self.config.wait_note_every else ""
+        self._note("warn", f"step {call.step} waits for {_what(call)}: {waited:g} s so far{past}")
         self._arm_wait_timer(call_id, waited)
 
     def _next_episode(self) -> Optional[int]:

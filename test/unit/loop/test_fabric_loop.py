@@ -14,7 +14,8 @@ import pytest
 
 from ros_hrc import tasks
 from ros_hrc.loop.coordinator import CoordinatorConfig
-from ros_hrc.loop.effects import Decision, MdpRefused, PublishStep, ReactionRequest
+from ros_hrc.loop.effects import (Decision, MdpRefused, Note, PublishStep, ReactionRequest,
+                                  Timer)
 
 from local_loop import LocalLoop, record
 from loop_fakes import Driver, of, one, snap
@@ -315,3 +316,27 @@ def test_a_reaction_naming_no_state_of_the_task_fails_the_step():
     assert one(effects, PublishStep).report.fault.startswith("the human's reaction names")
     # The step was answered already: no second answer to it, only the refused reaction.
     assert [r.in_reply_to for r in of(effects, MdpRefused)] == ["reaction"]
+
+
+def test_a_robot_action_of_normal_length_is_not_warned_about():
+    """Issue #41: "step 3 waits for the robot executor (grasp): 5 s so far", nine times in
+    five tasks, for FABRIC's actions of 4-4.2 s simulated (its robot plans 4 s and carries the
+    object 4.2 s). The first wait line for the robot executor comes once the call has taken
+    longer than two of the task's robot actions (one still under way, then its own); the
+    seed's robot, with no such times, is noted after wait_note_every as before."""
+    assert FABRIC.robot_action_seconds == pytest.approx(8.2)
+    d = Driver(CoordinatorConfig(task=FABRIC, seed=1, first_epoch=1, wait_note_every=5.0))
+    d.ready()
+    played = d.play_step("idle", "Evaluating", observe=snap("is_ov", "is_oir", "is_a2"),
+                         decision=Decision("grasp"), until="robot")
+    timer = [t for t in of(played.effects, Timer)][-1]
+    assert timer.seconds == pytest.approx(16.4)
+    d.c.timer_fired(timer.id)
+    out = d.take()
+    note = one(out, Note, level="warn")
+    assert "waits for the robot executor (grasp): 16.4 s so far" in note.text
+    assert one(out, Timer).seconds == 5.0              # then every wait_note_every, as before
+    seed = Driver(CoordinatorConfig(first_epoch=1, wait_note_every=5.0))
+    seed.ready()
+    played = seed.play_step(until="robot")
+    assert [t for t in of(played.effects, Timer)][-1].seconds == 5.0
