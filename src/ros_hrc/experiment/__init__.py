@@ -3,7 +3,7 @@
   ros_hrc.experiment.rows        the rows: one per episode, one per step, each checked
   ros_hrc.experiment.store       their CSV store, which an interrupted run resumes from
   ros_hrc.experiment.lock        one run at a time on a results directory
-  ros_hrc.experiment.statistics  confidence intervals (Wilson, Student's t), summary tables
+  ros_hrc.experiment.statistics  confidence intervals (Wilson, bootstrap percentile), summary tables
   ros_hrc.experiment.plots       the PNG plots
   ros_hrc.experiment.episode     scoring one episode from its steps
   ros_hrc.experiment.paired      the counterfactual: an episode against the human alone

@@ -326,7 +326,7 @@ def plot_learning_curves(curve: Sequence[Mapping[str, Any]], png_path: Union[str
                          best_fixed: Optional[Mapping[str, str]] = None) -> str:
     """A sequence study's learning curves: per schedule (a row of panels), the success rate
     and the mean utility per task index of each selector (a line, its 95 % interval a band:
-    Wilson for success, Student's t for utility), over the sequences
+    Wilson for success, bootstrap percentile for utility), over the sequences
     (:func:`ros_hrc.experiment.sequence_statistics.learning_curve`). Of the ``fixed:<policy>``
     selectors only the schedule's best in hindsight (``best_fixed``) is drawn, dashed, so
     the adaptive ones stand out against it. Returns the PNG's path."""
@@ -361,7 +361,7 @@ def plot_learning_curves(curve: Sequence[Mapping[str, Any]], png_path: Union[str
         for ax in axes[row]:
             ax.grid(alpha=0.3)
     axes[0][0].set_title("success rate (95 % Wilson interval)", fontsize="medium")
-    axes[0][1].set_title("utility per task (95 % t interval)", fontsize="medium")
+    axes[0][1].set_title("utility per task (95 % bootstrap interval)", fontsize="medium")
     from matplotlib.ticker import MaxNLocator
     for ax in axes[-1]:
         ax.set_xlabel("task in the sequence")

@@ -11,7 +11,7 @@ test of success. The q-values are the study's (:func:`statistics.adjust_for_many
 Benjamini and Hochberg, one family per test and baseline).
 
 - :func:`learning_curve`: per (schedule, selector, task index), the success rate (Wilson)
-  and the mean utility (Student's t) over the sequences;
+  and the mean utility (bootstrap percentile interval) over the sequences;
 - :func:`identification`: per block of a sequence (the tasks of one type, a switch starting
   the next), after how many tasks the selector's most likely type became the block's type
   and stayed it to the block's end (NaN: not by its end);
@@ -63,7 +63,7 @@ def _groups(rows: Iterable[TaskRow], *names: str) -> Dict[tuple, List[TaskRow]]:
 
 def learning_curve(rows: Iterable[TaskRow], confidence: float = 0.95) -> List[Dict[str, Any]]:
     """Per (schedule, selector, task_index): ``n`` sequences, ``success`` with its Wilson
-    interval (``success_low``, ``success_high``) and ``utility`` with its t interval."""
+    interval (``success_low``, ``success_high``) and ``utility`` with its bootstrap interval."""
     out = []
     for (schedule, selector, index), group in sorted(
             _groups(rows, "schedule", "selector", "task_index").items()):
@@ -192,7 +192,7 @@ def summarize_sequences(rows: Iterable[Union[TaskRow, Mapping[str, Any]]],
                         base: Optional[str] = None) -> List[Dict[str, Any]]:
     """One entry per (schedule, selector), then per selector pooled over the per-type
     schedules (:data:`POOLED_TYPES`): tasks, sequences, success (Wilson), utility, warnings,
-    pre-emptions and duration per task (Student's t), the blocks identified and the median
+    pre-emptions and duration per task (bootstrap percentile), the blocks identified and the median
     tasks to identify, the best fixed policy of the schedule (in hindsight) and the paired
     tests against it, against the oracle and against ``base`` (the authors' own policy as a
     selector, ``fixed:base``), with their q-values."""
@@ -273,7 +273,7 @@ def sequence_markdown(summary: Sequence[Mapping[str, Any]], confidence: float = 
         "# Sequence study summary", "",
         "## Per task", "", outcomes, "",
         f"Success: rate [{level} Wilson interval]; utility, warnings, pre-emptions and "
-        f"duration (simulated s): mean per task [{level} Student's t interval]. The utility "
+        f"duration (simulated s): mean per task [{level} bootstrap percentile interval]. The utility "
         "is the one of every policy (docs/sequences.md). `per-type (pooled)`: every per-type "
         "schedule together.", "",
         "## Identifying the human", "", identified, "",

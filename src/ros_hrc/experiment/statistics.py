@@ -2,7 +2,7 @@
 
 No ROS; scipy through :mod:`ros_hrc.experiment.paired` (one piece of code per test).
 
-:func:`mean_ci` (Student's t), :func:`proportion_ci` (Wilson score: :func:`paired.wilson`),
+:func:`mean_ci` (bootstrap percentile), :func:`proportion_ci` (Wilson score: :func:`paired.wilson`),
 :func:`best_reactive` (the tuned baseline), :func:`compare` (paired tests of two policies on
 the same streams), :func:`summarize` (one dict per human model x robot policy, and per policy
 pooled over the held-out humans), :func:`write_summary` (CSV + Markdown, each written whole or
@@ -31,8 +31,21 @@ def _check_confidence(confidence: float) -> None:
         raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
 
 
+#: The bootstrap of :func:`mean_ci`: its resamples, and the seed of their draws (a summary
+#: written twice from the same rows is the same).
+BOOTSTRAP_RESAMPLES = 9999
+BOOTSTRAP_SEED = 0
+
+
 def mean_ci(values: Iterable[float], confidence: float = 0.95) -> Tuple[float, float, float]:
-    """(mean, low, high): the mean and its Student's t confidence interval.
+    """(mean, low, high): the mean and its bootstrap percentile confidence interval
+    (``scipy.stats.bootstrap``, :data:`BOOTSTRAP_RESAMPLES` resamples of the values, drawn
+    from :data:`BOOTSTRAP_SEED`).
+
+    The percentile interval is made of means of resampled values, so it stays within their
+    range: a count or a duration never gets a negative bound, which Student's t gave skewed
+    counts (``Steps 3.5 [-2.9, 9.9]`` from two episodes). It assumes no shape of the
+    distribution; with few values it is narrower than it should be (docs/experiments.md).
 
     n = 0 gives (nan, nan, nan); n = 1 gives (x, nan, nan): one value says nothing about the
     spread, and a zero-width interval would claim a certainty the data do not have. Values
@@ -48,11 +61,15 @@ def mean_ci(values: Iterable[float], confidence: float = 0.95) -> Tuple[float, f
     mean = math.fsum(xs) / n
     if n == 1:
         return (mean, math.nan, math.nan)
-    from scipy import stats  # on first use: importing the module stays cheap
+    if min(xs) == max(xs):
+        return (mean, mean, mean)     # every resample's mean is the one value
+    import numpy as np
 
-    sd = math.sqrt(math.fsum((x - mean) ** 2 for x in xs) / (n - 1))
-    half = float(stats.t.ppf((1 + confidence) / 2, n - 1)) * sd / math.sqrt(n)
-    return (mean, mean - half, mean + half)
+    interval = stats.bootstrap((np.asarray(xs),), np.mean, confidence_level=confidence,
+                               n_resamples=BOOTSTRAP_RESAMPLES, batch=1000,
+                               method="percentile",
+                               rng=np.random.default_rng(BOOTSTRAP_SEED)).confidence_interval
+    return (mean, float(interval.low), float(interval.high))
 
 
 def proportion_ci(successes: int, n: int, confidence: float = 0.95) -> Tuple[float, float, float]:
@@ -116,10 +133,17 @@ def best_reactive(rows: Iterable[EpisodeRow]) -> Optional[str]:
 # --------------------------------------------------------------------------------------------
 # Paired comparisons
 
+#: The one sign of a time in the summary, said in its header: a gain, the other's time to
+#: success minus the robot policy's (the human alone's, or the baseline's), positive when the
+#: robot policy succeeded sooner; the outcomes' time gain and the comparisons' both.
+TIME_GAIN = ("Time gain: the other's time to success minus the robot policy's, over the pairs "
+             "where both succeed (the other: the human alone, or the baseline compared "
+             "against); positive: the robot policy succeeded sooner. Every table uses this "
+             "sign.")
 #: What one comparison gives (keys of :func:`compare`, each prefixed in the summary).
 COMPARISON_KEYS: Tuple[str, ...] = (
     "policy", "pairs", "success_diff", "success_p", "pre_empted_diff", "pre_empted_p",
-    "time_pairs", "time_median_diff", "time_p", "success_q", "pre_empted_q", "time_q",
+    "time_pairs", "time_gain_median", "time_p", "success_q", "pre_empted_q", "time_q",
     "own_success_diff", "own_success_p", "own_success_q")
 #: The tests of a comparison whose p-values are adjusted together (see adjust_for_many_tests).
 TESTS: Tuple[str, ...] = ("success", "pre_empted", "time", "own_success")
@@ -135,8 +159,9 @@ def compare(policy_rows: Sequence[EpisodeRow], baseline_rows: Sequence[EpisodeRo
     """``policy_rows`` against ``baseline_rows`` on the streams both ran
     ((human model, seed, episode)): McNemar's exact test of success, of pre-emption and of the
     human's own success (he, not the robot, got the object), Wilcoxon's signed-rank test of the time to success on the pairs where both succeeded.
-    Differences are the policy's minus the baseline's (a proportion's difference; the
-    median of the paired time differences, negative: the policy succeeded sooner)."""
+    A proportion's difference is the policy's minus the baseline's; the time is a gain, as
+    everywhere in the summary (:data:`TIME_GAIN`): the median of the baseline's time minus
+    the policy's over the pairs (positive: the policy succeeded sooner)."""
     by_stream = {(r.human_model, r.seed, r.episode): r for r in baseline_rows}
     pairs = [(by_stream[(r.human_model, r.seed, r.episode)], r) for r in policy_rows
              if (r.human_model, r.seed, r.episode) in by_stream]
@@ -174,8 +199,9 @@ def _paired_tests(pairs: Sequence[Tuple[Any, EpisodeRow]], baseline: str) -> Dic
                   own_success_diff=own.difference, own_success_p=own.p_value,
                   time_pairs=len(timed))
     if timed:
-        times = paired.wilcoxon_paired([b for b, _ in timed], [p for _, p in timed])
-        result.update(time_median_diff=times.median_difference, time_p=times.p_value)
+        # wilcoxon_paired tests second - first: the baseline's time minus the policy's, a gain.
+        times = paired.wilcoxon_paired([p for _, p in timed], [b for b, _ in timed])
+        result.update(time_gain_median=times.median_difference, time_p=times.p_value)
     return result
 
 
@@ -204,7 +230,7 @@ SUMMARY_COLUMNS: Tuple[str, ...] = (
     "zero_probability_observations", "observations", "zero_probability_rate",
     "mean_decision_ms")
 
-# summary prefix -> EpisodeRow column, for the quantities given as mean + t interval
+# summary prefix -> EpisodeRow column, for the quantities given as mean + bootstrap interval
 _MEAN_CI_QUANTITIES: Tuple[Tuple[str, str], ...] = (
     ("wasted_actions", "wasted_actions"),
     ("steps", "steps"), ("sim_seconds", "sim_seconds"), ("reward", "robot_discounted_reward"),
@@ -365,12 +391,18 @@ def _markdown_cell(text: str) -> str:
 
 def markdown_table(headers: Sequence[str], rows: Iterable[Sequence[str]],
                    text_columns: int = 2) -> str:
-    """A Markdown table: the first ``text_columns`` columns left-aligned, the others right."""
-    lines = ["| " + " | ".join(headers) + " |",
-             "|" + "|".join(["---"] * text_columns + ["--:"] * (len(headers) - text_columns))
-             + "|"]
-    lines += ["| " + " | ".join(cells) + " |" for cells in rows]
-    return "\n".join(lines)
+    """A Markdown table (tabulate's ``pipe`` format): the first ``text_columns`` columns
+    left-aligned, the others right; cells as given (already formatted: no number parsing)."""
+    return _table(headers, rows, text_columns, "pipe")
+
+
+def _table(headers: Sequence[str], rows: Iterable[Sequence[str]], text_columns: int,
+           style: str) -> str:
+    from tabulate import tabulate   # on first use: the summary's only user
+
+    align = ["left"] * text_columns + ["right"] * (len(headers) - text_columns)
+    return tabulate([list(cells) for cells in rows], headers=list(headers), tablefmt=style,
+                    colalign=align, disable_numparse=True)
 
 
 def _names(e: Mapping[str, Any]) -> List[str]:
@@ -386,7 +418,8 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
         ["Human model", "Robot policy", "n", f"Success [{level} CI]", "Alone",
          "Rescued", "Pre-empted", f"Pre-empted rate [{level} CI]", "Hindered",
          "Both succeed", "Both fail", "Time to success (s, median)",
-         "Time gain (s, median, pairs)", "Wasted actions (mean)", "Against a warning",
+         "Time gain (s, median, alone − policy; pairs)", "Wasted actions (mean)",
+         "Against a warning",
          "Label intrusions (mean)", "In-sample"],
         ([*_names(e), str(e["n"]),
           format_ci(e["success_rate"], e["success_low"], e["success_high"]),
@@ -413,11 +446,12 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
                  _number(e[f"{prefix}_own_success_diff"], signed=True),
                  format_p(e[f"{prefix}_own_success_p"]), format_p(e[f"{prefix}_own_success_q"]),
                  str(e[f"{prefix}_time_pairs"]),
-                 _number(e[f"{prefix}_time_median_diff"], signed=True),
+                 _number(e[f"{prefix}_time_gain_median"], signed=True),
                  format_p(e[f"{prefix}_time_p"]), format_p(e[f"{prefix}_time_q"])])
     compared = markdown_table(["Human model", "Robot policy", "Against", "Pairs", "Δ success",
                        "p (McNemar)", "q", "Δ pre-empted", "p (McNemar)", "q",
-                       "Δ own success", "p (McNemar)", "q", "Pairs both succeed", "Δ time to success (s, median)", "p (Wilcoxon)",
+                       "Δ own success", "p (McNemar)", "q", "Pairs both succeed",
+                       "Time gain (s, median, other − policy)", "p (Wilcoxon)",
                        "q"], comparisons, 3)
     best = {}
     for e in summary:
@@ -446,7 +480,7 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
           _rate_text(e["zero_probability_observations"], e["observations"]),
           _number(e["mean_decision_ms"], 1)] for e in summary))
     return "\n".join([
-        "## Outcomes against the human alone", "", outcomes, "",
+        TIME_GAIN, "", "## Outcomes against the human alone", "", outcomes, "",
         f"n episodes per row, each on its own streams. Success and the pre-empted rate: Wilson "
         f"score intervals ({level}). Alone: how many of the same (human model, seed, episode) "
         "streams the human succeeded on with `no_robot`. Rescued: failed alone, succeeded with "
@@ -454,7 +488,7 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
         "hindered: succeeded alone, failed with the robot. Time to success: simulated seconds "
         "from the episode's start, over the episodes that succeeded; time gain: alone minus "
         "with the robot, over the pairs where both succeeded (positive: the robot made it "
-        "sooner). Wasted actions: grasps that did not get the object and points at a human "
+        "sooner; the sign of every time in this summary). Wasted actions: grasps that did not get the object and points at a human "
         "away from the belt. Against a warning: grasps and points while a warning was in "
         "force, and in how many episodes. Label intrusions: the old count, a grasp or point "
         "while the observer's label said no help was needed. In-sample: rows on streams the "
@@ -462,8 +496,9 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
         "", "## Paired comparisons (same streams)", "", compared, "",
         "Each robot policy against the best reactive budget for that human (for the pool: the "
         "best over all humans) and against the human alone, on the streams both ran. Δ: the "
-        "policy's minus the other's (proportions of the pairs; the median of the paired "
-        "differences in time, negative: the policy succeeded sooner). p: McNemar's exact "
+        "policy's minus the other's (proportions of the pairs). Time gain: the median of the "
+        "other's time minus the policy's over the pairs where both succeeded (positive: the "
+        "policy succeeded sooner; the outcomes table's sign). p: McNemar's exact "
         "test (two-sided) for success, for pre-emption and for the human's own success (he, "
         "not the robot, got the object), Wilcoxon's signed-rank test "
         "(two-sided) for the time to success over the pairs where both succeeded. q: the "
@@ -473,7 +508,7 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
         "Best: the highest success rate, then the lowest pre-emption rate, then the shortest "
         "median time to success, then the smallest budget.",
         "", "## Other measures", "", others, "",
-        f"Mean [{level} confidence interval, Student's t] over episodes; [n/a] where an "
+        f"Mean [{level} confidence interval, bootstrap percentile] over episodes; [n/a] where an "
         "interval needs two episodes or more. Warnings after help: warnings given on the step "
         "right after the robot's grasp or point, and in how many episodes. Rescued after a "
         "point: rescued episodes the human ended himself after the robot pointed. "

@@ -3,6 +3,7 @@ the paired statistics of the summary, the held-out rule for fitted models, the t
 baseline, and the counting of wasted actions and actions against a warning. No ROS master."""
 import argparse
 import math
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -188,14 +189,15 @@ def test_the_summary_s_paired_tests_are_those_of_paired_py():
                                [r.outcome == "pre_empted" for r in pomdp])
     both = [(b.time_to_success, p.time_to_success) for b, p in zip(best, pomdp)
             if b.success and p.success]
-    times = paired.wilcoxon_paired([b for b, _ in both], [p for _, p in both])
+    # A gain: reactive@2's time minus pomdp's (positive: pomdp succeeded sooner).
+    times = paired.wilcoxon_paired([p for _, p in both], [b for b, _ in both])
     assert (e["vs_reactive_policy"], e["vs_reactive_pairs"]) == ("reactive@2", 12)
     assert e["vs_reactive_success_diff"] == pytest.approx(4 / 12)
     assert e["vs_reactive_success_p"] == success.p_value
     assert e["vs_reactive_pre_empted_diff"] == pytest.approx(4 / 12)
     assert e["vs_reactive_pre_empted_p"] == pre.p_value
     assert e["vs_reactive_time_pairs"] == len(both) == 6
-    assert e["vs_reactive_time_median_diff"] == times.median_difference
+    assert e["vs_reactive_time_gain_median"] == times.median_difference
     assert e["vs_reactive_time_p"] == times.p_value
     # The human's own success: reactive@2 leaves the first four to him, the pomdp robot
     # takes every object it gets.
@@ -378,4 +380,18 @@ def test_the_summary_gives_every_comparison_its_q_value():
     assert compared
     for e in compared:
         assert e["vs_reactive_success_q"] >= e["vs_reactive_success_p"]
-    assert "| q |" in markdown(summary)
+    assert re.search(r"\| +q +\|", markdown(summary))
+
+
+def test_a_time_against_the_human_alone_has_one_sign_in_every_table():
+    """Issue #41: the outcomes table gave the time gain as alone - robot (-1.35) and the
+    comparisons as robot - alone (+1.35) for the same pairs. Both are now the gain (the
+    other's time minus the policy's), and the summary's first line says so."""
+    summary = summarize(stream_rows())
+    compared = [e for e in summary if e["vs_alone_time_pairs"]]
+    assert compared
+    for e in compared:
+        assert e["time_gain_pairs"] == e["vs_alone_time_pairs"]
+        assert e["time_gain_median"] == pytest.approx(e["vs_alone_time_gain_median"])
+    assert markdown(summary).startswith("Time gain: the other's time to success minus the "
+                                        "robot policy's")

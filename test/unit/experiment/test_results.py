@@ -162,14 +162,27 @@ def test_a_bad_row_is_refused_with_file_line_and_column(tmp_path):
 
 # ------------------------------------------------------------------------------ statistics
 
-def test_mean_ci_is_the_student_t_interval():
-    mean, low, high = mean_ci([1, 2, 3, 4, 5])
-    half = 2.7764451051977987 * math.sqrt(2.5) / math.sqrt(5)   # t_{0.975, 4} * s / sqrt(n)
+def test_mean_ci_is_scipys_bootstrap_percentile_interval():
+    import numpy as np
+    from scipy import stats
+
+    values = [1, 2, 3, 4, 5]
+    mean, low, high = mean_ci(values)
+    again = stats.bootstrap((np.array(values, float),), np.mean, n_resamples=9999,
+                            method="percentile", rng=np.random.default_rng(0))
     assert mean == 3
-    assert low == pytest.approx(3 - half, abs=1e-12) and high == pytest.approx(3 + half, abs=1e-12)
-    assert high - mean == pytest.approx(1.963, abs=1e-3)
-    m90, l90, h90 = mean_ci([1, 2, 3, 4, 5], confidence=0.90)   # t_{0.95, 4} = 2.1318
-    assert h90 - m90 == pytest.approx(2.131846786 * math.sqrt(0.5), abs=1e-6)
+    assert (low, high) == pytest.approx(tuple(again.confidence_interval), abs=1e-12)
+    assert mean_ci(values) == (mean, low, high)       # the same every time: a fixed seed
+    m90, l90, h90 = mean_ci(values, confidence=0.90)
+    assert low < l90 < m90 < h90 < high
+
+
+def test_an_interval_of_counts_or_durations_never_leaves_their_range():
+    """Issue #41: Student's t gave `Steps 3.5 [-2.9, 9.9]` and `Sim time 4.80 [-10.45, 20.05]`
+    (two episodes each): negative steps and seconds."""
+    for values in ([1, 6], [0.0, 9.6], [0, 0, 0, 1, 14]):
+        mean, low, high = mean_ci(values)
+        assert min(values) <= low <= mean <= high <= max(values), (values, low, high)
 
 
 def test_mean_ci_edge_cases():
@@ -225,6 +238,11 @@ def test_summarize_groups_in_order_of_first_appearance_and_counts():
     assert math.isnan(summary[0]["mean_decision_ms"])   # no timed decisions at all
 
 
+def cells(line):
+    """A Markdown table row's cells, without tabulate's padding."""
+    return [cell.strip() for cell in line.strip().strip("|").split("|")]
+
+
 def test_write_summary_writes_a_csv_and_a_paper_ready_table(tmp_path):
     summary = summarize(grid_rows() + [episode("lone", "pomdp")])
     csv_path, md_path = write_summary(summary, tmp_path / "s.csv", tmp_path / "out" / "s.md")
@@ -233,11 +251,13 @@ def test_write_summary_writes_a_csv_and_a_paper_ready_table(tmp_path):
     assert tuple(table[0]) == SUMMARY_COLUMNS and len(table) == 5 + 2   # + 2 pooled
     assert float(table[0]["success_low"]) == summary[0]["success_low"]
     md = read_lines(md_path)
-    assert md[0] == "## Outcomes against the human alone"
-    assert md[2].startswith("| Human model | Robot policy | n |") and md[3].startswith("|---")
-    assert f"| careful | pomdp | 4 | {format_ci(*proportion_ci(3, 4))} |" in md[4]
-    assert "| lone | pomdp | 1 | 1.00 [0.21, 1.00] |" in md[8]
-    assert any(line.startswith("| lone | pomdp | 12.0 [n/a] |") for line in md)  # no t interval
+    assert md[0].startswith("Time gain: the other's time to success minus the robot policy's")
+    assert md[2] == "## Outcomes against the human alone"
+    assert cells(md[4])[:3] == ["Human model", "Robot policy", "n"]
+    assert md[5].startswith("|:---") and md[5].endswith("--:|")   # names left, numbers right
+    assert cells(md[6])[:4] == ["careful", "pomdp", "4", format_ci(*proportion_ci(3, 4))]
+    assert cells(md[10])[:4] == ["lone", "pomdp", "1", "1.00 [0.21, 1.00]"]
+    assert any(cells(line)[:3] == ["lone", "pomdp", "12.0 [n/a]"] for line in md)  # one ep.
     assert format_ci(0.85, 0.71, 0.93) == "0.85 [0.71, 0.93]"
 
 

@@ -20,6 +20,7 @@ from ros_hrc.experiment.sequence_statistics import (best_fixed, identification,
                                                     learning_curve, paired_tests,
                                                     summarize_sequences)
 from ros_hrc.experiment.sequences import expand_selectors, sequence_launch_args
+from ros_hrc.experiment.statistics import mean_ci
 from ros_hrc.experiment.stack import CellSpec, launch_settings
 from ros_hrc.experiment.store import ResultsWarning
 from in_process import run_main
@@ -235,9 +236,7 @@ def test_the_learning_curve_is_per_task_index_over_the_sequences():
     assert [curve[i]["success"] for i in (1, 2, 3)] == pytest.approx([1 / 3, 2 / 3, 1.0])
     first = [-0.5, 0.5, -0.4]
     assert curve[1]["utility"] == pytest.approx(np.mean(first))
-    half = stats.t.ppf(0.975, 2) * np.std(first, ddof=1) / math.sqrt(3)
-    assert (curve[1]["utility_low"], curve[1]["utility_high"]) == pytest.approx(
-        (np.mean(first) - half, np.mean(first) + half))
+    assert (curve[1]["utility_low"], curve[1]["utility_high"]) == mean_ci(first)[1:]
     wilson = stats.binomtest(1, 3).proportion_ci(method="wilson")
     assert (curve[1]["success_low"], curve[1]["success_high"]) == pytest.approx(
         (wilson.low, wilson.high))
