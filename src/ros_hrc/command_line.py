@@ -88,6 +88,12 @@ def reread_launch_options(parser: argparse.ArgumentParser, argv: Optional[Sequen
 _LINE_END = re.compile(r"\n(?:\x1b\[[0-9;?]*[A-Za-z])*\Z")
 
 
+def counted(number: int, noun: str, plural: Optional[str] = None) -> str:
+    """``1 step``, ``4 steps``: a count and its noun, singular for one (the one plural of
+    every line a program prints); ``plural`` when it is not the noun and an s (policies)."""
+    return f"{number} {noun}" if number == 1 else f"{number} {plural or noun + 's'}"
+
+
 class WholeLines:
     """A text stream that passes text on to ``stream`` a whole line at a time, each in one
     write, flushed: ``print(text)`` (the text, then its newline) becomes one write, however

@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import List, Optional, Sequence
 
 from ros_hrc import tasks
-from ros_hrc.command_line import own_arguments
+from ros_hrc.command_line import counted, own_arguments
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
                                           file_error_line, names_argument, say_one_line)
@@ -53,10 +53,10 @@ from ros_hrc.experiment.grid import (DEFAULT_HUMANS, GridError, apply_task_defau
                                      plan_cells, resolve_files, task_of)
 from ros_hrc.experiment.plots import (NothingToPlot, plot_belief, plot_outcomes, plot_success,
                                       plot_time_gain)
-from ros_hrc.experiment.pool import add_stack_argument, finish_run, run_stoppable
+from ros_hrc.experiment.pool import add_stack_argument, finish_run, run_stoppable, say_written
 from ros_hrc.experiment.recording import AloneEpisodes, PairedRecorder, open_results
 from ros_hrc.experiment.stack import MAX_EPISODES, check_launch_settings
-from ros_hrc.experiment.statistics import summarize, write_summary
+from ros_hrc.experiment.statistics import headline, summarize, write_summary
 from ros_hrc.experiment.store import ResultsStore
 from ros_hrc.model_files import user_path
 from ros_hrc.experiment.sequence_rows import CEILING
@@ -371,16 +371,21 @@ def _known(policy: str) -> bool:
     return True
 
 
-def report(store: ResultsStore, out: Path, plots: bool) -> None:
-    """Summary (CSV and Markdown) and plots from everything recorded so far."""
+def report(store: ResultsStore, out: Path, plots: bool, written_before: Sequence[Path] = ()
+           ) -> None:
+    """Summary (CSV and Markdown) and plots from everything recorded so far; the terminal
+    gets the headline table and where the rest is, then the list of what the run's end wrote
+    (``written_before``: run.json)."""
     rows = store.episodes()
     if not rows:
         print(f"{NAME}: no episodes recorded yet in {out}")
         return
     summary = summarize(rows)
     csv_path, md_path = write_summary(summary, out / "summary.csv", out / "summary.md")
-    print(Path(md_path).read_text())
-    written = [str(store.episodes_path), str(store.steps_path), str(csv_path), str(md_path)]
+    print(headline(summary))
+    print(f"{NAME}: the whole summary (paired tests, best reactive budget, other measures): "
+          f"{md_path}")
+    written = [store.episodes_path, store.steps_path, *written_before, csv_path, md_path]
     if plots:
         for name, draw in (("outcomes.png", lambda path: plot_outcomes(summary, path)),
                            ("success.png", lambda path: plot_success(summary, path)),
@@ -390,7 +395,7 @@ def report(store: ResultsStore, out: Path, plots: bool) -> None:
                 written.append(draw(out / name))
             except NothingToPlot as why:
                 print(f"{NAME}: {name} left out: {str(why).split(': ', 1)[-1]}")
-    print(f"{NAME}: written " + ", ".join(str(p) for p in written))
+    say_written(NAME, out, written)
 
 
 def _error(text: object) -> int:
@@ -441,8 +446,9 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
     counterfactual = sum(len(c.episodes) for c in cells if c.log_dir != str(out / "logs"))
     total = sum(len(c.episodes) for c in cells) - counterfactual
     grid = len(args.human_models) * len(args.policies) * len(args.seeds) * args.episodes
-    print(f"{NAME}: {len(args.human_models)} human models x {len(args.policies)} robot policies "
-          f"x {len(args.seeds)} seeds x {args.episodes} episodes = {grid} episodes; "
+    print(f"{NAME}: {counted(len(args.human_models), 'human model')} x "
+          f"{counted(len(args.policies), 'robot policy', 'robot policies')} x {counted(len(args.seeds), 'seed')} "
+          f"x {counted(args.episodes, 'episode')} = {counted(grid, 'episode')}; "
           f"{grid - total} already in {out}, {total} to run"
           + (f" ({adopted} taken from {alone.directory})" if adopted else "")
           + (f", and {counterfactual} of the human alone ({ALONE_POLICY}, for the "
@@ -464,7 +470,8 @@ def _run_locked(args: argparse.Namespace, out: Path, words: List[str]) -> int:
               f"episodes/min, {figures['simulated_seconds']:.1f} simulated s, "
               f"speed-up over real time x{figures['speedup_over_real_time']:.1f}")
     return finish_run(NAME, figures, store, out, words,
-                      lambda: report(store, out, plots=not args.no_plots))
+                      lambda written: report(store, out, plots=not args.no_plots,
+                                             written_before=written))
 
 
 if __name__ == "__main__":

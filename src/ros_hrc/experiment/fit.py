@@ -61,7 +61,7 @@ from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from ros_hrc.command_line import own_arguments
+from ros_hrc.command_line import counted, own_arguments
 from ros_hrc.errors import HrcError, ModelError
 from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
                                           file_error_line, names_argument, say_one_line)
@@ -477,8 +477,9 @@ def _run_locked(args: argparse.Namespace, runs: Path, prior: Model, words: List[
     cells = plan_cells(args, store.done())
     wanted = len(args.human_models) * args.episodes
     todo = sum(len(c.episodes) for c in cells)
-    print(f"{NAME}: {len(args.human_models)} human models x {args.episodes} episodes with the "
-          f"exploring robot = {wanted} episodes; {wanted - todo} already in {runs}, {todo} to "
+    print(f"{NAME}: {counted(len(args.human_models), 'human model')} x "
+          f"{counted(args.episodes, 'episode')} with the exploring robot = "
+          f"{counted(wanted, 'episode')}; {wanted - todo} already in {runs}, {todo} to "
           f"run" + ("" if args.cluster is None else f", on the Ray cluster --cluster "
                                                      f"{args.cluster}"), flush=True)
     if cells:

@@ -2,7 +2,9 @@
 
 :func:`lock_directory` takes an exclusive, non-blocking ``flock`` on ``<directory>/.lock``
 (which holds the owner's pid); a second run on the same directory gets :class:`DirectoryLocked`,
-naming the directory and the pid of the run that holds it, and has touched nothing.
+naming the directory and the pid of the run that holds it, and has touched nothing. The file is
+removed when the lock is released: a finished run leaves only its results (a run killed leaves
+it, unlocked, and the next run takes it).
 """
 from __future__ import annotations
 
@@ -29,7 +31,9 @@ class DirectoryLocked(HrcError):
 
 class DirectoryLock:
     """An exclusive flock on ``<directory>/.lock``, held until :meth:`release` (or the end of
-    a ``with`` block, or the process). The file is left behind; only the lock means anything."""
+    a ``with`` block, or the process). :meth:`release` removes the file, still locked, then
+    unlocks it: whoever opened it meanwhile finds, once it has the lock, that the path is no
+    longer its file, and starts again (:func:`lock_directory`)."""
 
     def __init__(self, directory: str, fd: int) -> None:
         self.directory = directory
@@ -44,6 +48,10 @@ class DirectoryLock:
         if self._fd is not None:
             fd, self._fd = self._fd, None
             try:
+                try:
+                    os.unlink(self.path)
+                except FileNotFoundError:
+                    pass
                 fcntl.flock(fd, fcntl.LOCK_UN)
             finally:
                 os.close(fd)
@@ -53,6 +61,16 @@ class DirectoryLock:
 
     def __exit__(self, *exc: Any) -> None:
         self.release()
+
+
+def _same_file(fd: int, path: str) -> bool:
+    """Whether ``path`` is still the file open as ``fd``."""
+    try:
+        there = os.stat(path)
+    except FileNotFoundError:
+        return False
+    here = os.fstat(fd)
+    return (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino)
 
 
 def _lock_owner(fd: int) -> Optional[int]:
@@ -71,15 +89,19 @@ def lock_directory(directory: Union[str, os.PathLike]) -> DirectoryLock:
     directory = os.fspath(directory)
     os.makedirs(directory, exist_ok=True)
     path = os.path.join(directory, LOCK_FILE)
-    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as exc:
-        owner = _lock_owner(fd)
-        os.close(fd)
-        if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-            raise DirectoryLocked(directory, owner) from None
-        raise
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            owner = _lock_owner(fd)
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise DirectoryLocked(directory, owner) from None
+            raise
+        if _same_file(fd, path):
+            break
+        os.close(fd)    # its holder removed it as we opened it: lock the path's file now
     try:
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)

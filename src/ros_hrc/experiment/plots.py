@@ -41,6 +41,15 @@ def _save(fig, png_path: Union[str, os.PathLike]) -> str:
     return path
 
 
+def _suptitle(fig, text: str) -> None:
+    """The figure's title, wrapped to the figure's width: one line of it ran past both edges
+    of a figure of one or two panels (``outcomes.png``, ``time_gain.png``). About ten
+    characters of the title's font (large, 12 pt) fit an inch."""
+    import textwrap
+
+    fig.suptitle(textwrap.fill(text, max(20, int(fig.get_figwidth() * 10))))
+
+
 def _wrapped(name: str, width: int = 22) -> str:
     """A long model name over lines of at most ``width`` characters, broken after its
     underscores (fabric's ``expert_nontired_noncollaborative``), so panel titles do not run
@@ -75,6 +84,9 @@ def _policy_colours(policies: Sequence[str]) -> Dict[str, Any]:
     return {p: cmap(i / (n - 1)) for i, p in enumerate(policies)}
 
 
+#: The belief plot's line dashes and markers, one of each per policy in turn.
+LINE_STYLES = ("-", (0, (5, 2)), (0, (1, 1.5)), (0, (6, 2, 1, 2)))
+MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 #: Colours of the counterfactual outcomes: good for the human in greens, bad in reds.
 OUTCOME_COLOURS = {"both_succeed": "#9bd49b", "rescued": "#2e8b57", "pre_empted": "#e8a33d",
                    "hindered": "#c0392b", "both_fail": "#7f7f7f"}
@@ -133,7 +145,7 @@ def plot_outcomes(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.
     for r in range(rows):
         axes[r][0].set_ylabel("share of episodes")
     fig.legend(loc="outside lower center", ncol=4, fontsize="small")
-    fig.suptitle("Each robot against the same human alone: counterfactual outcomes per episode")
+    _suptitle(fig, "Each robot against the same human alone: counterfactual outcomes per episode")
     return _save(fig, png_path)
 
 
@@ -175,7 +187,7 @@ def plot_success(summary: Sequence[Mapping[str, Any]], png_path: Union[str, os.P
         ax.axhline(y + 0.5, color="0.85", linewidth=0.6)
     ax.set_axisbelow(True)
     fig.legend(loc="outside lower center", ncol=min(len(policies), 6), fontsize="small")
-    fig.suptitle("Success per human model and robot policy")
+    _suptitle(fig, "Success per human model and robot policy")
     return _save(fig, png_path)
 
 
@@ -217,8 +229,8 @@ def plot_time_gain(rows: Iterable[Any], png_path: Union[str, os.PathLike]) -> st
         axes[index // columns][index % columns].set_visible(False)
     for r in range(n_rows):
         axes[r][0].set_ylabel("time gain (s): alone − with robot")
-    fig.suptitle("Time to success against the same human alone (pairs where both succeed; "
-                 "the number of pairs under each box)")
+    _suptitle(fig, "Time to success against the same human alone (pairs where both succeed; "
+                   "the number of pairs under each box)")
     return _save(fig, png_path)
 
 
@@ -302,13 +314,21 @@ def plot_belief(step_rows: Iterable[StepRow], png_path: Union[str, os.PathLike],
                         label=truth_label + ": never in this episode")
 
     colours = _policy_colours(list(runs))
-    for policy, rows in runs.items():
+    # Policies often agree step by step (the same observations, the same belief): each line
+    # has a dash and a hollow marker of its own, the first drawn widest and largest, so a line
+    # drawn over another leaves the other's edges showing.
+    widest = max(len(runs) - 1, 1)
+    for index, (policy, rows) in enumerate(runs.items()):
         beliefs = [r.belief_needs_help for r in rows]
         if all(math.isnan(b) for b in beliefs):
             ax.plot([], [], color=colours[policy], label=f"{policy} (no belief reported)")
             continue
-        ax.plot([r.step for r in rows], beliefs, color=colours[policy], marker="o",
-                markersize=3, linewidth=1.5, label=policy, clip_on=False)
+        size = (len(runs) - 1 - index) / widest        # 1 for the first line, 0 for the last
+        ax.plot([r.step for r in rows], beliefs, color=colours[policy],
+                linestyle=LINE_STYLES[index % len(LINE_STYLES)],
+                marker=MARKERS[index % len(MARKERS)], markerfacecolor="none",
+                markersize=4 + 5 * size, markeredgewidth=1.2, linewidth=1.2 + 2.8 * size,
+                label=policy, clip_on=False, zorder=2 + index)
     ax.set_ylim(0, 1)
     ax.set_xlim(edges[0], edges[-1])
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # steps are whole numbers
@@ -373,5 +393,5 @@ def plot_learning_curves(curve: Sequence[Mapping[str, Any]], png_path: Union[str
         seen.update((label, handle) for label, handle in zip(l, h) if label not in seen)
     fig.legend(list(seen.values()), list(seen.keys()), loc="outside lower center",
                ncol=min(len(seen), 5), fontsize="small")
-    fig.suptitle("Learning curves: each selector over the tasks of a sequence")
+    _suptitle(fig, "Learning curves: each selector over the tasks of a sequence")
     return _save(fig, png_path)

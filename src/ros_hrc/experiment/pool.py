@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shlex
 import signal
 import subprocess
@@ -27,7 +28,7 @@ import threading
 from collections import defaultdict
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Sequence, Set, TextIO, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Set, TextIO, Tuple, Union
 
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.attempts import CellAttempts, Deliver
@@ -512,15 +513,18 @@ def run_stoppable(cells: List[CellSpec], store, jobs: int, words: Sequence[str],
 
 
 def finish_run(program: str, figures: Optional[dict], store, out: Path, words: Sequence[str],
-               write_report: Callable[[], None]) -> int:
+               write_report: Callable[[List[Path]], None]) -> int:
     """A run's end, the same for episodes and sequences: ``run.json`` (when cells ran) and the
-    report (``write_report``) written; a full disk under them is one line and status 1 (every
-    row is kept, and the same command writes what is missing); failed cells are one line and
-    status 1 (run again to retry them). The exit status."""
+    report (``write_report``, given what was written before it, to list with its own files)
+    written; a full disk under them is one line and status 1 (every row is kept, and the same
+    command writes what is missing); failed cells are one line and status 1 (run again to
+    retry them). The exit status."""
     try:
+        written: List[Path] = []
         if figures:
             write_text_atomically(out / "run.json", json.dumps(figures, indent=2) + "\n")
-        write_report()
+            written.append(out / "run.json")
+        write_report(written)
     except OSError as exc:
         if not is_full_disk(exc):
             raise
@@ -533,6 +537,18 @@ def finish_run(program: str, figures: Optional[dict], store, out: Path, words: S
               f"{out / 'logs'}); run again to retry them", file=sys.stderr, flush=True)
         return 1
     return 0
+
+
+def say_written(program: str, out: Path, paths: Sequence[Union[str, os.PathLike]]) -> None:
+    """One line: every file a run's end wrote (``paths``), named within ``out``, and the
+    stacks' logs folder when there is one."""
+    names = []
+    for path in paths:
+        path = Path(path)
+        names.append(str(path.relative_to(out)) if path.is_relative_to(out) else str(path))
+    if (out / "logs").is_dir():
+        names.append("logs/ (each stack's log)")
+    print(f"{program}: written in {out}: {', '.join(names)}", flush=True)
 
 
 def say_last(line: str) -> None:

@@ -13,6 +13,7 @@ import operator
 from dataclasses import dataclass, fields
 from typing import Any, ClassVar, Dict, Mapping, Optional, Tuple, Type, TypeVar
 
+from ros_hrc.command_line import counted
 from ros_hrc.experiment.paired import OUTCOMES as PAIRED_OUTCOMES
 
 EPISODE_COLUMNS: Tuple[str, ...] = (
@@ -205,7 +206,7 @@ class EpisodeRow(Row):
     def progress_text(self) -> str:
         """What the progress bar says of it."""
         return (f"{self.human_model}/{self.robot_policy} seed {self.seed}: {self.end_reason} "
-                f"in {self.steps} steps")
+                f"in {counted(self.steps, 'step')}")
 
     def __post_init__(self) -> None:
         if self.time_to_success is None:

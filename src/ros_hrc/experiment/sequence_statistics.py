@@ -32,6 +32,7 @@ from ros_hrc.experiment import paired
 from ros_hrc.experiment.sequence_rows import TaskRow
 from ros_hrc.experiment.statistics import (adjust_for_many_tests, format_ci, format_p,
                                            markdown_table, mean_ci, median, proportion_ci,
+                                           terminal_table,
                                            write_summary_files)
 from ros_hrc.tasks.schedule import type_name
 
@@ -236,6 +237,16 @@ def _groups_of_dicts(blocks: Iterable[Mapping[str, Any]]) -> Dict[tuple, List[Ma
 def _selector_order(name: str) -> tuple:
     """The adaptive selectors first, then the oracle, then the fixed policies."""
     return (name.startswith(FIXED_PREFIX), name == ORACLE, name)
+
+
+def sequence_headline(summary: Sequence[Mapping[str, Any]]) -> str:
+    """What the terminal shows of a sequence summary: per schedule and selector, the tasks,
+    the success rate and the utility per task with their intervals."""
+    return terminal_table(
+        ["Schedule", "Selector", "Tasks", "Success", "Utility"],
+        [[e["schedule"], e["selector"], str(e["tasks"]),
+          format_ci(e["success"], e["success_low"], e["success_high"]),
+          format_ci(e["utility"], e["utility_low"], e["utility_high"])] for e in summary])
 
 
 def sequence_markdown(summary: Sequence[Mapping[str, Any]], confidence: float = 0.95) -> str:

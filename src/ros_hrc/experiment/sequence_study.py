@@ -19,11 +19,13 @@ import io
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
+from ros_hrc.command_line import counted
 from ros_hrc.experiment.arguments import say_one_line
 from ros_hrc.experiment.plots import NothingToPlot, plot_learning_curves
-from ros_hrc.experiment.pool import finish_run, run_stoppable
+from ros_hrc.experiment.pool import finish_run, run_stoppable, say_written
 from ros_hrc.experiment.sequence_rows import SequenceStore
-from ros_hrc.experiment.sequence_statistics import (learning_curve, summarize_sequences,
+from ros_hrc.experiment.sequence_statistics import (learning_curve, sequence_headline,
+                                                    summarize_sequences,
                                                     write_sequence_summary)
 from ros_hrc.experiment.sequences import cell_humans, plan_sequence_cells, tasks_of
 from ros_hrc.pomdp.output import write_text_atomically
@@ -47,9 +49,10 @@ def run_sequences(args: argparse.Namespace, out: Path, words: Sequence[str], pro
     cells = plan_sequence_cells(args, store.done())
     grid = grid_size(args)
     todo = sum(len(c.episodes) for c in cells)
-    print(f"{program}: {grid // (len(args.seeds) * args.episodes)} cells (schedules x "
-          f"selectors) x {len(args.seeds)} seeds x {args.episodes} sequences of "
-          f"{args.sequence} tasks = {grid} sequences ({grid * args.sequence} tasks); "
+    print(f"{program}: {counted(grid // (len(args.seeds) * args.episodes), 'cell')} "
+          f"(schedules x selectors) x {counted(len(args.seeds), 'seed')} x "
+          f"{counted(args.episodes, 'sequence')} of {counted(args.sequence, 'task')} = "
+          f"{counted(grid, 'sequence')} ({counted(grid * args.sequence, 'task')}); "
           f"{grid - todo} already in {out}, {todo} to run ({tasks_of(cells)} tasks)"
           + (f", on {min(args.jobs, len(cells) or 1)} stacks side by side"
              if args.cluster is None else f", on the Ray cluster --cluster {args.cluster}"),
@@ -66,10 +69,12 @@ def run_sequences(args: argparse.Namespace, out: Path, words: Sequence[str], pro
               f"{figures['wall_seconds']:.1f} s: {figures['tasks_per_minute']:.1f} tasks/min, "
               f"{figures['simulated_seconds']:.1f} simulated s, speed-up over real time "
               f"x{figures['speedup_over_real_time']:.1f}", flush=True)
-    def write_report() -> None:
+    def write_report(written: List[Path]) -> None:
         if report:
             report_sequences(store, out, plots=not args.no_plots, program=program,
-                             base=authors_base(args))
+                             base=authors_base(args), written_before=written)
+        elif written:
+            say_written(program, out, written)
     return finish_run(program, figures, store, out, words, write_report)
 
 
@@ -93,7 +98,7 @@ def authors_base(args) -> Optional[str]:
 
 
 def report_sequences(store: SequenceStore, out: Path, plots: bool, program: str,
-                     base: Optional[str] = None) -> None:
+                     base: Optional[str] = None, written_before: Sequence[Path] = ()) -> None:
     """The summary (CSV and Markdown; every selector also against ``base``, the authors'
     policy), the learning curve (CSV, and its plot unless not ``plots``) of everything
     recorded in ``out``."""
@@ -103,19 +108,20 @@ def report_sequences(store: SequenceStore, out: Path, plots: bool, program: str,
         return
     summary = summarize_sequences(tasks, base=base)
     csv_path, md_path = write_sequence_summary(summary, out / "summary.csv", out / "summary.md")
-    print(Path(md_path).read_text())
+    print(sequence_headline(summary))
+    print(f"{program}: the whole summary (identification, paired tests): {md_path}")
     curve = learning_curve(tasks)
     curve_path = out / "learning_curve.csv"
     write_text_atomically(curve_path, _csv(curve))
-    written = [store.episodes_path, store.steps_path, str(csv_path), str(md_path),
-               str(curve_path)]
+    written = [store.episodes_path, store.steps_path, *written_before, csv_path, md_path,
+               curve_path]
     if plots:
         best = {e["schedule"]: e["best_fixed"] for e in summary if e["best_fixed"]}
         try:
             written.append(plot_learning_curves(curve, out / "learning_curve.png", best))
         except NothingToPlot as why:
             print(f"{program}: learning_curve.png left out: {str(why).split(': ', 1)[-1]}")
-    print(f"{program}: written " + ", ".join(str(p) for p in written))
+    say_written(program, out, written)
 
 
 def _csv(entries: List[Dict]) -> str:

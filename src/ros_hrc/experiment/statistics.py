@@ -517,6 +517,28 @@ def markdown(summary: Sequence[Mapping[str, Any]]) -> str:
         ""])
 
 
+def terminal_table(headers: Sequence[str], rows: Iterable[Sequence[str]],
+                   text_columns: int = 2) -> str:
+    """A table for the terminal (tabulate's ``simple`` format), aligned as
+    :func:`markdown_table`."""
+    return _table(headers, rows, text_columns, "simple")
+
+
+def headline(summary: Sequence[Mapping[str, Any]]) -> str:
+    """What the terminal shows of a summary: per human model and robot policy, the episodes,
+    the success rate and its interval, the human alone's successes and the time gain; the rest
+    is in the summary's files."""
+    levels = {entry["confidence"] for entry in summary} or {0.95}
+    level = "/".join(f"{100 * c:g} %" for c in sorted(levels))
+    return terminal_table(
+        ["Human model", "Robot policy", "n", f"Success [{level} CI]", "Alone",
+         "Time gain (s, median)"],
+        [[str(e["human_model"]), str(e["robot_policy"]), str(e["n"]),
+          format_ci(e["success_rate"], e["success_low"], e["success_high"]),
+          str(e["alone_successes"]), _number(e["time_gain_median"], signed=True)]
+         for e in summary])
+
+
 def write_summary(summary: Sequence[Mapping[str, Any]], csv_path: Union[str, os.PathLike],
                   markdown_path: Union[str, os.PathLike]) -> Tuple[str, str]:
     """Write the :func:`summarize` output as a CSV (every number, full precision) and as

@@ -31,7 +31,7 @@ from typing import List, Optional, Sequence
 from ros_hrc import settings, tasks
 from ros_hrc.agents.selector_model import (TrainingTask, from_tasks, load_selector_model,
                                            write_selector_model)
-from ros_hrc.command_line import own_arguments
+from ros_hrc.command_line import counted, own_arguments
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
                                           file_error_line, names_argument, say_one_line)
@@ -160,8 +160,9 @@ def main(argv: Optional[list] = None) -> int:
         _say(f"warning: seeds {','.join(map(str, shared))} are the study's too; "
              "hrc_experiment will refuse this model's selectors on them")
     policies = [s[len(FIXED) + 1:] for s in study.selectors]
-    print(f"{NAME}: {len(types)} types x {len(policies)} policies x {len(args.seeds)} seeds x "
-          f"{args.tasks_per_pair} tasks into {args.runs}, then the model to {out}", flush=True)
+    print(f"{NAME}: {counted(len(types), 'type')} x {counted(len(policies), 'policy', 'policies')} x "
+          f"{counted(len(args.seeds), 'seed')} x {counted(args.tasks_per_pair, 'task')} into "
+          f"{args.runs}, then the model to {out}", flush=True)
     if study.cluster is None:        # on a cluster, 0 is the cluster's slots
         study.jobs = study.jobs or os.cpu_count() or 1
     try:

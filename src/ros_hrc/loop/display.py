@@ -12,13 +12,9 @@ from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc import tasks
+from ros_hrc.command_line import counted  # noqa: F401  (the loop's lines count with it)
 from ros_hrc.pomdp.typed import ranked_types
 from ros_hrc.tasks.definition import Task
-
-
-def counted(number: int, noun: str) -> str:
-    """``1 step``, ``4 steps``: a count and its noun, singular for one."""
-    return f"{number} {noun}" if number == 1 else f"{number} {noun}s"
 
 
 @dataclass(frozen=True)

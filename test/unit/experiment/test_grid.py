@@ -233,7 +233,24 @@ def test_a_directory_is_locked_by_one_holder_at_a_time(tmp_path):
         assert info.value.pid == os.getpid()
         assert str(out) in str(info.value) and f"pid {os.getpid()}" in str(info.value)
     assert not lock.held
+    assert not (out / ".lock").exists()     # released: the directory holds results only
     lock_directory(out).release()     # free again
+    assert sorted(p.name for p in out.iterdir()) == []
+
+
+def test_a_lock_file_removed_as_another_opened_it_is_not_taken_by_both(tmp_path):
+    """The holder removes the file at its release, still locked: one that opened the old file
+    just before must not hold it as well as one that makes the new file."""
+    import fcntl
+
+    out = tmp_path / "out"
+    first = lock_directory(out)
+    stale = os.open(out / ".lock", os.O_RDWR)      # opened before the holder's release
+    first.release()
+    fcntl.flock(stale, fcntl.LOCK_EX | fcntl.LOCK_NB)   # the old, removed file: free
+    with lock_directory(out) as second:           # the path's new file
+        assert second.held and (out / ".lock").exists()
+    os.close(stale)
 
 
 def test_a_second_run_on_a_locked_directory_is_refused_touching_nothing(tmp_path, capsys):

@@ -8,7 +8,7 @@ import warnings
 
 import pytest
 
-from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_success
+from ros_hrc.experiment.plots import plot_belief, plot_outcomes, plot_success, plot_time_gain
 from ros_hrc.experiment.statistics import (POOLED, SUMMARY_COLUMNS, format_ci, mean_ci,
                                            proportion_ci, summarize, write_summary)
 from ros_hrc.experiment.rows import EPISODE_COLUMNS, STEP_COLUMNS, EpisodeRow, StepRow
@@ -305,6 +305,48 @@ def test_plot_belief_warns_when_runs_disagree_on_the_truth(tmp_path):
     rows += steps_of(episode(policy="reactive"), needs=(0, 0, 1, 1))
     with pytest.warns(ResultsWarning, match="disagree"):
         assert_png(plot_belief(rows, tmp_path / "b.png"))
+
+
+def drawn_figures(monkeypatch):
+    """The figures the plots save, kept (each is saved as before)."""
+    from ros_hrc.experiment import plots
+
+    figures, save = [], plots._save
+    monkeypatch.setattr(plots, "_save", lambda fig, path: (figures.append(fig), save(fig, path))[1])
+    return figures
+
+
+def inside(fig, artist):
+    box, frame = artist.get_window_extent(), fig.bbox
+    return frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1
+
+
+def test_a_plot_s_title_fits_its_figure_of_one_panel(tmp_path, monkeypatch):
+    """Issue #41: outcomes.png and time_gain.png of one or two human models cut their titles
+    at both edges."""
+    figures = drawn_figures(monkeypatch)
+    rows = [r for r in grid_rows() if r.human_model == "careful"]
+    plot_outcomes(summarize(rows), tmp_path / "outcomes.png")
+    plot_time_gain(rows, tmp_path / "time_gain.png")
+    for fig in figures:
+        fig.canvas.draw()
+        assert inside(fig, fig._suptitle), fig._suptitle.get_text()
+
+
+def test_policies_of_the_same_belief_each_show_in_the_belief_plot(tmp_path, monkeypatch):
+    """Issue #41: in belief.png one policy's line hid another's (the same beliefs step by
+    step): each line has its own dash and marker, the first drawn widest."""
+    figures = drawn_figures(monkeypatch)
+    rows = []
+    for policy in ("no_robot", "reactive", "pomdp"):
+        rows += steps_of(episode(policy=policy, number=1), beliefs=(0.1, 1.0, 1.0, 1.0))
+    plot_belief(rows, tmp_path / "belief.png")
+    lines = [line for line in figures[0].axes[0].get_lines() if len(line.get_xdata())]
+    assert len(lines) == 3
+    assert len({(str(line.get_linestyle()), line.get_marker()) for line in lines}) == 3
+    widths = [line.get_linewidth() for line in lines]
+    assert widths == sorted(widths, reverse=True) and widths[0] > widths[-1]
+    assert all(line.get_markerfacecolor() == "none" for line in lines)
 
 
 # ------------------------------------------------------------------ files that cannot be used
