@@ -50,7 +50,6 @@ from .camera import Matrices, camera_matrices, rgb, take_image, window_matrices
 from .client import PhysicsClient
 from .config import WorldConfig, default_model_dir
 from .outcome import Outcome, Reading
-from .png import write_png
 from .stage import build_stage
 from .tickets import ActionQueues, Channel, Ticket
 from .window import View, Window, WindowClosed, window_options
@@ -593,10 +592,13 @@ class World:
     def snapshot(self, path: Union[str, Path], width: Optional[int] = None,
                  height: Optional[int] = None) -> Path:
         """Write a PNG of the scene from the fixed camera to ``path``; returns the path."""
+        from PIL import Image   # on first use: few runs take a snapshot
+
         path = Path(path)
+        image = Image.fromarray(np.ascontiguousarray(self.render(width, height), np.uint8), "RGB")
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            write_png(path, self.render(width, height))
+            image.save(path, format="PNG")
         except OSError as error:
             raise SimulationError(f"cannot write the snapshot {path}: {error}") from error
         return path

@@ -1,13 +1,10 @@
-"""Pure helpers of the world: inverse kinematics, timing profile, rotations, PNG writing."""
+"""Pure helpers of the world: inverse kinematics, timing profile, rotations."""
 import math
-import struct
-import zlib
 
 import numpy as np
 import pytest
 
 from ros_hrc.world.geometry import angle_between, min_jerk, quat_to_matrix, two_link_ik, yaw_quaternion
-from ros_hrc.world.png import write_png
 
 
 def _forward(elevation, flex, upper, lower):
@@ -39,18 +36,3 @@ def test_yaw_quaternion_turns_x_towards_y():
     rotation = quat_to_matrix(yaw_quaternion(math.pi / 2))
     assert np.allclose(rotation @ [1, 0, 0], [0, 1, 0], atol=1e-12)
     assert angle_between([1, 0, 0], [0, 0, 2]) == pytest.approx(math.pi / 2)
-
-
-def test_png_writer_produces_a_decodable_image(tmp_path):
-    image = np.zeros((3, 4, 3), np.uint8)
-    image[1, 2] = (255, 10, 20)
-    path = tmp_path / "tiny.png"
-    write_png(path, image)
-    data = path.read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    width, height = struct.unpack(">II", data[16:24])
-    assert (width, height) == (4, 3)
-    idat_length = struct.unpack(">I", data[33:37])[0]
-    raw = zlib.decompress(data[41:41 + idat_length])
-    rows = np.frombuffer(raw, np.uint8).reshape(3, 1 + 4 * 3)
-    assert tuple(rows[1, 1 + 2 * 3:1 + 3 * 3]) == (255, 10, 20)

@@ -74,9 +74,14 @@ def test_state_is_plain_data(world):
 
 
 def test_snapshot_writes_a_png_headless(world, tmp_path):
+    from PIL import Image
+
     path = world.snapshot(tmp_path / "shots" / "scene.png", width=160, height=120)
     data = path.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000
+    with Image.open(path) as png:             # the rendered frame, pixel for pixel
+        assert (png.format, png.mode, png.size) == ("PNG", "RGB", (160, 120))
+        assert np.array_equal(np.asarray(png), world.render(160, 120))
     image = world.render(80, 60)
     assert image.shape == (60, 80, 3) and image.std() > 10  # not a blank frame
 
