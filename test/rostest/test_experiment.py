@@ -81,8 +81,9 @@ class TestExperiment(unittest.TestCase):
         with open(os.path.join(out, "outcomes.png"), "rb") as f:
             self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
         summary = open(os.path.join(out, "summary.md")).read()
-        self.assertIn("| expert | pomdp | reactive | 2 |", summary)   # against the best budget
-        self.assertIn("| expert | pomdp | no_robot | 2 |", summary)   # against the human alone
+        # (tabulate pads the cells)
+        self.assertRegex(summary, r"\| expert +\| pomdp +\| reactive +\| +2 \|")  # the best budget
+        self.assertRegex(summary, r"\| expert +\| pomdp +\| no_robot +\| +2 \|")  # the human alone
         self.assertIn("p (McNemar)", summary)
         self.assertIn("p (Wilcoxon)", summary)
         _, table = read_csv(os.path.join(out, "summary.csv"))
@@ -92,6 +93,14 @@ class TestExperiment(unittest.TestCase):
             self.assertTrue(0.0 <= float(pomdp[column]) <= 1.0, (column, pomdp[column]))
         self.assertIn("episodes/min", first.stdout)
         self.assertIn("speed-up over real time", first.stdout)
+        # The run's end: the headline, not the whole summary; every file written listed; no lock.
+        self.assertNotIn("## Paired comparisons", first.stdout)
+        written = [line for line in first.stdout.splitlines()
+                   if line.startswith(f"hrc_experiment: written in {out}: ")]
+        self.assertEqual(len(written), 1, first.stdout[-3000:])
+        for name in ("run.json", "summary.md", "success.png", "logs/"):
+            self.assertIn(name, written[0])
+        self.assertFalse(os.path.exists(os.path.join(out, ".lock")))
 
         # The same command again: everything is recorded, nothing runs, nothing is doubled.
         again = run_experiment(out)
