@@ -87,7 +87,8 @@ from ros_hrc.model_files import user_path
 from ros_hrc.pomdp.output import check_writable, write_text_atomically
 from ros_hrc.pomdp.fit import ExperienceCounts, fit_model, support_lines, write_fitted
 from ros_hrc.pomdp.model import Model
-from ros_hrc.pomdp.typed import check_type_name, compose
+from ros_hrc.pomdp.type_names import check_type_name
+from ros_hrc.pomdp.typed import compose
 from ros_hrc.tasks.utility import utility_rewards
 
 NAME = "hrc_fit"

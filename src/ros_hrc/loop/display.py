@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc import tasks
-from ros_hrc.pomdp.typed import ranked_types
+from ros_hrc.pomdp.type_names import ranked_types
 from ros_hrc.tasks.definition import Task
 
 

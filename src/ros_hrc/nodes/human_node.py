@@ -97,7 +97,7 @@ from ros_hrc import settings, tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
                                       WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig)
 from ros_hrc.loop.display import STEP_BLOCK_TYPES, action_values_text, learnt_text, task_line
-from ros_hrc.pomdp.typed import ranked_types
+from ros_hrc.pomdp.type_names import ranked_types
 from ros_hrc.loop.effects import (DECISION_IN_REPORT, ReactionRequest, STEP_TIMINGS, StepReport,
                                   StepRequest, TaskStatusReport)
 from ros_hrc.loop.runner import LoopRunner, ReportPort

@@ -87,7 +87,8 @@ from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
 from ros_hrc.pomdp.planner import Planner, PolicyPlanner
 from ros_hrc.pomdp.policy import load as load_policy
-from ros_hrc.pomdp.typed import TypeLayout, ranked_types
+from ros_hrc.pomdp.type_names import ranked_types
+from ros_hrc.pomdp.typed import TypeLayout
 from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of, selector_of
 from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
