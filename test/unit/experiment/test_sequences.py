@@ -271,27 +271,33 @@ def test_the_paired_tests_pair_the_same_tasks_and_are_scipys():
 
 
 def test_the_summary_sets_every_selector_against_the_best_fixed_policy_and_the_oracle():
-    rows = []
+    # Each task's utility a little jittered: no two differences of a pair of selectors tie,
+    # so SciPy's Wilcoxon takes its exact table at 12 pairs, not a permutation test of every
+    # sign (about 2 s of CPU a call with ties).
+    jitter = np.random.default_rng(0)
+    rows, played = [], {}
     for seed in (0, 1):
         for human in ("expert", "novice"):
-            rows += tasks_of_sequence("fixed:base", seed, 0, [0.2, 0.3, 0.1], schedule=human)
-            rows += tasks_of_sequence("fixed:policy3", seed, 0, [0.4, 0.5, 0.6],
-                                      schedule=human)
-            rows += tasks_of_sequence("oracle", seed, 0, [0.8, 0.7, 0.9], schedule=human)
-            rows += tasks_of_sequence("bpr", seed, 0, [-0.2, 0.6, 0.8], schedule=human)
+            for selector, utilities in (("fixed:base", [0.2, 0.3, 0.1]),
+                                        ("fixed:policy3", [0.4, 0.5, 0.6]),
+                                        ("oracle", [0.8, 0.7, 0.9]),
+                                        ("bpr", [-0.2, 0.6, 0.8])):
+                mine = list(utilities + jitter.uniform(0, 0.01, 3))
+                played.setdefault(selector, []).extend(mine)
+                rows += tasks_of_sequence(selector, seed, 0, mine, schedule=human)
     summary = summarize_sequences(rows, base="fixed:base")
     by = {(e["schedule"], e["selector"]): e for e in summary}
     assert {s for s, _ in by} == {"expert", "novice", "per-type (pooled)"}
     pooled = by[("per-type (pooled)", "bpr")]
     assert pooled["tasks"] == 12 and pooled["best_fixed"] == "fixed:policy3"
     assert pooled["vs_best_fixed_pairs"] == 12 and pooled["vs_oracle_pairs"] == 12
-    assert pooled["utility"] == pytest.approx(np.mean([-0.2, 0.6, 0.8]))
+    assert pooled["utility"] == pytest.approx(np.mean(played["bpr"]))
     # Against the authors' base too: beating it is not beating the best fixed policy.
     assert pooled["vs_base_pairs"] == 12 and pooled["base"] == "fixed:base"
     assert pooled["vs_base_utility_mean_diff"] == pytest.approx(
-        np.mean([-0.2, 0.6, 0.8]) - np.mean([0.2, 0.3, 0.1]))
+        np.mean(played["bpr"]) - np.mean(played["fixed:base"]))
     assert pooled["vs_best_fixed_utility_mean_diff"] == pytest.approx(
-        np.mean([-0.2, 0.6, 0.8]) - np.mean([0.4, 0.5, 0.6]))
+        np.mean(played["bpr"]) - np.mean(played["fixed:policy3"]))
     assert by[("expert", "fixed:base")]["vs_base_pairs"] == 0
     # Nobody is compared with itself; every q is at least its p.
     assert by[("expert", "oracle")]["vs_oracle_pairs"] == 0
