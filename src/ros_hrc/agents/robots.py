@@ -52,6 +52,7 @@ the policy needs is refused with a ValueError naming it. No ROS, no PyBullet.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Dict, Iterable, Optional
 
 import numpy as np
@@ -272,10 +273,15 @@ def _rules_reactive(task_: Task, model: Model, budget: int, wait: float,
     return ReactivePlanner(model, ReactiveConfig(budget=budget), seed=seed)
 
 
+def _reactive_mdp_file(task_: Task) -> Path:
+    """The file of the reactive MDP the task's ``mdp`` reactive robot acts by."""
+    return resolve_model(fabric_reactive.REACTIVE_MDP_MODEL, "robot", task_.model_dirs["robot"])
+
+
 def _mdp_reactive(task_: Task, model: Model, budget: int, wait: float,
                      seed: Optional[int]) -> BeliefPlanner:
-    path = resolve_model(fabric_reactive.REACTIVE_MDP_MODEL, "robot", task_.model_dirs["robot"])
-    return ReactiveMdpPlanner(model, load_model(path), ReactiveMdpConfig(wait=wait), seed=seed)
+    return ReactiveMdpPlanner(model, load_model(_reactive_mdp_file(task_)),
+                              ReactiveMdpConfig(wait=wait), seed=seed)
 
 
 #: The reactive robots (``planner:=reactive``) by their kind, a task's ``reactive_robot``: the
@@ -285,6 +291,15 @@ REACTIVE_ROBOTS: Dict[str, Callable[..., BeliefPlanner]] = {
     "rules": _rules_reactive,
     "mdp": _mdp_reactive,
 }
+
+
+def reactive_robot_model(task_: Task) -> str:
+    """What the task's reactive robot acts by, where a report names a policy's robot model
+    (``/hrc/task_status.robot_model``): the reactive MDP's file (fabric's), else the robot by
+    its name and kind (the seed's: ``reactive (rules)``); "" for a task without one."""
+    if task_.reactive_robot == "mdp":
+        return str(_reactive_mdp_file(task_))
+    return f"reactive ({task_.reactive_robot})" if task_.reactive_robot else ""
 
 
 def reactive_planner(task_: Task, model: Model, budget: int = DEFAULT_REACTIVE_BUDGET,

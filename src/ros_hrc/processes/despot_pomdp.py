@@ -90,7 +90,8 @@ from ros_hrc.pomdp.policy import load as load_policy
 from ros_hrc.pomdp.type_names import ranked_types
 from ros_hrc.pomdp.typed import TypeLayout
 from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of, selector_of
-from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
+from ros_hrc.agents.robots import (ExplorePlanner, NoRobotConfig, NoRobotPlanner,
+                                   reactive_planner, reactive_robot_model)
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
 from ros_hrc.tasks.definition import Task
@@ -246,6 +247,11 @@ class SequenceRobot:
         if self.selection is not None:
             return self.selection.spec
         return selector_of(self.learner.planning) if self.learner is not None else "fixed"
+
+    @property
+    def task_policy(self) -> Optional[str]:
+        """The policy that decides the task under way (None: no task has started)."""
+        return self.record.policy if self.record is not None else None
 
     def start_task(self, index: int, episode: int, true_type: str) -> str:
         """A reset starts task ``index`` (of episode ``episode``; its human ``true_type``):
@@ -451,6 +457,7 @@ class PomdpProcess:
                         type_names=list(layout.types) if type_belief is not None else None,
                         type_belief=type_belief.tolist() if type_belief is not None else None,
                         **figure_fields(self.sequence.figure if self.sequence else None),
+                        policy=self.sequence.task_policy if self.sequence else None,
                         epoch=msg.epoch, reply_to=msg.id)
 
     def on_task_end(self, msg: TaskEnd, peer: Peer) -> Message:
@@ -603,8 +610,9 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
     if not uses_library(args.selector):
         name = fixed_policy_name(args)
         agent = RobotAgent(model, planner, first_action=first, seed=args.seed)
+        acts_by = reactive_robot_model(task) if args.planner == "reactive" else model.source
         # The forgetting a model of human types carries its type belief across tasks with.
-        return SequenceRobot(task, {name: agent}, {name: model.source or ""}, seed=args.seed,
+        return SequenceRobot(task, {name: agent}, {name: acts_by or ""}, seed=args.seed,
                              forgetting=args.bpr_forgetting)
     selection = load_selection(args.selector, args.library, args.selector_model, task)
     agents: Dict[str, RobotAgent] = {}
@@ -617,7 +625,10 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
             str(policy.robot_model), task)
         agents[policy.name] = RobotAgent(pmodel, build_planner(pmodel, pargs),
                                          first_action=first, seed=args.seed)
-        files[policy.name] = str(policy.robot_model or "")
+        # What the reports name as its model: its file; the reactive robot's own (its MDP's
+        # file, or its name), not the belief model it keeps.
+        files[policy.name] = str(policy.robot_model) if policy.robot_model is not None else (
+            reactive_robot_model(task) if policy.planner == "reactive" else "")
         options = ", ".join(f"{k} {v}" for k, v in policy.options.items())
         print(f"{NAME}: policy {policy.name}: planner {policy.planner}"
               f"{', ' + shown_model(policy.robot_model) if policy.robot_model else ''}"
