@@ -42,7 +42,8 @@ from ros_hrc import tasks
 from ros_hrc.tasks import fabric_reactive
 from ros_hrc.tasks.schedule import ScheduleError, parse_schedule
 from ros_hrc.errors import HrcError
-from ros_hrc.streams import LIVE, EpisodeSchedule
+from ros_hrc.pomdp import despot_parameters
+from ros_hrc.streams import LIVE, MAX_SEED, EpisodeSchedule
 from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
@@ -332,6 +333,13 @@ def _s(name: str, kind: str, default: Any, doc: str, **more: Any) -> Setting:
     return Setting(name, kind, default, doc, **more)
 
 
+def _despot(name: str) -> Setting:
+    """The setting of DESPOT's parameter ``name``: its definition's kind, default, doc and
+    limits (ros_hrc.pomdp.despot_parameters)."""
+    fields = despot_parameters.setting_fields(name)
+    return _s(name, fields.pop("kind"), fields.pop("default"), fields.pop("doc"), **fields)
+
+
 def _port(name: str, default: int, doc: str) -> Setting:
     return _s(name, "int", default, doc, minimum=1, maximum=65535)
 
@@ -372,7 +380,7 @@ _TABLE: Tuple[Setting, ...] = (
            "type it (or call /hrc/set_human_state)", choices=("auto", "manual")),
         _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
         _s("seed", "int", 0, "random seed of the world and both solvers: same seed, same run",
-           minimum=0, maximum=INT32_MAX),
+           minimum=0, maximum=MAX_SEED),
         _s("use_sim_time", "bool", False,
            "the world publishes /clock and every node runs on simulated time"),
         # (a factor below 0.001 would have the world sleep longer than a clock can count)
@@ -460,16 +468,8 @@ _TABLE: Tuple[Setting, ...] = (
         _s("policy_file", "file", "",
            "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that "
            "planner (none: no file)"),
-        _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision (0: none, the "
-           "decision is bounded by max_trials alone, the same on any machine: experiments)",
-           minimum=0, maximum=60, smallest_nonzero=0.001, unit="s"),
-        _s("scenarios", "int", 500, "DESPOT's number of sampled scenarios K", minimum=1,
-           maximum=100000),
-        _s("depth", "int", 90, "DESPOT's maximum search depth", minimum=1, maximum=1000),
-        _s("lambda", "float", 0.1, "DESPOT's regularisation constant", minimum=0,
-           maximum=1000),
-        _s("max_trials", "int", 0, "cap on DESPOT trials per decision (0: time only; set it "
-           "for reproducible runs)", minimum=0, maximum=INT32_MAX),
+        # DESPOT's: defined once, with their limits, in ros_hrc.pomdp.despot_parameters.
+        *(_despot(name) for name in despot_parameters.SETTING_NAMES),
         _s("reactive_budget", "int", 8, "planner:=reactive of task seed helps after this many "
            "steps since the reset without the human getting the object (0: never for that "
            "reason)", minimum=0, maximum=INT32_MAX),

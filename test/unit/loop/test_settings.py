@@ -131,7 +131,7 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("depth", "0", "depth:=0: must be an integer from 1 to 1000"),
     # a server that never cut off a client that stopped reading would hold its frames for good
     ("link_read_timeout", "0", "link_read_timeout:=0: must be a number > 0 and <= 3600 (s)"),
-    ("lambda", "-0.1", "lambda:=-0.1: must be a number from 0 to 1000"),
+    ("lambda", "-0.1", "lambda:=-0.1: must be a number from 0 to 1000000"),
     ("max_trials", "-1", "max_trials:=-1: must be an integer from 0 to 2147483647"),
     ("reactive_budget", "-2", "reactive_budget:=-2: must be an integer from 0 to 2147483647"),
     ("max_steps", "-1", "max_steps:=-1: must be an integer from 0 to 2147483647"),
