@@ -3,8 +3,8 @@
 ``hrc.launch`` (through ``hrc_check``), the command-line programs, the nodes and
 ``hrc_experiment`` read their defaults from :data:`SETTINGS` and check values with
 :func:`parse`, so a value means the same thing, and is refused the same way, whichever entry
-point it comes through. The table is the only place a default is written: hrc.launch's
-``<arg>`` lines and the reference ``docs/settings.md`` are written from it
+point it comes through. The table is the only place a default is written: hrc.launch's and
+world.launch's ``<arg>`` lines and the reference ``docs/settings.md`` are written from it
 (``python tools/make_settings_files.py``; a unit test fails when either differs), and a module
 whose parameter is a setting takes its default with :func:`default`.
 
@@ -48,7 +48,7 @@ from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
            "add_argument", "use_as_defaults", "TRUE_WORDS", "FALSE_WORDS", "AUTO_WORD",
-           "NO_FILE_WORD", "INT32_MAX"]
+           "NO_FILE_WORD", "INT32_MAX", "WORLD_SETTINGS"]
 
 TRUE_WORDS = ("true", "1", "yes", "on")
 FALSE_WORDS = ("false", "0", "no", "off")
@@ -117,6 +117,9 @@ class Setting:
     launch_expression: Optional[str] = None
     #: An argument of hrc.launch (False: of world.launch alone).
     in_hrc_launch: bool = True
+    #: world.launch's doc, where the table's speaks of what the world alone does not run
+    #: (None: the table's).
+    world_doc: Optional[str] = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -363,8 +366,8 @@ def _model_doc(kind: str, noun: str, suffixes: str) -> str:
             f"path; auto (or empty): the task's default ({defaults})")
 
 
-#: The only place a default is written: hrc.launch's ``<arg>`` lines and docs/settings.md are
-#: made from it (tools/make_settings_files.py; a unit test fails when they differ), and the
+#: The only place a default is written: hrc.launch's and world.launch's ``<arg>`` lines and
+#: docs/settings.md are made from it (tools/make_settings_files.py; a unit test fails when they differ), and the
 #: programs, nodes and modules that need a default ask :func:`default`.
 _TABLE: Tuple[Setting, ...] = (
     *_group(
@@ -377,10 +380,13 @@ _TABLE: Tuple[Setting, ...] = (
            "(the manual's) or fabric (the seed authors' successor: a human who reacts to the "
            "robot)", choices=tasks.TASK_NAMES),
         _s("mode", "choice", "auto", "auto: the MDP picks the human's next state; manual: you "
-           "type it (or call /hrc/set_human_state)", choices=("auto", "manual")),
+           "type it (or call /hrc/set_human_state)", choices=("auto", "manual"),
+           world_doc="the loop's mode, as hrc.launch passes it: manual makes "
+                     "pause_when_idle:=auto freeze the world while someone types a state"),
         _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
         _s("seed", "int", 0, "random seed of the world and both solvers: same seed, same run",
-           minimum=0, maximum=MAX_SEED),
+           minimum=0, maximum=MAX_SEED,
+           world_doc="random seed of the world: same seed and same calls, same run"),
         _s("use_sim_time", "bool", False,
            "the world publishes /clock and every node runs on simulated time"),
         # (a factor below 0.001 would have the world sleep longer than a clock can count)
@@ -540,6 +546,13 @@ _TABLE: Tuple[Setting, ...] = (
 #: Every launch argument (hrc.launch's, and world.launch's publish_rate), by name, in the
 #: table's order: hrc.launch's.
 SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
+
+#: The arguments of world.launch (the world alone: no loop, no solvers), in the table's order;
+#: its <arg> lines are written from the table (tools/make_settings_files.py) and its pre-flight
+#: (``hrc_check --world``) is given each of them.
+WORLD_SETTINGS: Tuple[str, ...] = tuple(name for name in SETTINGS if name in (
+    "task", "mode", "gui", "seed", "use_sim_time", "real_time_factor", "pause_when_idle",
+    "belt_speed", "away_time", "viz", "rviz", "snapshot_dir", "camera_rate", "publish_rate"))
 
 #: The selectors of ``selector:=`` (``fixed`` also as ``fixed:POLICY``); the robot process
 #: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
