@@ -44,7 +44,7 @@ from ros_hrc.tasks.schedule import ScheduleError, parse_schedule
 from ros_hrc.errors import HrcError
 from ros_hrc.pomdp import despot_parameters
 from ros_hrc.streams import LIVE, MAX_SEED, EpisodeSchedule
-from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, user_path
+from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, ros_home, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
            "add_argument", "use_as_defaults", "TRUE_WORDS", "FALSE_WORDS", "AUTO_WORD",
@@ -61,6 +61,9 @@ NO_FILE_WORD = "none"
 #: The largest integer any setting may take: the ROS parameter server's ints are XML-RPC's
 #: 32-bit ones, and roslaunch fails with a traceback on a larger one.
 INT32_MAX = 2**31 - 1
+
+#: The snapshots' folder in $ROS_HOME when ``snapshot_dir`` is empty.
+SNAPSHOT_FOLDER = "hrc_snapshots"
 
 #: Setting kinds: how a value is read.
 KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes")
@@ -411,8 +414,8 @@ _TABLE: Tuple[Setting, ...] = (
         _s("rviz", "bool", False,
            "start RViz with launch/hrc.rviz (needs a display; implies viz)"),
         _s("snapshot_dir", "dir", "", "where /hrc/world/snapshot writes its PNGs (empty: "
-           "$ROS_HOME/hrc_snapshots); names are unique per run",
-           launch_expression="$(optenv ROS_HOME ~/.ros)/hrc_snapshots"),
+           f"$ROS_HOME/{SNAPSHOT_FOLDER}); names are unique per run",
+           launch_expression=f"$(optenv ROS_HOME ~/.ros)/{SNAPSHOT_FOLDER}"),
         _s("camera_rate", "float", 0.0, "rate of /hrc/camera/image, the snapshot renderer's "
            "view (0: off)", minimum=0, maximum=30, unit="Hz"),
         _s("publish_rate", "float", 10.0, "rate of /hrc/world_state while anyone subscribes "
@@ -614,7 +617,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     """Every setting, in table order: the given ones parsed, the others their defaults, then
     the checks that involve several (distinct ports, policy_file with planner:=policy) and the
     automatic ones (pause_when_idle: when real_time_factor is 0 or in manual mode; mdp_xterm:
-    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default). A model
+    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default; an empty
+    snapshot_dir: ``$ROS_HOME/hrc_snapshots``, ``environ``'s ROS_HOME). A model
     not given (or given empty or ``auto``) is the task's default (:mod:`ros_hrc.tasks`).
 
     Raises SettingError on the first problem; unknown names are refused, all of them named.
@@ -655,6 +659,9 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
                            "0 (no time budget) needs max_trials > 0 to bound the decision")
     if out["away_time"] is None:
         out["away_time"] = task.away_time
+    if not out["snapshot_dir"]:
+        # What the world would use: said where the configuration is printed (hrc_check).
+        out["snapshot_dir"] = str(ros_home(environ) / SNAPSHOT_FOLDER)
     _resolve_sequence(out, values, task)
     if out["rviz"]:
         out["viz"] = True    # RViz shows what viz publishes

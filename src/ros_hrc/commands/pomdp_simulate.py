@@ -69,6 +69,18 @@ def _check_simulate(args: argparse.Namespace) -> Optional[Tuple[str, str]]:
     return None
 
 
+def duration(ms: float) -> str:
+    """A duration of ``ms`` milliseconds in the unit that shows three significant digits
+    (``12.3 ms``, ``845 µs``, ``90.2 ns``); 0 is ``0 ms``."""
+    for unit, scale in (("s", 1e-3), ("ms", 1.0), ("µs", 1e3), ("ns", 1e6)):
+        value = ms * scale
+        if value >= 1.0 or unit == "ns":
+            break
+    if value == 0:
+        return "0 ms"
+    return f"{value:.3g} {unit}"
+
+
 def _batch_chooser(model: Model, args: argparse.Namespace, used: int):
     """(chooser, label) for the planners that only choose from the belief (a saved policy,
     --planner mdp), whose runs go all at once; (None, None) for DESPOT."""
@@ -193,8 +205,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
               f"({facts['ci95_low']:.6g}, {facts['ci95_high']:.6g})")
         print(f"  estimator      {args.estimator}: the mean of the runs' discounted sums of "
               f"{_ESTIMATOR_WORDS[args.estimator]}")
-        print(f"  time per step  {result.ms_per_step:.3f} ms (act p50 {result.ms_act_p50:.3f} "
-              f"ms, p99 {result.ms_act_p99:.3f} ms)")
+        # A saved policy's choice takes microseconds: a fixed "ms" with 3 decimals printed 0.000.
+        batch = "; the runs step together, each step's time shared among them" \
+            if result.batched else ""
+        print(f"  time per step  {duration(result.ms_per_step)} (act p50 "
+              f"{duration(result.ms_act_p50)}, p99 {duration(result.ms_act_p99)}{batch})")
         if result.zero_probability_events:
             print(f"  {result.zero_probability_events} observation(s) of probability zero: the "
                   "belief kept its prediction")

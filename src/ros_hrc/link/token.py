@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import Any, Dict, Mapping, Optional, Tuple
 
 from ros_hrc.errors import LinkError
+from ros_hrc.model_files import ros_home
 from ros_hrc.process_tree import parent_of
 
 #: The environment variable naming a token file, for a process run by hand.
@@ -66,12 +67,6 @@ _PROOF_FORMAT = "ros_hrc link|{role}|{port}|{who}|{nonce}"
 
 class TokenError(LinkError):
     """The link token cannot be made, found or read; one line saying which file and why."""
-
-
-def ros_home(environ: Optional[Mapping[str, str]] = None) -> Path:
-    """The directory ROS keeps per-user state in: ``$ROS_HOME``, or ``~/.ros`` without it."""
-    environ = os.environ if environ is None else environ
-    return Path(environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros"))
 
 
 def token_dir(environ: Optional[Mapping[str, str]] = None) -> Path:

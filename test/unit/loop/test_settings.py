@@ -289,10 +289,10 @@ def test_unknown_names_are_refused_naming_them():
 
 
 def test_resolve_fills_every_default_in_table_order():
-    config = settings.resolve({}, environ={})
+    config = settings.resolve({}, environ={"ROS_HOME": "/ros home"})
     assert list(config) == list(SETTINGS)
     expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False, away_time=0.0,
-                    task_timeout=80.0, tasks=0)
+                    task_timeout=80.0, tasks=0, snapshot_dir="/ros home/hrc_snapshots")
     assert config == expected
 
 
