@@ -40,7 +40,7 @@ from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.tasks import fabric_reactive
-from ros_hrc.tasks.schedule import ScheduleError, parse_schedule
+from ros_hrc.tasks.schedule import MAX_TASKS, ScheduleError, parse_schedule
 from ros_hrc.errors import HrcError
 from ros_hrc.pomdp import despot_parameters
 from ros_hrc.streams import LIVE, MAX_SEED, EpisodeSchedule
@@ -494,7 +494,7 @@ _TABLE: Tuple[Setting, ...] = (
         _s("tasks", "int", None, "play a sequence of this many tasks with one robot whose "
            "selector keeps what it learnt (the world reset between tasks, each ending by "
            "success, failure or timeout; /hrc/task_status per task); auto (or empty): no "
-           "sequence, episodes as on_episode_end says", minimum=1, maximum=INT32_MAX),
+           "sequence, episodes as on_episode_end says", minimum=1, maximum=MAX_TASKS),
         _s("schedule", "str", "", "which human plays which task of the sequence: auto (or "
            "empty): human_model every task; TYPE*K,TYPE2*K2,... (K tasks each, in order, repeated; "
            "TYPE>TYPE2*K drifts from TYPE to TYPE2 over the block); fabric (FABRIC's 10 humans "
