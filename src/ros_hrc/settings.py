@@ -3,8 +3,8 @@
 ``hrc.launch`` (through ``hrc_check``), the command-line programs, the nodes and
 ``hrc_experiment`` read their defaults from :data:`SETTINGS` and check values with
 :func:`parse`, so a value means the same thing, and is refused the same way, whichever entry
-point it comes through. The table is the only place a default is written: hrc.launch's
-``<arg>`` lines and the reference ``docs/settings.md`` are written from it
+point it comes through. The table is the only place a default is written: hrc.launch's and
+world.launch's ``<arg>`` lines and the reference ``docs/settings.md`` are written from it
 (``python tools/make_settings_files.py``; a unit test fails when either differs), and a module
 whose parameter is a setting takes its default with :func:`default`.
 
@@ -40,14 +40,15 @@ from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 from ros_hrc import tasks
 from ros_hrc.tasks import fabric_reactive
-from ros_hrc.tasks.schedule import ScheduleError, parse_schedule
+from ros_hrc.tasks.schedule import MAX_TASKS, ScheduleError, parse_schedule
 from ros_hrc.errors import HrcError
-from ros_hrc.streams import LIVE, EpisodeSchedule
-from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, user_path
+from ros_hrc.pomdp import despot_parameters
+from ros_hrc.streams import LIVE, MAX_SEED, EpisodeSchedule
+from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, ros_home, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
            "add_argument", "use_as_defaults", "TRUE_WORDS", "FALSE_WORDS", "AUTO_WORD",
-           "NO_FILE_WORD", "INT32_MAX"]
+           "NO_FILE_WORD", "INT32_MAX", "WORLD_SETTINGS"]
 
 TRUE_WORDS = ("true", "1", "yes", "on")
 FALSE_WORDS = ("false", "0", "no", "off")
@@ -60,6 +61,9 @@ NO_FILE_WORD = "none"
 #: The largest integer any setting may take: the ROS parameter server's ints are XML-RPC's
 #: 32-bit ones, and roslaunch fails with a traceback on a larger one.
 INT32_MAX = 2**31 - 1
+
+#: The snapshots' folder in $ROS_HOME when ``snapshot_dir`` is empty.
+SNAPSHOT_FOLDER = "hrc_snapshots"
 
 #: Setting kinds: how a value is read.
 KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes")
@@ -116,6 +120,9 @@ class Setting:
     launch_expression: Optional[str] = None
     #: An argument of hrc.launch (False: of world.launch alone).
     in_hrc_launch: bool = True
+    #: world.launch's doc, where the table's speaks of what the world alone does not run
+    #: (None: the table's).
+    world_doc: Optional[str] = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -332,6 +339,13 @@ def _s(name: str, kind: str, default: Any, doc: str, **more: Any) -> Setting:
     return Setting(name, kind, default, doc, **more)
 
 
+def _despot(name: str) -> Setting:
+    """The setting of DESPOT's parameter ``name``: its definition's kind, default, doc and
+    limits (ros_hrc.pomdp.despot_parameters)."""
+    fields = despot_parameters.setting_fields(name)
+    return _s(name, fields.pop("kind"), fields.pop("default"), fields.pop("doc"), **fields)
+
+
 def _port(name: str, default: int, doc: str) -> Setting:
     return _s(name, "int", default, doc, minimum=1, maximum=65535)
 
@@ -355,8 +369,8 @@ def _model_doc(kind: str, noun: str, suffixes: str) -> str:
             f"path; auto (or empty): the task's default ({defaults})")
 
 
-#: The only place a default is written: hrc.launch's ``<arg>`` lines and docs/settings.md are
-#: made from it (tools/make_settings_files.py; a unit test fails when they differ), and the
+#: The only place a default is written: hrc.launch's and world.launch's ``<arg>`` lines and
+#: docs/settings.md are made from it (tools/make_settings_files.py; a unit test fails when they differ), and the
 #: programs, nodes and modules that need a default ask :func:`default`.
 _TABLE: Tuple[Setting, ...] = (
     *_group(
@@ -369,10 +383,13 @@ _TABLE: Tuple[Setting, ...] = (
            "(the manual's) or fabric (the seed authors' successor: a human who reacts to the "
            "robot)", choices=tasks.TASK_NAMES),
         _s("mode", "choice", "auto", "auto: the MDP picks the human's next state; manual: you "
-           "type it (or call /hrc/set_human_state)", choices=("auto", "manual")),
+           "type it (or call /hrc/set_human_state)", choices=("auto", "manual"),
+           world_doc="the loop's mode, as hrc.launch passes it: manual makes "
+                     "pause_when_idle:=auto freeze the world while someone types a state"),
         _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
         _s("seed", "int", 0, "random seed of the world and both solvers: same seed, same run",
-           minimum=0, maximum=INT32_MAX),
+           minimum=0, maximum=MAX_SEED,
+           world_doc="random seed of the world: same seed and same calls, same run"),
         _s("use_sim_time", "bool", False,
            "the world publishes /clock and every node runs on simulated time"),
         # (a factor below 0.001 would have the world sleep longer than a clock can count)
@@ -397,8 +414,8 @@ _TABLE: Tuple[Setting, ...] = (
         _s("rviz", "bool", False,
            "start RViz with launch/hrc.rviz (needs a display; implies viz)"),
         _s("snapshot_dir", "dir", "", "where /hrc/world/snapshot writes its PNGs (empty: "
-           "$ROS_HOME/hrc_snapshots); names are unique per run",
-           launch_expression="$(optenv ROS_HOME ~/.ros)/hrc_snapshots"),
+           f"$ROS_HOME/{SNAPSHOT_FOLDER}); names are unique per run",
+           launch_expression=f"$(optenv ROS_HOME ~/.ros)/{SNAPSHOT_FOLDER}"),
         _s("camera_rate", "float", 0.0, "rate of /hrc/camera/image, the snapshot renderer's "
            "view (0: off)", minimum=0, maximum=30, unit="Hz"),
         _s("publish_rate", "float", 10.0, "rate of /hrc/world_state while anyone subscribes "
@@ -460,16 +477,8 @@ _TABLE: Tuple[Setting, ...] = (
         _s("policy_file", "file", "",
            "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that "
            "planner (none: no file)"),
-        _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision (0: none, the "
-           "decision is bounded by max_trials alone, the same on any machine: experiments)",
-           minimum=0, maximum=60, smallest_nonzero=0.001, unit="s"),
-        _s("scenarios", "int", 500, "DESPOT's number of sampled scenarios K", minimum=1,
-           maximum=100000),
-        _s("depth", "int", 90, "DESPOT's maximum search depth", minimum=1, maximum=1000),
-        _s("lambda", "float", 0.1, "DESPOT's regularisation constant", minimum=0,
-           maximum=1000),
-        _s("max_trials", "int", 0, "cap on DESPOT trials per decision (0: time only; set it "
-           "for reproducible runs)", minimum=0, maximum=INT32_MAX),
+        # DESPOT's: defined once, with their limits, in ros_hrc.pomdp.despot_parameters.
+        *(_despot(name) for name in despot_parameters.SETTING_NAMES),
         _s("reactive_budget", "int", 8, "planner:=reactive of task seed helps after this many "
            "steps since the reset without the human getting the object (0: never for that "
            "reason)", minimum=0, maximum=INT32_MAX),
@@ -485,7 +494,7 @@ _TABLE: Tuple[Setting, ...] = (
         _s("tasks", "int", None, "play a sequence of this many tasks with one robot whose "
            "selector keeps what it learnt (the world reset between tasks, each ending by "
            "success, failure or timeout; /hrc/task_status per task); auto (or empty): no "
-           "sequence, episodes as on_episode_end says", minimum=1, maximum=INT32_MAX),
+           "sequence, episodes as on_episode_end says", minimum=1, maximum=MAX_TASKS),
         _s("schedule", "str", "", "which human plays which task of the sequence: auto (or "
            "empty): human_model every task; TYPE*K,TYPE2*K2,... (K tasks each, in order, repeated; "
            "TYPE>TYPE2*K drifts from TYPE to TYPE2 over the block); fabric (FABRIC's 10 humans "
@@ -540,6 +549,13 @@ _TABLE: Tuple[Setting, ...] = (
 #: Every launch argument (hrc.launch's, and world.launch's publish_rate), by name, in the
 #: table's order: hrc.launch's.
 SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
+
+#: The arguments of world.launch (the world alone: no loop, no solvers), in the table's order;
+#: its <arg> lines are written from the table (tools/make_settings_files.py) and its pre-flight
+#: (``hrc_check --world``) is given each of them.
+WORLD_SETTINGS: Tuple[str, ...] = tuple(name for name in SETTINGS if name in (
+    "task", "mode", "gui", "seed", "use_sim_time", "real_time_factor", "pause_when_idle",
+    "belt_speed", "away_time", "viz", "rviz", "snapshot_dir", "camera_rate", "publish_rate"))
 
 #: The selectors of ``selector:=`` (``fixed`` also as ``fixed:POLICY``); the robot process
 #: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
@@ -601,7 +617,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     """Every setting, in table order: the given ones parsed, the others their defaults, then
     the checks that involve several (distinct ports, policy_file with planner:=policy) and the
     automatic ones (pause_when_idle: when real_time_factor is 0 or in manual mode; mdp_xterm:
-    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default). A model
+    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default; an empty
+    snapshot_dir: ``$ROS_HOME/hrc_snapshots``, ``environ``'s ROS_HOME). A model
     not given (or given empty or ``auto``) is the task's default (:mod:`ros_hrc.tasks`).
 
     Raises SettingError on the first problem; unknown names are refused, all of them named.
@@ -642,6 +659,9 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
                            "0 (no time budget) needs max_trials > 0 to bound the decision")
     if out["away_time"] is None:
         out["away_time"] = task.away_time
+    if not out["snapshot_dir"]:
+        # What the world would use: said where the configuration is printed (hrc_check).
+        out["snapshot_dir"] = str(ros_home(environ) / SNAPSHOT_FOLDER)
     _resolve_sequence(out, values, task)
     if out["rviz"]:
         out["viz"] = True    # RViz shows what viz publishes

@@ -102,29 +102,29 @@ class Episodes:
     def after_end(self, reason: str, steps: int, played_out: bool) -> Tuple[str, str]:
         """The episode ended for ``reason`` after ``steps`` steps: (what comes next:
         :data:`WAIT`, :data:`RESET` or :data:`CONTINUE`; the terminal's line saying so)."""
-        policy = self.config.on_episode_end
-        line = episode_over_line(self.number, reason, steps, policy,
+        on_end = self.config.on_episode_end
+        line = episode_over_line(self.number, reason, steps, on_end,
                                  self.config.episodes if played_out else None)
-        if played_out or policy == WAIT:
+        if played_out or on_end == WAIT:
             return WAIT, line
-        if policy == RESET:
+        if on_end == RESET:
             return RESET, line
         self.end_reported = True
         return CONTINUE, line
 
 
-def episode_over_line(episode: int, reason: str, steps: int, policy: str,
+def episode_over_line(episode: int, reason: str, steps: int, on_end: str,
                       played: Optional[EpisodeSchedule] = None) -> str:
     """What the terminal says, once, when an episode ends: how, after how many steps, and
-    what happens next by ``policy`` (the ``on_episode_end`` setting), or that the episodes
+    what happens next by ``on_end`` (the ``on_episode_end`` setting), or that the episodes
     asked for (``played``) are all played."""
     over = f"episode {episode} over ({reason}) after {counted(steps, 'step')}"
     if played is not None:
         return (f"{over}: the episodes asked for ({played.text()}) are all played: no reset "
                 "starts another")
-    if policy == "wait":
+    if on_end == WAIT:
         return (f"{over}: Enter (or `rosservice call /hrc/reset`) resets and starts the next, "
                 "or on_episode_end:=reset to go on by itself")
-    if policy == "reset":
+    if on_end == RESET:
         return f"{over}: the next starts now (on_episode_end:=reset)"
     return f"{over}: stepping goes on (on_episode_end:=continue)"

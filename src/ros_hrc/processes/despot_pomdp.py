@@ -71,13 +71,11 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from ros_hrc import tasks
-from ros_hrc.command_line import (parse_launch_options, print_whole_lines,
-                                  reread_launch_options)
+from ros_hrc.command_line import reread_launch_options
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Configure, Decision,
                                    DispatchTable, Message, Observation, Reset, TaskEnd,
                                    TaskReport, reply_error)
-from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc import settings
 from ros_hrc.models import load_robot_model, positional_mapping_line
@@ -93,6 +91,7 @@ from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of, sele
 from ros_hrc.agents.robots import (ExplorePlanner, NoRobotConfig, NoRobotPlanner,
                                    reactive_planner, reactive_robot_model)
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
+from ros_hrc.processes.solver_process import CANNOT_START, solver_parser, start_solver
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.schedule import nearest_type
@@ -533,12 +532,8 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=NAME, description="The robot's POMDP planner: a websocket "
-                                "server answering each observation with a decision.")
-    settings.add_argument(p, "task")
-    settings.add_argument(p, "robot_model", "--model")
-    settings.add_argument(p, "host")
-    settings.add_argument(p, "pomdp_port", "--port")
+    p = solver_parser(NAME, "The robot's POMDP planner: a websocket server answering each "
+                      "observation with a decision.", "robot_model", "pomdp_port")
     settings.add_argument(p, "link_read_timeout")
     settings.add_argument(p, "planner")
     settings.add_argument(p, "policy_file", "--policy")
@@ -549,14 +544,12 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "depth")
     settings.add_argument(p, "lambda", "--lambda", dest="lambda_")
     settings.add_argument(p, "max_trials")
-    settings.add_argument(p, "seed")
     settings.add_argument(p, "selector")
     settings.add_argument(p, "library")
     settings.add_argument(p, "selector_model")
     settings.add_argument(p, "bpr_forgetting")
     for name in settings.LEARNING_SETTINGS:
         settings.add_argument(p, name)
-    add_token_arguments(p)
     return p
 
 
@@ -659,18 +652,10 @@ def robot_line(model: Model, planner: Planner, args: argparse.Namespace) -> str:
 
 
 def main(argv: Optional[list] = None) -> int:
-    print_whole_lines()
-    args = parse_launch_options(build_parser(), argv)
-    try:
-        model, planner, sequence = build_robot(args)
-        token = launch_token(args)
-    except (HrcError, OSError, ValueError) as exc:
-        print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
-        if args.link_session and stop_launch(args.link_session):
-            # Respawned, it would fail the same way about once a second: stop the launch.
-            print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
-                  file=sys.stderr, flush=True)
-        return 2
+    started = start_solver(NAME, build_parser(), argv, build_robot)
+    if started is None:
+        return CANNOT_START
+    args, (model, planner, sequence), token = started
     process = PomdpProcess(next(iter(sequence.agents.values())), sequence, args, argv)
     server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,
                            read_timeout=args.link_read_timeout, token=token)

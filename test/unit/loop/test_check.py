@@ -224,6 +224,21 @@ def test_every_path_is_made_absolute_where_the_check_runs(tmp_path, monkeypatch,
     assert config["snapshot_dir"] == str(tmp_path / "shots")
 
 
+@pytest.mark.parametrize("world", [[], ["--world"]], ids=["hrc.launch", "world.launch"])
+def test_an_empty_snapshot_dir_is_printed_as_the_folder_it_stands_for(tmp_path, monkeypatch,
+                                                                       capsys, world):
+    """The doc says empty is $ROS_HOME/hrc_snapshots: the configuration printed says which."""
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "ros home"))
+    assert main(world + ["--no-port-check", "snapshot_dir:="]) == 0
+    config = yaml.safe_load(capsys.readouterr().out)
+    assert config["snapshot_dir"] == str(tmp_path / "ros home" / "hrc_snapshots")
+    monkeypatch.delenv("ROS_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert main(world + ["--no-port-check", "snapshot_dir:="]) == 0
+    assert yaml.safe_load(capsys.readouterr().out)["snapshot_dir"] == str(
+        tmp_path / ".ros" / "hrc_snapshots")
+
+
 def test_a_window_needs_a_display_that_answers(monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
     for name in ("gui", "rviz"):

@@ -5,7 +5,8 @@ import pytest
 from ros_hrc import settings, tasks
 from ros_hrc.model_files import model_names
 from ros_hrc.settings import SettingError
-from ros_hrc.tasks.schedule import (FABRIC_HUMANS, ScheduleError, TaskPlay, parse_schedule)
+from ros_hrc.tasks.schedule import (FABRIC_HUMANS, MAX_TASKS, ScheduleError, TaskPlay,
+                                     parse_schedule)
 from ros_hrc.tasks.utility import TaskOutcome, task_utility
 
 FABRIC_TYPES = model_names(tasks.get("fabric").model_dirs["human"])
@@ -69,6 +70,29 @@ def test_a_malformed_inline_block_is_one_line(text):
     assert "\n" not in str(info.value)
 
 
+def test_a_block_count_is_capped_as_tasks_is(tmp_path):
+    """``tasks:=`` stops at 2**31 - 1; a block count did not: beginner*99999999999999999999 was
+    accepted and played."""
+    top = settings.SETTINGS["tasks"].maximum
+    assert top == MAX_TASKS == 2**31 - 1
+    assert parse_schedule(f"tired*{top}", SEED_TYPES, "humanModel").blocks[0].tasks == top
+    for k in (str(top + 1), "99999999999999999999"):
+        with pytest.raises(ScheduleError) as info:
+            parse_schedule(f"expert,tired*{k}", SEED_TYPES, "humanModel")
+        assert str(info.value) == (f"block 2 'tired*{k}': K must be a whole number from 1 to "
+                                   f"{top} (the most tasks a sequence has, as tasks:=)")
+    path = tmp_path / "long.toml"
+    path.write_text(f'[[block]]\nhuman = "expert"\ntasks = {top + 1}\n')
+    with pytest.raises(ScheduleError, match=rf"{path}:1: tasks must be a whole number from 1 "
+                                            rf"to {top} .*not {top + 1}"):
+        parse_schedule(str(path), SEED_TYPES, "humanModel")
+    # through the launch's settings: one line naming the argument
+    with pytest.raises(SettingError) as info:
+        settings.resolve({"tasks": "3", "schedule": "beginner*99999999999999999999"})
+    assert str(info.value).startswith("schedule:=beginner*99999999999999999999: block 1 ")
+    assert f"from 1 to {top}" in str(info.value) and "\n" not in str(info.value)
+
+
 def test_a_schedule_file_gives_blocks_with_drift(tmp_path):
     path = tmp_path / "two.toml"
     path.write_text('[[block]]\nhuman = "expert"\ntasks = 2\n\n'
@@ -88,7 +112,7 @@ def test_a_schedule_file_error_names_the_file_and_line(tmp_path):
     with pytest.raises(ScheduleError, match=rf"{path}: not TOML: .*line 3"):
         parse_schedule(str(path), SEED_TYPES, "humanModel")
     path.write_text('[[block]]\nhuman = "expert"\ntasks = 0\n')
-    with pytest.raises(ScheduleError, match=rf"{path}:1: tasks must be a whole number >= 1"):
+    with pytest.raises(ScheduleError, match=rf"{path}:1: tasks must be a whole number from 1 to"):
         parse_schedule(str(path), SEED_TYPES, "humanModel")
     with pytest.raises(ScheduleError, match="cannot read it"):
         parse_schedule(str(tmp_path / "missing.toml"), SEED_TYPES, "humanModel")
