@@ -31,6 +31,7 @@ parameters; each other bound is what the setting's consumer takes.
 """
 from __future__ import annotations
 
+import difflib
 import ipaddress
 import math
 import os
@@ -38,7 +39,7 @@ import re
 from dataclasses import dataclass, replace
 from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
-from ros_hrc import tasks
+from ros_hrc import registry, tasks
 from ros_hrc.tasks import fabric_reactive
 from ros_hrc.tasks.schedule import ScheduleError, parse_schedule
 from ros_hrc.errors import HrcError
@@ -62,7 +63,8 @@ NO_FILE_WORD = "none"
 INT32_MAX = 2**31 - 1
 
 #: Setting kinds: how a value is read.
-KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes")
+KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes",
+         "registered")
 
 
 class SettingError(HrcError):
@@ -116,12 +118,18 @@ class Setting:
     launch_expression: Optional[str] = None
     #: An argument of hrc.launch (False: of world.launch alone).
     in_hrc_launch: bool = True
+    #: A ``registered`` setting's entry-point group (:mod:`ros_hrc.registry`): its values
+    #: are the names found there at run time, or ``module:Class``.
+    registry: str = ""
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"setting {self.name}: unknown kind {self.kind!r}")
         if self.kind == "choice" and not self.choices:
             raise ValueError(f"setting {self.name}: a choice needs choices")
+        if (self.kind == "registered") != bool(self.registry):
+            raise ValueError(f"setting {self.name}: a registered setting, and only one, "
+                             "names its registry")
 
     @property
     def flag(self) -> str:
@@ -175,6 +183,12 @@ class Setting:
             return "must be true or false (also 1/0, yes/no, on/off)"
         if self.kind == "choice":
             return f"must be one of {', '.join(self.choices or ())}"
+        if self.kind == "registered":
+            # Ours: what any machine has (docs written from it stay true); an installed
+            # package's are listed by the refusal itself (registry.check_name).
+            what = registry.WHAT[self.registry]
+            return (f"must be a {what} of ours ({', '.join(registry.BUILT_IN[self.registry])}),"
+                    f" an installed package's (docs/extending.md) or module:Class")
         if self.kind == "host":
             return "must be an IPv4 or IPv6 address or a host name"
         if self.kind == "model":
@@ -256,6 +270,16 @@ class Setting:
         if text not in (self.choices or ()):
             raise self._refuse(value)
         return text
+
+    def _parse_registered(self, value: Any) -> str:
+        """A name the registry knows now, or ``module:Class`` (imported by whoever builds it:
+        :func:`ros_hrc.registry.load`)."""
+        if not isinstance(value, str):
+            raise self._refuse(value, unparsable=True)
+        try:
+            return registry.check_name(self.registry, value)
+        except registry.RegistryError as exc:
+            raise SettingError(self.name, value, str(exc)) from None
 
     def _parse_episodes(self, value: Any) -> str:
         try:
@@ -452,11 +476,13 @@ _TABLE: Tuple[Setting, ...] = (
     *_group(
         "the robot (POMDP)",
         _s("start_pomdp", "bool", True, "start the POMDP process"),
-        _s("planner", "choice", "despot", "despot; policy with policy_file; reactive "
+        _s("planner", "registered", "despot", "despot; policy with policy_file; reactive "
            "(baseline: the task's reactive robot, rules on the current observation: seed's see "
            "reactive_budget, fabric's reactive MDP see reactive_wait); none (baseline: the "
            "robot never acts); explore (a uniformly random action each step, seeded: hrc_fit's "
-           "exploring robot)", choices=("despot", "policy", "reactive", "none", "explore")),
+           "exploring robot); or a planner of an installed package (its entry point in "
+           "ros_hrc.planners) or module:Class (docs/extending.md)",
+           registry=registry.PLANNERS),
         _s("policy_file", "file", "",
            "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that "
            "planner (none: no file)"),
@@ -495,7 +521,9 @@ _TABLE: Tuple[Setting, ...] = (
            "of the library), random, bpr (BPR-EI), bpr-pi (BPR-PI), bpr-fabric (FABRIC's "
            "BPR), bandit or oracle (told the true type); docs/selectors.md; or the robot "
            "that learns its human (robot_model its prior): pomdp_learning (root sampling), "
-           "pomdp_learning_mean (the posterior mean); docs/learning.md"),
+           "pomdp_learning_mean (the posterior mean); docs/learning.md; or a selector of an "
+           "installed package (its entry point in ros_hrc.selectors) or module:Class "
+           "(docs/extending.md)"),
         _s("library", "str", AUTO_WORD, "the policy library the selector chooses from: a "
            "manifest (library.toml) or a folder holding one; auto: the task's "
            "(models/fabric/library.toml, models/robot/library.toml)"),
@@ -541,16 +569,21 @@ _TABLE: Tuple[Setting, ...] = (
 #: table's order: hrc.launch's.
 SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
 
-#: The selectors of ``selector:=`` (``fixed`` also as ``fixed:POLICY``); the robot process
-#: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
-#: The learning robot's (ros_hrc.agents.learning): one robot whose model of the human is
-#: learnt, root-sampled or its posterior mean; it plans with DESPOT (planner:=despot).
+#: ``selector:=`` takes ``fixed`` (also as ``fixed:POLICY``), a selector of the registry
+#: (:mod:`ros_hrc.registry`, ``ros_hrc.selectors``: the robot process builds it with
+#: ros_hrc.agents.selectors.make_selector), or the learning robot's
+#: (ros_hrc.agents.learning): one robot whose model of the human is learnt, root-sampled or
+#: its posterior mean; it plans with DESPOT (planner:=despot).
 LEARNING_SELECTORS: Tuple[str, ...] = ("pomdp_learning", "pomdp_learning_mean")
 #: The learning robot's own settings (its prior strength, forgetting rate and draws).
 LEARNING_SETTINGS: Tuple[str, ...] = ("learning_strength", "learning_forgetting",
                                       "learning_draws")
-SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
-                              "oracle") + LEARNING_SELECTORS
+
+
+def selector_words() -> Tuple[str, ...]:
+    """The names ``selector:=`` takes now: fixed, the registry's selectors (ours and the
+    installed packages'), the learning robot's."""
+    return ("fixed",) + registry.names(registry.SELECTORS) + LEARNING_SELECTORS
 
 #: The settings a running stack can take in place (``/hrc/configure``, a warm stack's next
 #: cell: docs/experiments.md, "Warm stacks"): what its solver processes and its loop are built
@@ -665,15 +698,22 @@ def learning_planner_problem(selector: str, planner: str) -> str:
 
 def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: tasks.Task) -> None:
     """The sequence's settings (docs/sequences.md), checked together: a selector or a schedule
-    only with ``tasks``, a selector of :data:`SELECTORS`, a schedule whose types are the
+    only with ``tasks``, a selector of :func:`selector_words` (or module:Class), a schedule whose types are the
     task's (a schedule file's path made absolute), ``task_timeout`` auto: the task's;
     ``tasks`` not given is 0 once resolved (no sequence)."""
     selector = out["selector"]
     kind, sep, policy = selector.partition(":")
-    if kind not in SELECTORS or (sep and (kind != "fixed" or not policy.strip())):
+    if kind == "fixed" and sep and not policy.strip():
         raise SettingError("selector", values.get("selector"),
-                           f"must be one of {', '.join(SELECTORS)}, or fixed:POLICY (a policy "
-                           "of the library)")
+                           "fixed:POLICY needs a policy of the library after the colon")
+    if kind != "fixed" and selector not in LEARNING_SELECTORS and \
+            not registry.is_object_path(selector) and selector not in selector_words():
+        known = selector_words()
+        near = difflib.get_close_matches(selector, known, n=1)
+        hint = f"; did you mean {near[0]}?" if near else ""
+        raise SettingError("selector", values.get("selector"),
+                           f"unknown selector{hint} (known: {', '.join(known)}, fixed:POLICY "
+                           "(a policy of the library), or module:Class)")
     problem = learning_planner_problem(selector, out["planner"])
     if problem:
         raise SettingError("selector", values.get("selector"), problem)

@@ -34,7 +34,7 @@ from typing import (Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequ
                     Union)
 
 from ros_hrc.errors import HrcError
-from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
+from ros_hrc.experiment.episode import robot_policy
 from ros_hrc.experiment.rows import EpisodeRow, StepRow
 from ros_hrc.experiment.sequence_rows import SequenceRow, TaskRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
@@ -221,9 +221,8 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     else:
         try:
             planner = robot_policy(spec.robot_policy).planner
-        except KeyError:
-            raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
-                             f"{', '.join(ROBOT_POLICIES)}, reactive@N") from None
+        except KeyError as exc:
+            raise ValueError(str(exc)) from None
         episodes = EpisodeRanges.of(spec.episodes)
     values = {
         "human_model": spec.human_model_file or spec.human_model, "robot_model": spec.robot_model,

@@ -68,7 +68,7 @@ from functools import reduce
 from itertools import accumulate
 from operator import add
 from dataclasses import dataclass
-from typing import Dict, List, Optional
+from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 import numpy as np
 
@@ -300,6 +300,27 @@ class _QNode:
 
 class DespotPlanner(BeliefPlanner):
     """Online planner: ``reset``, then ``act`` / ``update`` in turn (see planner.Planner)."""
+
+    plans_on_model = True
+    #: The robot process's settings of its search (``lambda`` is the config's ``pruning``).
+    SETTINGS = ("time_per_step", "scenarios", "depth", "lambda", "max_trials")
+
+    @classmethod
+    def settings_used(cls, task: Any) -> Tuple[str, ...]:
+        return cls.SETTINGS
+
+    @classmethod
+    def from_settings(cls, model: Model, task: Any, values: Mapping[str, Any]
+                      ) -> "DespotPlanner":
+        """DESPOT with the settings' budget and shape; ``time_per_step`` 0: no time budget,
+        the trials alone bound the search (no clock read in a decision)."""
+        if values["time_per_step"] == 0 and not values["max_trials"]:
+            raise ValueError("--time-per-step 0 (no time budget) needs --max-trials > 0")
+        config = DespotConfig(scenarios=values["scenarios"], depth=values["depth"],
+                              pruning=values["lambda"],
+                              time_per_step=values["time_per_step"] or math.inf,
+                              max_trials=values["max_trials"] or None)
+        return cls(model, config, seed=values.get("seed"))
 
     def __init__(self, model: Model, config: Optional[DespotConfig] = None,
                  seed: Optional[int] = None, tables: Optional[DespotTables] = None,

@@ -144,8 +144,10 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("manual_share", "0", "manual_share:=0: must be a number > 0 and <= 1"),
     ("manual_share", "1.5", "manual_share:=1.5: must be a number > 0 and <= 1"),
     ("mode", "semi", "mode:=semi: must be one of auto, manual"),
-    ("planner", "bogus", "planner:=bogus: must be one of despot, policy, reactive, none, "
-     "explore"),
+    ("planner", "bogus", "planner:=bogus: unknown planner 'bogus' (known: despot, policy, reactive, none, "
+     "explore, or module:Class)"),
+    ("planner", "despt", "planner:=despt: unknown planner 'despt'; did you mean despot? (known: despot, "
+     "policy, reactive, none, explore, or module:Class)"),
     ("on_episode_end", "stop", "on_episode_end:=stop: must be one of wait, reset, continue"),
     ("human_choice", "greedy", "human_choice:=greedy: must be one of optimal, softmax, random"),
     ("gui", "maybe", "gui:=maybe: must be true or false (also 1/0, yes/no, on/off), got 'maybe'"),
