@@ -85,7 +85,12 @@ _OBJECT_PATH = re.compile(r"[A-Za-z_][\w]*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Za
 
 
 class RegistryError(ValueError):
-    """A name that finds nothing usable: one line (what was asked for, and why not)."""
+    """A name that finds nothing usable: one line (what was asked for, and why not);
+    ``reason`` is the why alone, for a caller whose line names the argument already."""
+
+    def __init__(self, message: str, reason: str = "") -> None:
+        super().__init__(message)
+        self.reason = reason or message
 
 
 def is_object_path(text: str) -> bool:
@@ -158,27 +163,28 @@ def load(group: str, text: str, kind: type, instance: bool = False) -> Any:
     else:
         declared = [ep for ep in entry_points(group) if ep.name == name]
         if len({ep.value for ep in declared}) > 1:
-            raise RegistryError(f"{what} {name!r} is declared more than once: "
-                                f"{'; '.join(_origin(ep) for ep in declared)}")
+            reason = (f"declared more than once: "
+                      f"{'; '.join(_origin(ep) for ep in declared)}")
+            raise RegistryError(f"{what} {name!r} is {reason}", reason)
         entry = declared[0]
         where = f"{name!r} ({_origin(entry)})"
     try:
         importlib.import_module(entry.module)
     except Exception as exc:    # whatever the researcher's module raises, said in one line
-        raise RegistryError(f"{what} {where}: cannot import {entry.module} "
-                            f"({type(exc).__name__}: {_one_line(exc)})") from None
+        reason = f"cannot import {entry.module} ({type(exc).__name__}: {_one_line(exc)})"
+        raise RegistryError(f"{what} {where}: {reason}", reason) from None
     try:
         found = entry.load()
     except AttributeError:
-        raise RegistryError(f"{what} {where}: module {entry.module} has no "
-                            f"{entry.attr}") from None
+        reason = f"module {entry.module} has no {entry.attr}"
+        raise RegistryError(f"{what} {where}: {reason}", reason) from None
     right = isinstance(found, kind) if instance else (isinstance(found, type)
                                                       and issubclass(found, kind))
     if not right:
         wanted = f"a {kind.__name__}" if instance else f"a subclass of {kind.__module__}." \
                                                        f"{kind.__qualname__}"
-        raise RegistryError(f"{what} {where}: {entry.attr} is not {wanted} (it is "
-                            f"{_shown(found)})")
+        reason = f"{entry.attr} is not {wanted} (it is {_shown(found)})"
+        raise RegistryError(f"{what} {where}: {reason}", reason)
     return found
 
 

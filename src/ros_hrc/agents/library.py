@@ -9,7 +9,8 @@ A library is a TOML manifest (``library.toml``)::
     [[policy]]
     name = "base"                         # letters, digits, _ . @ -: the selector names it so
     planner = "despot"                    # a planner: a value of the planner setting
-    model = "robot/base.pomdpx"           # the robot model, relative to this file's folder
+    model = "robot/base.pomdpx"           # the robot model, relative to this file's folder,
+                                          # or a name of the task's robot models ("robot")
 
     [[policy]]
     name = "reactive"
@@ -50,8 +51,8 @@ from ros_hrc import settings, tasks
 from ros_hrc.errors import HrcError
 from ros_hrc.pomdp.planner import planner_class
 from ros_hrc.registry import RegistryError
-from ros_hrc.model_files import MODELS_DIR, user_path
-from ros_hrc.models import load_robot_model, shown_path
+from ros_hrc.model_files import MODELS_DIR, names_a_file, user_path
+from ros_hrc.models import load_robot_model, model_path, shown_path
 from ros_hrc.tasks.definition import Task
 
 __all__ = ["LibraryPolicy", "PolicyLibrary", "LibraryError", "UnknownPolicy", "load_library",
@@ -297,7 +298,15 @@ def _robot_model(model: Any, planner: str, kind: type, label: str, index: int, f
     where = lines.of_policy(index, "model")
     if not isinstance(model, str) or not model.strip():
         raise LibraryError(f"{where}: {label}: model must be a file name, got {model!r}")
-    path = Path(_in_folder(model, folder))
+    if not names_a_file(model.strip()):
+        # A name, as robot_model:= takes one: the task's model of that name (a library kept
+        # outside the package names the shipped models so).
+        try:
+            path = model_path(model.strip(), "robot", which)
+        except HrcError as exc:
+            raise LibraryError(f"{where}: {label}: {_one_line(exc)}") from None
+    else:
+        path = Path(_in_folder(model, folder))
     try:
         load_robot_model(str(path), which)
     except HrcError as exc:

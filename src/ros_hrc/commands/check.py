@@ -153,11 +153,12 @@ def check_planner(config: Mapping[str, object]) -> None:
     declares, a module that does not import or a class of another kind is refused now, one
     line, before anything starts."""
     from ros_hrc.pomdp.planner import planner_class
+    from ros_hrc.registry import RegistryError
 
     try:
         planner_class(str(config["planner"]))
-    except ValueError as exc:
-        raise CheckError(f"planner:={config['planner']}: {exc}") from None
+    except RegistryError as exc:
+        raise CheckError(f"planner:={config['planner']}: {exc.reason}") from None
 
 
 def typed_value(config: Mapping[str, object], given: Mapping[str, str], name: str) -> str:

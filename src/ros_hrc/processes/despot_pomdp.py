@@ -497,7 +497,7 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
     try:
         kind = planner_class(args.planner)
     except RegistryError as exc:
-        raise ValueError(f"--planner {args.planner}: {exc}") from None
+        raise ValueError(f"--planner {args.planner}: {exc.reason}") from None
     return kind.from_settings(model, tasks.get(args.task), planner_settings(args))
 
 
@@ -607,7 +607,7 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
               f"{', ' + shown_model(policy.robot_model) if policy.robot_model else ''}"
               f"{', ' + options if options else ''}", flush=True)
     model_line = (f"selector model {shown_model(selection.model.path)}" if selection.model
-                  is not None and getattr(selection.model, "path", None) else "no selector model")
+                  is not None and selection.model.path else "no selector model")
     print(f"{NAME}: selector {args.selector} over {len(agents)} policies of "
           f"{shown_model(selection.library.manifest)}; {model_line}", flush=True)
     return SequenceRobot(task, agents, files, selection, seed=args.seed,

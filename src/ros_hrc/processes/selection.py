@@ -22,6 +22,7 @@ from ros_hrc.agents.selector_model import SelectorModel, load_selector_model
 from ros_hrc.agents.learning import planning_of
 from ros_hrc.agents.selectors import FIXED, Selector, make_selector, selector_class
 from ros_hrc.errors import HrcError
+from ros_hrc.registry import RegistryError
 from ros_hrc.model_files import user_path
 from ros_hrc.models import shown_path
 from ros_hrc.streams import stream_seed
@@ -73,8 +74,8 @@ def load_selection(selector: str, library: str, selector_model: str, task: Task)
         policy = ""           # the colon of module:Class
         try:
             needs_model = selector_class(spec).needs_model
-        except ValueError as exc:
-            raise SelectionError(f"selector:={selector}: {exc}") from None
+        except RegistryError as exc:
+            raise SelectionError(f"selector:={selector}: {exc.reason}") from None
     try:
         loaded = load_library(library, task)
     except HrcError as exc:
