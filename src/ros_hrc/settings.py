@@ -33,9 +33,11 @@ from __future__ import annotations
 
 import difflib
 import ipaddress
+import json
 import math
 import os
 import re
+import tomllib
 from dataclasses import dataclass, replace
 from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
@@ -483,6 +485,9 @@ _TABLE: Tuple[Setting, ...] = (
            "exploring robot); or a planner of an installed package (its entry point in "
            "ros_hrc.planners) or module:Class (docs/extending.md)",
            registry=registry.PLANNERS),
+        _s("planner_options", "str", "", "the planner's own options (its class's options: "
+           "docs/extending.md), NAME=VALUE pairs, comma-separated, each VALUE as TOML writes "
+           "it (0.2, 3, true, \"text\"); auto (or empty): its defaults"),
         _s("policy_file", "file", "",
            "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that "
            "planner (none: no file)"),
@@ -593,7 +598,7 @@ def selector_words() -> Tuple[str, ...]:
 IN_PLACE: FrozenSet[str] = frozenset((
     "human_model", "robot_model", "seed", "human_choice", "temperature", "manual_share",
     "step_delay", "max_steps", "on_episode_end", "end_on_goal", "episodes",
-    "wait_for_listener", "planner", "policy_file", "time_per_step", "scenarios", "depth",
+    "wait_for_listener", "planner", "planner_options", "policy_file", "time_per_step", "scenarios", "depth",
     "lambda", "max_trials", "reactive_budget", "reactive_wait", "tasks", "schedule",
     "selector", "library", "selector_model", "task_timeout", "bpr_forgetting",
     *LEARNING_SETTINGS))
@@ -673,6 +678,7 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     if out["time_per_step"] == 0 and out["max_trials"] == 0:
         raise SettingError("time_per_step", values.get("time_per_step", 0),
                            "0 (no time budget) needs max_trials > 0 to bound the decision")
+    planner_option_values(out["planner_options"])
     if out["away_time"] is None:
         out["away_time"] = task.away_time
     _resolve_sequence(out, values, task)
@@ -686,6 +692,31 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
         env = os.environ if environ is None else environ
         out["mdp_xterm"] = out["mode"] == "manual" and bool(env.get("DISPLAY", ""))
     return out
+
+
+def planner_option_values(text: str) -> Dict[str, Any]:
+    """``planner_options``'s pairs (``explore=0.2,name="x"``) as a mapping, each value as TOML
+    reads it; SettingError (one line) for text that is not NAME=VALUE pairs."""
+    if not str(text).strip():
+        return {}
+    try:
+        return dict(tomllib.loads(f"options = {{{text}}}")["options"])
+    except tomllib.TOMLDecodeError as exc:
+        raise SettingError("planner_options", text, "must be NAME=VALUE pairs, comma-separated, "
+                           f"each VALUE as TOML writes it ({' '.join(str(exc).split())})") \
+            from None
+
+
+def planner_options_text(options: Mapping[str, Any]) -> str:
+    """``options`` as ``planner_options:=`` writes them (:func:`planner_option_values` reads
+    them back): ``explore=0.2,name="x"``."""
+    def shown(value: Any) -> str:
+        if isinstance(value, bool):
+            return "true" if value else "false"
+        if isinstance(value, str):
+            return json.dumps(value)
+        return repr(value)
+    return ",".join(f"{name}={shown(value)}" for name, value in options.items())
 
 
 def learning_planner_problem(selector: str, planner: str) -> str:

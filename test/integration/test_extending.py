@@ -75,6 +75,8 @@ def test_the_launch_s_pre_flight_finds_the_planner_and_refuses_a_wrong_one(insta
     ok = run(installed, *check, "planner:=my_planner")
     assert ok.returncode == 0, ok.stderr
     assert "planner: my_planner" in ok.stdout
+    ok = run(installed, *check, "planner:=my_planner", "planner_options:=explore=0.1")
+    assert ok.returncode == 0, ok.stderr
     for word, says in (
             ("planner:=my_planer", "hrc.launch: planner:=my_planer: unknown planner "
                                    "'my_planer'; did you mean my_planner? (known: despot, "
@@ -84,8 +86,11 @@ def test_the_launch_s_pre_flight_finds_the_planner_and_refuses_a_wrong_one(insta
                                                  "module my_robot.planner has no Greedy"),
             ("planner:=my_robot.selector:WinStaySelector",
              "hrc.launch: planner:=my_robot.selector:WinStaySelector: WinStaySelector is not a "
-             "subclass of ros_hrc.pomdp.planner.Planner")):
-        refused = run(installed, *check, word)
+             "subclass of ros_hrc.pomdp.planner.Planner"),
+            ("planner_options:=explor=0.1", "hrc.launch: planner_options:=explor=0.1: unknown "
+                                            "option 'explor' (its options: explore)")):
+        refused = run(installed, *check, word, *([] if word.startswith("planner:=") else
+                                                  ["planner:=my_planner"]))
         assert refused.returncode == 2
         assert refused.stderr.strip().startswith(says), refused.stderr
         assert says in DOC.read_text()

@@ -164,6 +164,7 @@ def test_a_name_two_packages_declare_differently_is_refused_naming_both(tmp_path
 
 def robot_args(planner, **more):
     values = {"task": "seed", "robot_model": "robot", "planner": planner, "seed": 4,
+              "planner_options": "",
               "policy_file": "", "reactive_budget": 8, "reactive_wait": 0.0,
               "time_per_step": 0.1, "scenarios": 50, "depth": 10, "lambda_": 0.1,
               "max_trials": 20, "selector": "fixed", "bpr_forgetting": 0.05, **more}
@@ -232,3 +233,36 @@ def test_the_robot_process_asks_the_interface_not_the_object():
         assert hasattr(Planner, name)
     assert Selector.note == "" and Selector.needs_model is False
     assert np.array_equal(Selector.belief(Selector()), np.zeros(0))
+
+
+def test_the_launch_s_planner_options_reach_a_package_s_planner_checked(package):
+    _, planner, _ = despot_pomdp.build_robot(robot_args("first_action", planner_options="action=3"))
+    assert planner.action == 3
+    for text, says in (("speed=1", "--planner-options speed=1: unknown option 'speed' (its "
+                                   "options: action)"),
+                       ("action=1.5", "--planner-options action=1.5: option action must be a "
+                                      "int like its default 0, got 1.5")):
+        with pytest.raises(ValueError) as refused:
+            despot_pomdp.build_robot(robot_args("first_action", planner_options=text))
+        assert str(refused.value) == says
+    with pytest.raises(settings.SettingError, match=r"^planner_options:=action: must be "
+                                                    r"NAME=VALUE pairs, comma-separated"):
+        settings.resolve({"planner_options": "action"})
+    assert settings.planner_option_values('a=1,b="x y",c=true') == {"a": 1, "b": "x y",
+                                                                      "c": True}
+    assert settings.planner_option_values(settings.planner_options_text(
+        {"a": 1, "b": "x, \"y\"", "c": False, "d": 0.25})) == {"a": 1, "b": "x, \"y\"",
+                                                               "c": False, "d": 0.25}
+
+
+def test_a_study_policy_s_options_go_to_its_cells_launch(package, tmp_path):
+    from ros_hrc.experiment.stack import CellSpec, launch_arguments
+    (tmp_path / package / "tuned.py").write_text(
+        "from ros_hrc.experiment.episode import RobotPolicy\n"
+        "TUNED = RobotPolicy('first_action', options={'action': 2})\n")
+    words = launch_arguments(CellSpec("tired", f"{package}.tuned:TUNED", 0, episodes=[0]),
+                             {"master": 1, "pomdp": 2, "human": 3})
+    assert "planner:=first_action" in words and "planner_options:=action=2" in words
+    assert not [w for w in launch_arguments(CellSpec("tired", "pomdp", 0, episodes=[0]),
+                                            {"master": 1, "pomdp": 2, "human": 3})
+                if w.startswith("planner_options")]

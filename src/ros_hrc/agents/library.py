@@ -265,16 +265,10 @@ def _options(given: Mapping[str, Any], planner: str, kind: type, label: str, ind
                                f"{', '.join(_POLICY_KEYS)})")
     own = {key: value for key, value in given.items() if key in kind.options}
     for key, value in own.items():
-        default = kind.options[key]
-        fits = isinstance(value, type(default)) and not (isinstance(value, bool) and not
-                                                          isinstance(default, bool))
-        if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
-            own[key] = value = float(value)
-            fits = True
-        if not fits:
-            raise LibraryError(f"{lines.of_policy(index, key)}: {label}: option {key} must be "
-                               f"a {type(default).__name__} like its default {default!r}, got "
-                               f"{value!r}")
+        try:
+            own.update(kind.checked_options({key: value}))
+        except ValueError as exc:
+            raise LibraryError(f"{lines.of_policy(index, key)}: {label}: {exc}") from None
     values = {key: _in_folder(value, folder) if settings.SETTINGS[key].kind == "file" else value
               for key, value in given.items() if key not in own}
     try:

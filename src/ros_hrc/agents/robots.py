@@ -281,8 +281,9 @@ class ReactiveMdpPlanner(ReactiveRobot):
         return self._actions[self.policy[self._states.state]]
 
     def policy_text(self) -> str:
-        """The MDP's policy in one line, e.g. ``TaskHuman: idle, HumanNeedsHelp: grasp, ...``."""
-        return ", ".join(f"{state}: {action}" for state, action in self.policy.items())
+        """The MDP's policy in one line, e.g. ``the reactive MDP's policy (value iteration):
+        TaskHuman: idle, HumanNeedsHelp: grasp, ...``."""
+        return "the reactive MDP's policy (value iteration): " + ", ".join(f"{state}: {action}" for state, action in self.policy.items())
 
 
 def _rules_reactive(task_: Task, model: Model, budget: int, wait: float,

@@ -148,17 +148,21 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
 
 
 def check_planner(config: Mapping[str, object]) -> None:
-    """The planner ``planner:=`` names, imported and checked to be a planner, as the robot
-    process will find it (:func:`ros_hrc.pomdp.planner.planner_class`): a name no package
+    """The planner ``planner:=`` names, imported and checked to be a planner, and its own
+    options (``planner_options:=``) checked against it, as the robot process will find them (:func:`ros_hrc.pomdp.planner.planner_class`): a name no package
     declares, a module that does not import or a class of another kind is refused now, one
     line, before anything starts."""
     from ros_hrc.pomdp.planner import planner_class
     from ros_hrc.registry import RegistryError
 
     try:
-        planner_class(str(config["planner"]))
+        kind = planner_class(str(config["planner"]))
     except RegistryError as exc:
         raise CheckError(f"planner:={config['planner']}: {exc.reason}") from None
+    try:
+        kind.checked_options(settings.planner_option_values(str(config["planner_options"])))
+    except ValueError as exc:
+        raise CheckError(f"planner_options:={config['planner_options']}: {exc}") from None
 
 
 def typed_value(config: Mapping[str, object], given: Mapping[str, str], name: str) -> str:

@@ -213,7 +213,8 @@ def add_sequence_arguments(p: argparse.ArgumentParser) -> None:
                         "bpr-pi, bpr-fabric, pomdp_types (the robot model of human types), "
                         "pomdp_learning and pomdp_learning_mean (the robot that learns its "
                         "human), pomdp_pooled (its prior, never learnt) and pomdp_ceiling (a "
-                        "robot fitted on its human: --ceiling-models)")
+                        "robot fitted on its human: --ceiling-models); an installed "
+                        "package's, or module:Class (docs/extending.md)")
     p.add_argument("--library", default=None,
                    help="with --sequence: the policy library, a manifest or a folder holding "
                         "library.toml (auto: the task's)")

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, replace
-from typing import Dict, Optional, Sequence, Tuple
+from dataclasses import dataclass, field, replace
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -28,13 +28,15 @@ class RobotPolicy:
     """A robot policy of a grid (``hrc_experiment --policies``): the robot process's
     ``--planner`` (a name the ``planner`` setting takes), the robot model it runs with (None:
     the grid's ``--robot-model``; a name of the task's robot models or a file) and, for
-    ``reactive@N``, its budget (None: the grid's ``--reactive-budget``). Found by name in
+    ``reactive@N``, its budget (None: the grid's ``--reactive-budget``), and its planner's own
+    options (``planner_options:=``; the planner's defaults where not given). Found by name in
     :mod:`ros_hrc.registry` (``ros_hrc.policies``): ours below, an installed package's, or
     ``module:NAME`` (docs/extending.md)."""
     planner: str
     robot_model: Optional[str] = None
     doc: str = ""
     reactive_budget: Optional[int] = None
+    options: Mapping[str, Any] = field(default_factory=dict)
 
 
 # Ours, registered in ros_hrc.registry.BUILT_IN under their names.

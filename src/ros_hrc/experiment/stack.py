@@ -217,12 +217,15 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     ``spec.extra_args`` (``name:=value``) come last and win."""
     if spec.sequence:
         planner = settings.default("planner")     # the selector's policies plan instead
+        planner_options = ""
         episodes = sequence_task_episodes(spec)
     else:
         try:
-            planner = robot_policy(spec.robot_policy).planner
+            policy = robot_policy(spec.robot_policy)
         except KeyError as exc:
             raise ValueError(str(exc)) from None
+        planner = policy.planner
+        planner_options = settings.planner_options_text(policy.options)
         episodes = EpisodeRanges.of(spec.episodes)
     values = {
         "human_model": spec.human_model_file or spec.human_model, "robot_model": spec.robot_model,
@@ -240,6 +243,8 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
         "scenarios": spec.scenarios, "depth": spec.depth, "lambda": spec.lambda_,
         "pomdp_port": ports["pomdp"], "human_port": ports["human"],
     }
+    if planner_options:        # (an empty launch argument would not be the default)
+        values["planner_options"] = planner_options
     out = {name: _launch_text(value) for name, value in values.items()}
     for word in spec.extra_args:
         name, sep, value = word.partition(":=")

@@ -108,6 +108,28 @@ class Planner(ABC):
         own = {name: values.get(name, default) for name, default in cls.options.items()}
         return cls(model, seed=values.get("seed"), **own)
 
+    @classmethod
+    def checked_options(cls, given: Mapping[str, Any]) -> Dict[str, Any]:
+        """``given`` (option name -> value: a library policy's keys, ``planner_options``)
+        checked against its ``options``: each a name it declares, of its default's type (an
+        integer for a float default is taken as the float). ValueError (one line naming the
+        option) otherwise."""
+        out: Dict[str, Any] = {}
+        for name, value in given.items():
+            if name not in cls.options:
+                takes = ", ".join(cls.options) or "none"
+                raise ValueError(f"unknown option {name!r} (its options: {takes})")
+            default = cls.options[name]
+            if isinstance(default, float) and isinstance(value, int) and \
+                    not isinstance(value, bool):
+                value = float(value)
+            if not isinstance(value, type(default)) or (isinstance(value, bool)
+                                                        and not isinstance(default, bool)):
+                raise ValueError(f"option {name} must be a {type(default).__name__} like its "
+                                 f"default {default!r}, got {value!r}")
+            out[name] = value
+        return out
+
     def reseed(self, seed: int) -> None:
         """Draw from ``seed``'s stream from now on (each episode's reset). By default nothing:
         a planner that draws nothing at random."""
@@ -117,7 +139,8 @@ class Planner(ABC):
         unknown). By default ignored (``reads_time`` False)."""
 
     def policy_text(self) -> Optional[str]:
-        """Its policy in one line, printed at start-up (None: nothing to print)."""
+        """Its policy in one line, printed at start-up after ``<process>: `` (None: nothing to
+        print), e.g. ``the reactive MDP's policy (value iteration): ...``."""
         return None
 
     @abstractmethod

@@ -496,9 +496,12 @@ def build_planner(model: Model, args: argparse.Namespace) -> Planner:
     (:meth:`ros_hrc.pomdp.planner.Planner.from_settings`). Raises ValueError (one line)."""
     try:
         kind = planner_class(args.planner)
+        own = kind.checked_options(settings.planner_option_values(args.planner_options))
     except RegistryError as exc:
         raise ValueError(f"--planner {args.planner}: {exc.reason}") from None
-    return kind.from_settings(model, tasks.get(args.task), planner_settings(args))
+    except ValueError as exc:
+        raise ValueError(f"--planner-options {args.planner_options}: {exc}") from None
+    return kind.from_settings(model, tasks.get(args.task), {**planner_settings(args), **own})
 
 
 def planner_settings(args: argparse.Namespace) -> Dict[str, object]:
@@ -518,6 +521,7 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "pomdp_port", "--port")
     settings.add_argument(p, "link_read_timeout")
     settings.add_argument(p, "planner")
+    settings.add_argument(p, "planner_options")
     settings.add_argument(p, "policy_file", "--policy")
     settings.add_argument(p, "reactive_budget")
     settings.add_argument(p, "reactive_wait")
@@ -550,6 +554,7 @@ def policy_arguments(args: argparse.Namespace, settings_of_policy: Mapping[str, 
     """The command line's options with a library policy's settings (its planner, robot model
     and options) in their place."""
     values = dict(vars(args))
+    values["planner_options"] = ""     # the launch's are its planner's; the policy's its own
     for name, value in settings_of_policy.items():
         values["lambda_" if name == "lambda" else name] = value
     return argparse.Namespace(**values)
@@ -659,7 +664,7 @@ def main(argv: Optional[list] = None) -> int:
           flush=True)
     policy_text = planner.policy_text()
     if policy_text is not None:
-        print(f"{NAME}: {args.planner}'s policy: {policy_text}", flush=True)
+        print(f"{NAME}: {policy_text}", flush=True)
     try:
         threading.Event().wait()
     except KeyboardInterrupt:

@@ -24,7 +24,7 @@ DEFAULTS = {
     "human_port": 9090, "link_read_timeout": 5.0, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
     "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
     "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "wait_for_listener": False,
-    "start_pomdp": True, "planner": "despot",
+    "start_pomdp": True, "planner": "despot", "planner_options": "",
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
     "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
