@@ -16,6 +16,10 @@ from pathlib import Path
 
 import pytest
 
+# One worker runs them all: the example is installed once (the module's fixture), and the two
+# studies' stacks do not share the cores with each other.
+pytestmark = pytest.mark.xdist_group("extending")
+
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "my_robot"
 DOC = ROOT / "docs" / "extending.md"
