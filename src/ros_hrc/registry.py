@@ -190,8 +190,7 @@ def load(group: str, text: str, kind: type, instance: bool = False) -> Any:
 
 def _origin(ep: metadata.EntryPoint) -> str:
     """Who declares ``ep``: ``my_robot 0.1: my_robot.planner:MyPlanner`` (ros_hrc's own)."""
-    dist = getattr(ep, "dist", None)
-    who = f"{dist.name} {dist.version}" if dist is not None else "ros_hrc"
+    who = f"{ep.dist.name} {ep.dist.version}" if ep.dist is not None else "ros_hrc"
     return f"{who}: {ep.value}"
 
 
