@@ -31,14 +31,17 @@ parameters; each other bound is what the setting's consumer takes.
 """
 from __future__ import annotations
 
+import difflib
 import ipaddress
+import json
 import math
 import os
 import re
+import tomllib
 from dataclasses import dataclass, replace
 from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
-from ros_hrc import tasks
+from ros_hrc import registry, tasks
 from ros_hrc.tasks import fabric_reactive
 from ros_hrc.tasks.schedule import MAX_TASKS, ScheduleError, parse_schedule
 from ros_hrc.errors import HrcError
@@ -66,7 +69,8 @@ INT32_MAX = 2**31 - 1
 SNAPSHOT_FOLDER = "hrc_snapshots"
 
 #: Setting kinds: how a value is read.
-KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes")
+KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes",
+         "registered")
 
 
 class SettingError(HrcError):
@@ -123,12 +127,18 @@ class Setting:
     #: world.launch's doc, where the table's speaks of what the world alone does not run
     #: (None: the table's).
     world_doc: Optional[str] = None
+    #: A ``registered`` setting's entry-point group (:mod:`ros_hrc.registry`): its values
+    #: are the names found there at run time, or ``module:Class``.
+    registry: str = ""
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"setting {self.name}: unknown kind {self.kind!r}")
         if self.kind == "choice" and not self.choices:
             raise ValueError(f"setting {self.name}: a choice needs choices")
+        if (self.kind == "registered") != bool(self.registry):
+            raise ValueError(f"setting {self.name}: a registered setting, and only one, "
+                             "names its registry")
 
     @property
     def flag(self) -> str:
@@ -182,6 +192,12 @@ class Setting:
             return "must be true or false (also 1/0, yes/no, on/off)"
         if self.kind == "choice":
             return f"must be one of {', '.join(self.choices or ())}"
+        if self.kind == "registered":
+            # Ours: what any machine has (docs written from it stay true); an installed
+            # package's are listed by the refusal itself (registry.check_name).
+            what = registry.WHAT[self.registry]
+            return (f"must be a {what} of ours ({', '.join(registry.BUILT_IN[self.registry])}),"
+                    f" an installed package's (docs/extending.md) or module:Class")
         if self.kind == "host":
             return "must be an IPv4 or IPv6 address or a host name"
         if self.kind == "model":
@@ -263,6 +279,16 @@ class Setting:
         if text not in (self.choices or ()):
             raise self._refuse(value)
         return text
+
+    def _parse_registered(self, value: Any) -> str:
+        """A name the registry knows now, or ``module:Class`` (imported by whoever builds it:
+        :func:`ros_hrc.registry.load`)."""
+        if not isinstance(value, str):
+            raise self._refuse(value, unparsable=True)
+        try:
+            return registry.check_name(self.registry, value)
+        except registry.RegistryError as exc:
+            raise SettingError(self.name, value, str(exc)) from None
 
     def _parse_episodes(self, value: Any) -> str:
         try:
@@ -469,11 +495,16 @@ _TABLE: Tuple[Setting, ...] = (
     *_group(
         "the robot (POMDP)",
         _s("start_pomdp", "bool", True, "start the POMDP process"),
-        _s("planner", "choice", "despot", "despot; policy with policy_file; reactive "
+        _s("planner", "registered", "despot", "despot; policy with policy_file; reactive "
            "(baseline: the task's reactive robot, rules on the current observation: seed's see "
            "reactive_budget, fabric's reactive MDP see reactive_wait); none (baseline: the "
            "robot never acts); explore (a uniformly random action each step, seeded: hrc_fit's "
-           "exploring robot)", choices=("despot", "policy", "reactive", "none", "explore")),
+           "exploring robot); or a planner of an installed package (its entry point in "
+           "ros_hrc.planners) or module:Class (docs/extending.md)",
+           registry=registry.PLANNERS),
+        _s("planner_options", "str", "", "the planner's own options (its class's options: "
+           "docs/extending.md), NAME=VALUE pairs, comma-separated, each VALUE as TOML writes "
+           "it (0.2, 3, true, \"text\"); auto (or empty): its defaults"),
         _s("policy_file", "file", "",
            "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that "
            "planner (none: no file)"),
@@ -504,7 +535,9 @@ _TABLE: Tuple[Setting, ...] = (
            "of the library), random, bpr (BPR-EI), bpr-pi (BPR-PI), bpr-fabric (FABRIC's "
            "BPR), bandit or oracle (told the true type); docs/selectors.md; or the robot "
            "that learns its human (robot_model its prior): pomdp_learning (root sampling), "
-           "pomdp_learning_mean (the posterior mean); docs/learning.md"),
+           "pomdp_learning_mean (the posterior mean); docs/learning.md; or a selector of an "
+           "installed package (its entry point in ros_hrc.selectors) or module:Class "
+           "(docs/extending.md)"),
         _s("library", "str", AUTO_WORD, "the policy library the selector chooses from: a "
            "manifest (library.toml) or a folder holding one; auto: the task's "
            "(models/fabric/library.toml, models/robot/library.toml)"),
@@ -557,16 +590,21 @@ WORLD_SETTINGS: Tuple[str, ...] = tuple(name for name in SETTINGS if name in (
     "task", "mode", "gui", "seed", "use_sim_time", "real_time_factor", "pause_when_idle",
     "belt_speed", "away_time", "viz", "rviz", "snapshot_dir", "camera_rate", "publish_rate"))
 
-#: The selectors of ``selector:=`` (``fixed`` also as ``fixed:POLICY``); the robot process
-#: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
-#: The learning robot's (ros_hrc.agents.learning): one robot whose model of the human is
-#: learnt, root-sampled or its posterior mean; it plans with DESPOT (planner:=despot).
+#: ``selector:=`` takes ``fixed`` (also as ``fixed:POLICY``), a selector of the registry
+#: (:mod:`ros_hrc.registry`, ``ros_hrc.selectors``: the robot process builds it with
+#: ros_hrc.agents.selectors.make_selector), or the learning robot's
+#: (ros_hrc.agents.learning): one robot whose model of the human is learnt, root-sampled or
+#: its posterior mean; it plans with DESPOT (planner:=despot).
 LEARNING_SELECTORS: Tuple[str, ...] = ("pomdp_learning", "pomdp_learning_mean")
 #: The learning robot's own settings (its prior strength, forgetting rate and draws).
 LEARNING_SETTINGS: Tuple[str, ...] = ("learning_strength", "learning_forgetting",
                                       "learning_draws")
-SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
-                              "oracle") + LEARNING_SELECTORS
+
+
+def selector_words() -> Tuple[str, ...]:
+    """The names ``selector:=`` takes now: fixed, the registry's selectors (ours and the
+    installed packages'), the learning robot's."""
+    return ("fixed",) + registry.names(registry.SELECTORS) + LEARNING_SELECTORS
 
 #: The settings a running stack can take in place (``/hrc/configure``, a warm stack's next
 #: cell: docs/experiments.md, "Warm stacks"): what its solver processes and its loop are built
@@ -576,7 +614,7 @@ SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", 
 IN_PLACE: FrozenSet[str] = frozenset((
     "human_model", "robot_model", "seed", "human_choice", "temperature", "manual_share",
     "step_delay", "max_steps", "on_episode_end", "end_on_goal", "episodes",
-    "wait_for_listener", "planner", "policy_file", "time_per_step", "scenarios", "depth",
+    "wait_for_listener", "planner", "planner_options", "policy_file", "time_per_step", "scenarios", "depth",
     "lambda", "max_trials", "reactive_budget", "reactive_wait", "tasks", "schedule",
     "selector", "library", "selector_model", "task_timeout", "bpr_forgetting",
     *LEARNING_SETTINGS))
@@ -657,6 +695,7 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     if out["time_per_step"] == 0 and out["max_trials"] == 0:
         raise SettingError("time_per_step", values.get("time_per_step", 0),
                            "0 (no time budget) needs max_trials > 0 to bound the decision")
+    planner_option_values(out["planner_options"])
     if out["away_time"] is None:
         out["away_time"] = task.away_time
     if not out["snapshot_dir"]:
@@ -675,6 +714,31 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     return out
 
 
+def planner_option_values(text: str) -> Dict[str, Any]:
+    """``planner_options``'s pairs (``explore=0.2,name="x"``) as a mapping, each value as TOML
+    reads it; SettingError (one line) for text that is not NAME=VALUE pairs."""
+    if not str(text).strip():
+        return {}
+    try:
+        return dict(tomllib.loads(f"options = {{{text}}}")["options"])
+    except tomllib.TOMLDecodeError as exc:
+        raise SettingError("planner_options", text, "must be NAME=VALUE pairs, comma-separated, "
+                           f"each VALUE as TOML writes it ({' '.join(str(exc).split())})") \
+            from None
+
+
+def planner_options_text(options: Mapping[str, Any]) -> str:
+    """``options`` as ``planner_options:=`` writes them (:func:`planner_option_values` reads
+    them back): ``explore=0.2,name="x"``."""
+    def shown(value: Any) -> str:
+        if isinstance(value, bool):
+            return "true" if value else "false"
+        if isinstance(value, str):
+            return json.dumps(value)
+        return repr(value)
+    return ",".join(f"{name}={shown(value)}" for name, value in options.items())
+
+
 def learning_planner_problem(selector: str, planner: str) -> str:
     """Why ``selector`` cannot run with ``planner`` ("" when it can): the learning robot
     plans with DESPOT on its posterior."""
@@ -685,15 +749,22 @@ def learning_planner_problem(selector: str, planner: str) -> str:
 
 def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: tasks.Task) -> None:
     """The sequence's settings (docs/sequences.md), checked together: a selector or a schedule
-    only with ``tasks``, a selector of :data:`SELECTORS`, a schedule whose types are the
+    only with ``tasks``, a selector of :func:`selector_words` (or module:Class), a schedule whose types are the
     task's (a schedule file's path made absolute), ``task_timeout`` auto: the task's;
     ``tasks`` not given is 0 once resolved (no sequence)."""
     selector = out["selector"]
     kind, sep, policy = selector.partition(":")
-    if kind not in SELECTORS or (sep and (kind != "fixed" or not policy.strip())):
+    if kind == "fixed" and sep and not policy.strip():
         raise SettingError("selector", values.get("selector"),
-                           f"must be one of {', '.join(SELECTORS)}, or fixed:POLICY (a policy "
-                           "of the library)")
+                           "fixed:POLICY needs a policy of the library after the colon")
+    if kind != "fixed" and selector not in LEARNING_SELECTORS and \
+            not registry.is_object_path(selector) and selector not in selector_words():
+        known = selector_words()
+        near = difflib.get_close_matches(selector, known, n=1)
+        hint = f"; did you mean {near[0]}?" if near else ""
+        raise SettingError("selector", values.get("selector"),
+                           f"unknown selector{hint} (known: {', '.join(known)}, fixed:POLICY "
+                           "(a policy of the library), or module:Class)")
     problem = learning_planner_problem(selector, out["planner"])
     if problem:
         raise SettingError("selector", values.get("selector"), problem)

@@ -68,14 +68,14 @@ from functools import reduce
 from itertools import accumulate
 from operator import add
 from dataclasses import dataclass
-from typing import Dict, List, Optional
+from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 import numpy as np
 
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import mdp, sampling
 from ros_hrc.pomdp.despot_parameters import (DESPOT_PARAMETERS, EXACT_BELIEF_MAX_STATES,
-                                             parameter)
+                                             SETTING_NAMES, config_value, parameter)
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
 from ros_hrc.pomdp.policy import Policy
@@ -302,6 +302,26 @@ class _QNode:
 
 class DespotPlanner(BeliefPlanner):
     """Online planner: ``reset``, then ``act`` / ``update`` in turn (see planner.Planner)."""
+
+    plans_on_model = True
+    #: The robot process's settings of its search: the launch arguments of DESPOT's
+    #: parameters (``lambda`` is the config's ``pruning``).
+    SETTINGS = SETTING_NAMES
+
+    @classmethod
+    def settings_used(cls, task: Any) -> Tuple[str, ...]:
+        return cls.SETTINGS
+
+    @classmethod
+    def from_settings(cls, model: Model, task: Any, values: Mapping[str, Any]
+                      ) -> "DespotPlanner":
+        """DESPOT with the settings' budget and shape; ``time_per_step`` 0: no time budget,
+        the trials alone bound the search (no clock read in a decision)."""
+        if values["time_per_step"] == 0 and not values["max_trials"]:
+            raise ValueError("--time-per-step 0 (no time budget) needs --max-trials > 0")
+        config = DespotConfig(**{parameter(name).field: config_value(name, values[name])
+                                 for name in cls.SETTINGS})
+        return cls(model, config, seed=values.get("seed"))
 
     def __init__(self, model: Model, config: Optional[DespotConfig] = None,
                  seed: Optional[int] = None, tables: Optional[DespotTables] = None,

@@ -76,10 +76,10 @@ def test_fixed_stands_for_every_library_policy_in_the_library_order():
 def test_an_unknown_selector_or_library_policy_is_one_line_naming_the_known():
     with pytest.raises(GridError) as unknown:
         expand_selectors(["bpr", "ucb"], POLICIES)
-    assert str(unknown.value) == ("--selectors: unknown selector 'ucb'; known: fixed, random, "
-                                  "bpr, bpr-pi, bpr-fabric, bandit, oracle, fixed:<policy>, "
-                                  "pomdp_types, pomdp_learning, pomdp_learning_mean, "
-                                  "pomdp_pooled, pomdp_ceiling")
+    assert str(unknown.value) == ("--selectors: unknown selector 'ucb' (known: random, bpr, "
+                                  "bpr-pi, bpr-fabric, bandit, oracle, or module:Class); also "
+                                  "fixed, fixed:<policy>, pomdp_types, pomdp_ceiling, "
+                                  "pomdp_pooled, pomdp_learning, pomdp_learning_mean")
     with pytest.raises(GridError) as foreign:
         expand_selectors(["fixed:policy2"], POLICIES)
     assert str(foreign.value) == ("--selectors: fixed:policy2: no policy 'policy2' in the "

@@ -72,7 +72,7 @@ def test_without_arguments_every_default(capsys):
     ("pomdp_port:=70000", "hrc.launch: pomdp_port:=70000: must be an integer from 1 to 65535"),
     ("human_port:=abc", "hrc.launch: human_port:=abc: must be an integer from 1 to 65535, "
                         "got 'abc'"),
-    ("planner:=bogus", "hrc.launch: planner:=bogus: must be one of despot, policy, reactive, none, "
+    ("planner:=bogus", "hrc.launch: planner:=bogus: unknown planner 'bogus' (known: despot, policy, reactive, none, "
      "explore"),
     ("time_per_step:=-1", "hrc.launch: time_per_step:=-1: must be 0 or a number from 0.001 to 60 (s)"),
     ("scenarios:=0", "hrc.launch: scenarios:=0: must be an integer from 1 to 100000"),

@@ -129,7 +129,10 @@ def test_the_sequence_settings_are_checked_together(tmp_path):
         "selector:=bpr: only with a sequence: a selector chooses between the tasks of a "
         "sequence": {"selector": "bpr"},
         "schedule:=tired*2: only with a sequence": {"schedule": "tired*2"},
-        "selector:=ucb: must be one of fixed, random, bpr": {"selector": "ucb", "tasks": "2"},
+        "selector:=ucb: unknown selector (known: fixed, random, bpr": {"selector": "ucb",
+                                                                        "tasks": "2"},
+        "selector:=bpx: unknown selector; did you mean bpr? (known: fixed, random": {
+            "selector": "bpx", "tasks": "2"},
         "schedule:=sleepy*2: unknown human type 'sleepy'; known: ": {"schedule": "sleepy*2",
                                                                      "tasks": "2"},
         "task_timeout:=0: must be a number > 0 and <= 1000000 (s)": {"task_timeout": "0"},
@@ -160,10 +163,12 @@ def test_a_task_play_of_a_file_model_is_labelled_by_its_stem():
     assert TaskPlay("/x/y/tired.pomdpx").true_type == "tired"
 
 
-def test_the_selector_settings_are_the_selectors_module_s():
+def test_the_selector_settings_are_the_registry_s():
+    from ros_hrc import registry
     from ros_hrc.agents.learning import LEARNING_SELECTORS
-    from ros_hrc.agents.selectors import DEFAULT_FORGETTING, SELECTOR_NAMES
+    from ros_hrc.agents.selectors import DEFAULT_FORGETTING
 
-    # The library's selectors, then the learning robot's (one robot, its model learnt).
-    assert settings.SELECTORS == SELECTOR_NAMES + tuple(LEARNING_SELECTORS)
+    # fixed, the registry's selectors, then the learning robot's (one robot, its model learnt).
+    assert settings.selector_words() == ("fixed",) + registry.names(registry.SELECTORS) + \
+        tuple(LEARNING_SELECTORS)
     assert settings.default("bpr_forgetting") == DEFAULT_FORGETTING

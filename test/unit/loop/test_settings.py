@@ -26,7 +26,7 @@ DEFAULTS = {
     "human_port": 9090, "link_read_timeout": 5.0, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
     "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
     "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "wait_for_listener": False,
-    "start_pomdp": True, "planner": "despot",
+    "start_pomdp": True, "planner": "despot", "planner_options": "",
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
     "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
@@ -179,8 +179,10 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("manual_share", "0", "manual_share:=0: must be a number > 0 and <= 1"),
     ("manual_share", "1.5", "manual_share:=1.5: must be a number > 0 and <= 1"),
     ("mode", "semi", "mode:=semi: must be one of auto, manual"),
-    ("planner", "bogus", "planner:=bogus: must be one of despot, policy, reactive, none, "
-     "explore"),
+    ("planner", "bogus", "planner:=bogus: unknown planner 'bogus' (known: despot, policy, reactive, none, "
+     "explore, or module:Class)"),
+    ("planner", "despt", "planner:=despt: unknown planner 'despt'; did you mean despot? (known: despot, "
+     "policy, reactive, none, explore, or module:Class)"),
     ("on_episode_end", "stop", "on_episode_end:=stop: must be one of wait, reset, continue"),
     ("human_choice", "greedy", "human_choice:=greedy: must be one of optimal, softmax, random"),
     ("gui", "maybe", "gui:=maybe: must be true or false (also 1/0, yes/no, on/off), got 'maybe'"),
