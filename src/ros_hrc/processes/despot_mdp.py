@@ -215,12 +215,6 @@ class MdpProcess:
         except ValueError:
             return None
 
-    def _send(self, msg: Message) -> None:
-        try:
-            self.client.send(msg)
-        except LinkError as exc:
-            self.print(f"(could not send {msg.type}: {exc})")
-
     def print(self, text: str = "") -> None:
         print(text, file=self.out, flush=True)
 
