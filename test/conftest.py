@@ -66,6 +66,7 @@ LONGEST_FIRST = (
     "test/integration/experiment/test_warm_stacks.py",
     "test/integration/experiment/test_full_disk.py",
     "test/integration/experiment/test_grid_stacks.py",
+    "test/integration/test_extending.py",
     "test/unit/pomdp/test_solver_values_pinned.py",
     "test/integration/test_rooms.py",
     "test/integration/loop/test_terminal_output.py",

@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """Write what is made from the settings table (``ros_hrc.settings``, the only place a default is
-written): the ``<arg>`` lines of ``launch/hrc.launch`` and the reference ``docs/settings.md``.
+written): the ``<arg>`` lines of ``launch/hrc.launch`` and of ``launch/world.launch`` (the
+world alone: :data:`ros_hrc.settings.WORLD_SETTINGS`), and the reference ``docs/settings.md``.
 
-    python tools/make_settings_files.py           # rewrite both from the table
+    python tools/make_settings_files.py           # rewrite them from the table
     python tools/make_settings_files.py --check   # exit 1, naming each file that differs
 
-In hrc.launch only the lines between :data:`BEGIN` and :data:`END` are written; the rest of
-the file (the pre-flight, the nodes) is left as it is. Each argument's default is the table's as
+In the launch files only the lines between :data:`BEGIN` and :data:`END` are written; the rest
+of each file (the pre-flight, the nodes) is left as it is. Each argument's default is the table's as
 a launch file writes it (:attr:`ros_hrc.settings.Setting.launch_default`), its doc the table's,
 with the values a number takes. The output is deterministic: a unit test
 (test/unit/loop/test_settings.py) fails when a committed file is not what this writes.
@@ -31,6 +32,7 @@ from ros_hrc import settings  # noqa: E402
 from ros_hrc.settings import Setting  # noqa: E402
 
 LAUNCH = Path("launch") / "hrc.launch"
+WORLD_LAUNCH = Path("launch") / "world.launch"
 REFERENCE = Path("docs") / "settings.md"
 THIS = "tools/make_settings_files.py"
 #: The lines of hrc.launch between these two are written here.
@@ -53,12 +55,18 @@ def by_group(members: Iterable[Setting]) -> Dict[str, List[Setting]]:
     return groups
 
 
-def launch_doc(setting: Setting) -> str:
-    """An argument's doc in hrc.launch (``roslaunch --ros-args`` shows it): the table's, and
-    for a number the values it takes."""
+def world_launch_settings() -> List[Setting]:
+    """The settings that are arguments of world.launch, in the table's order."""
+    return [settings.SETTINGS[name] for name in settings.WORLD_SETTINGS]
+
+
+def launch_doc(setting: Setting, world: bool = False) -> str:
+    """An argument's doc in a launch file (``roslaunch --ros-args`` shows it): the table's
+    (world.launch's own where it has one), and for a number the values it takes."""
+    doc = setting.world_doc if world and setting.world_doc else setting.doc
     if setting.kind in ("int", "float"):
-        return f"{setting.doc}; {setting.accepted()}"
-    return setting.doc
+        return f"{doc}; {setting.accepted()}"
+    return doc
 
 
 def attribute(text: str) -> str:
@@ -66,24 +74,28 @@ def attribute(text: str) -> str:
     return text.replace("&", "&amp;").replace("<", "&lt;").replace('"', "&quot;")
 
 
-def arg_line(setting: Setting) -> str:
+def arg_line(setting: Setting, world: bool = False) -> str:
     """One ``<arg name default doc/>`` line."""
     return (f'{INDENT}<arg name="{setting.name}" default="{attribute(setting.launch_default)}" '
-            f'doc="{attribute(launch_doc(setting))}"/>')
+            f'doc="{attribute(launch_doc(setting, world))}"/>')
 
 
-def launch_block() -> List[str]:
-    """hrc.launch's argument lines (between the markers), a comment over each group."""
+def launch_block(world: bool = False) -> List[str]:
+    """A launch file's argument lines (between the markers), a comment over each group:
+    hrc.launch's, or with ``world`` world.launch's."""
     lines: List[str] = []
-    for heading, members in by_group(hrc_launch_settings()).items():
+    chosen = world_launch_settings() if world else hrc_launch_settings()
+    for heading, group in by_group(chosen).items():
         lines += ["", f"{INDENT}<!-- {heading} -->"]
-        lines += [arg_line(member) for member in members]
+        lines += [arg_line(member, world) for member in group]
     return lines
 
 
-def with_launch_block(text: str) -> str:
-    """``text`` (hrc.launch) with the lines between the markers written anew."""
-    return between_markers(text, BEGIN, END, launch_block(), LAUNCH)
+def with_launch_block(text: str, world: bool = False) -> str:
+    """``text`` (hrc.launch, or world.launch with ``world``) with the lines between the
+    markers written anew."""
+    return between_markers(text, BEGIN, END, launch_block(world=world),
+                           WORLD_LAUNCH if world else LAUNCH)
 
 
 def _prose(text: str) -> str:
@@ -128,8 +140,9 @@ def reference() -> str:
 
 def written_files(root: Path = REPO) -> Dict[Path, str]:
     """Each file under ``root`` this writes -> its text as written from the table now."""
-    launch = root / LAUNCH
+    launch, world = root / LAUNCH, root / WORLD_LAUNCH
     return {launch: with_launch_block(launch.read_text(encoding="utf-8")),
+            world: with_launch_block(world.read_text(encoding="utf-8"), world=True),
             root / REFERENCE: reference()}
 
 

@@ -1,5 +1,5 @@
 """What the package's programs share about their command line and terminal: dropping
-roslaunch's own arguments, ranged numbers, a solver's options from its launch session, and
+roslaunch's own arguments, ranged numbers, seeds, a solver's options from its launch session, and
 printing whole lines into a terminal that several processes share."""
 from __future__ import annotations
 
@@ -38,6 +38,17 @@ def ranged_number(kind: type, low: float, high: float,
         return value
     parse.__name__ = kind.__name__      # argparse names it in some messages
     return parse
+
+
+def seed_argument(text: str) -> int:
+    """An argparse type: a seed, an integer from 0 to :data:`ros_hrc.streams.MAX_SEED`, the one
+    range of every seed (the launch argument's too); anything else is argparse's one line."""
+    from ros_hrc.streams import MAX_SEED, checked_seed
+    try:
+        return checked_seed(int(text.strip()))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer from 0 to {MAX_SEED}, got "
+                                         f"{text!r}") from None
 
 
 def parse_launch_options(parser: argparse.ArgumentParser,

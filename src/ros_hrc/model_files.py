@@ -1,4 +1,5 @@
-"""Where the package's model files are, and how a launch argument names one.
+"""Where the package's model files are, how a launch argument names one, and where ROS keeps
+this user's files (``$ROS_HOME``).
 
 A model is named either by a path to a file or by a scenario name such as ``tired``, looked up
 as ``models/<kind>/<name>.pomdpx`` (then ``.pomdp``) in the package.
@@ -7,12 +8,19 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import List, Sequence
+from typing import List, Mapping, Optional, Sequence
 
 from ros_hrc.errors import did_you_mean
 
 #: models/ of the package (the source tree; the devel space uses it in place).
 MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
+
+
+def ros_home(environ: Optional[Mapping[str, str]] = None) -> Path:
+    """The directory ROS keeps per-user state in: ``$ROS_HOME``, or ``~/.ros`` without it (as
+    rospkg's ``get_ros_home``, which these ROS-free rooms cannot import)."""
+    environ = os.environ if environ is None else environ
+    return Path(environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros"))
 
 
 def user_path(text: str) -> Path:

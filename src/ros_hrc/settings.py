@@ -3,8 +3,8 @@
 ``hrc.launch`` (through ``hrc_check``), the command-line programs, the nodes and
 ``hrc_experiment`` read their defaults from :data:`SETTINGS` and check values with
 :func:`parse`, so a value means the same thing, and is refused the same way, whichever entry
-point it comes through. The table is the only place a default is written: hrc.launch's
-``<arg>`` lines and the reference ``docs/settings.md`` are written from it
+point it comes through. The table is the only place a default is written: hrc.launch's and
+world.launch's ``<arg>`` lines and the reference ``docs/settings.md`` are written from it
 (``python tools/make_settings_files.py``; a unit test fails when either differs), and a module
 whose parameter is a setting takes its default with :func:`default`.
 
@@ -31,23 +31,27 @@ parameters; each other bound is what the setting's consumer takes.
 """
 from __future__ import annotations
 
+import difflib
 import ipaddress
+import json
 import math
 import os
 import re
+import tomllib
 from dataclasses import dataclass, replace
 from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
-from ros_hrc import tasks
+from ros_hrc import registry, tasks
 from ros_hrc.tasks import fabric_reactive
-from ros_hrc.tasks.schedule import ScheduleError, parse_schedule
+from ros_hrc.tasks.schedule import MAX_TASKS, ScheduleError, parse_schedule
 from ros_hrc.errors import HrcError, did_you_mean
-from ros_hrc.streams import LIVE, EpisodeSchedule
-from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, user_path
+from ros_hrc.pomdp import despot_parameters
+from ros_hrc.streams import LIVE, MAX_SEED, EpisodeSchedule
+from ros_hrc.model_files import MODELS_DIR, model_names, names_a_file, ros_home, user_path
 
 __all__ = ["Setting", "SettingError", "SETTINGS", "PORTS", "parse", "default", "resolve",
            "add_argument", "use_as_defaults", "TRUE_WORDS", "FALSE_WORDS", "AUTO_WORD",
-           "NO_FILE_WORD", "INT32_MAX"]
+           "NO_FILE_WORD", "INT32_MAX", "WORLD_SETTINGS"]
 
 TRUE_WORDS = ("true", "1", "yes", "on")
 FALSE_WORDS = ("false", "0", "no", "off")
@@ -61,8 +65,12 @@ NO_FILE_WORD = "none"
 #: 32-bit ones, and roslaunch fails with a traceback on a larger one.
 INT32_MAX = 2**31 - 1
 
+#: The snapshots' folder in $ROS_HOME when ``snapshot_dir`` is empty.
+SNAPSHOT_FOLDER = "hrc_snapshots"
+
 #: Setting kinds: how a value is read.
-KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes")
+KINDS = ("str", "model", "int", "float", "bool", "choice", "host", "file", "dir", "episodes",
+         "registered")
 
 
 class SettingError(HrcError):
@@ -116,12 +124,21 @@ class Setting:
     launch_expression: Optional[str] = None
     #: An argument of hrc.launch (False: of world.launch alone).
     in_hrc_launch: bool = True
+    #: world.launch's doc, where the table's speaks of what the world alone does not run
+    #: (None: the table's).
+    world_doc: Optional[str] = None
+    #: A ``registered`` setting's entry-point group (:mod:`ros_hrc.registry`): its values
+    #: are the names found there at run time, or ``module:Class``.
+    registry: str = ""
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"setting {self.name}: unknown kind {self.kind!r}")
         if self.kind == "choice" and not self.choices:
             raise ValueError(f"setting {self.name}: a choice needs choices")
+        if (self.kind == "registered") != bool(self.registry):
+            raise ValueError(f"setting {self.name}: a registered setting, and only one, "
+                             "names its registry")
 
     @property
     def flag(self) -> str:
@@ -175,6 +192,12 @@ class Setting:
             return "must be true or false (also 1/0, yes/no, on/off)"
         if self.kind == "choice":
             return f"must be one of {', '.join(self.choices or ())}"
+        if self.kind == "registered":
+            # Ours: what any machine has (docs written from it stay true); an installed
+            # package's are listed by the refusal itself (registry.check_name).
+            what = registry.WHAT[self.registry]
+            return (f"must be a {what} of ours ({', '.join(registry.BUILT_IN[self.registry])}),"
+                    f" an installed package's (docs/extending.md) or module:Class")
         if self.kind == "host":
             return "must be an IPv4 or IPv6 address or a host name"
         if self.kind == "model":
@@ -257,6 +280,16 @@ class Setting:
             raise self._refuse(value)
         return text
 
+    def _parse_registered(self, value: Any) -> str:
+        """A name the registry knows now, or ``module:Class`` (imported by whoever builds it:
+        :func:`ros_hrc.registry.load`)."""
+        if not isinstance(value, str):
+            raise self._refuse(value, unparsable=True)
+        try:
+            return registry.check_name(self.registry, value)
+        except registry.RegistryError as exc:
+            raise SettingError(self.name, value, str(exc)) from None
+
     def _parse_episodes(self, value: Any) -> str:
         try:
             schedule = EpisodeSchedule.parse(str(value))
@@ -332,6 +365,13 @@ def _s(name: str, kind: str, default: Any, doc: str, **more: Any) -> Setting:
     return Setting(name, kind, default, doc, **more)
 
 
+def _despot(name: str) -> Setting:
+    """The setting of DESPOT's parameter ``name``: its definition's kind, default, doc and
+    limits (ros_hrc.pomdp.despot_parameters)."""
+    fields = despot_parameters.setting_fields(name)
+    return _s(name, fields.pop("kind"), fields.pop("default"), fields.pop("doc"), **fields)
+
+
 def _port(name: str, default: int, doc: str) -> Setting:
     return _s(name, "int", default, doc, minimum=1, maximum=65535)
 
@@ -355,8 +395,8 @@ def _model_doc(kind: str, noun: str, suffixes: str) -> str:
             f"path; auto (or empty): the task's default ({defaults})")
 
 
-#: The only place a default is written: hrc.launch's ``<arg>`` lines and docs/settings.md are
-#: made from it (tools/make_settings_files.py; a unit test fails when they differ), and the
+#: The only place a default is written: hrc.launch's and world.launch's ``<arg>`` lines and
+#: docs/settings.md are made from it (tools/make_settings_files.py; a unit test fails when they differ), and the
 #: programs, nodes and modules that need a default ask :func:`default`.
 _TABLE: Tuple[Setting, ...] = (
     *_group(
@@ -369,10 +409,13 @@ _TABLE: Tuple[Setting, ...] = (
            "(the manual's) or fabric (the seed authors' successor: a human who reacts to the "
            "robot)", choices=tasks.TASK_NAMES),
         _s("mode", "choice", "auto", "auto: the MDP picks the human's next state; manual: you "
-           "type it (or call /hrc/set_human_state)", choices=("auto", "manual")),
+           "type it (or call /hrc/set_human_state)", choices=("auto", "manual"),
+           world_doc="the loop's mode, as hrc.launch passes it: manual makes "
+                     "pause_when_idle:=auto freeze the world while someone types a state"),
         _s("gui", "bool", False, "open PyBullet's window (true) or run headless (false)"),
         _s("seed", "int", 0, "random seed of the world and both solvers: same seed, same run",
-           minimum=0, maximum=INT32_MAX),
+           minimum=0, maximum=MAX_SEED,
+           world_doc="random seed of the world: same seed and same calls, same run"),
         _s("use_sim_time", "bool", False,
            "the world publishes /clock and every node runs on simulated time"),
         # (a factor below 0.001 would have the world sleep longer than a clock can count)
@@ -397,8 +440,8 @@ _TABLE: Tuple[Setting, ...] = (
         _s("rviz", "bool", False,
            "start RViz with launch/hrc.rviz (needs a display; implies viz)"),
         _s("snapshot_dir", "dir", "", "where /hrc/world/snapshot writes its PNGs (empty: "
-           "$ROS_HOME/hrc_snapshots); names are unique per run",
-           launch_expression="$(optenv ROS_HOME ~/.ros)/hrc_snapshots"),
+           f"$ROS_HOME/{SNAPSHOT_FOLDER}); names are unique per run",
+           launch_expression=f"$(optenv ROS_HOME ~/.ros)/{SNAPSHOT_FOLDER}"),
         _s("camera_rate", "float", 0.0, "rate of /hrc/camera/image, the snapshot renderer's "
            "view (0: off)", minimum=0, maximum=30, unit="Hz"),
         _s("publish_rate", "float", 10.0, "rate of /hrc/world_state while anyone subscribes "
@@ -452,24 +495,21 @@ _TABLE: Tuple[Setting, ...] = (
     *_group(
         "the robot (POMDP)",
         _s("start_pomdp", "bool", True, "start the POMDP process"),
-        _s("planner", "choice", "despot", "despot; policy with policy_file; reactive "
+        _s("planner", "registered", "despot", "despot; policy with policy_file; reactive "
            "(baseline: the task's reactive robot, rules on the current observation: seed's see "
            "reactive_budget, fabric's reactive MDP see reactive_wait); none (baseline: the "
            "robot never acts); explore (a uniformly random action each step, seeded: hrc_fit's "
-           "exploring robot)", choices=("despot", "policy", "reactive", "none", "explore")),
+           "exploring robot); or a planner of an installed package (its entry point in "
+           "ros_hrc.planners) or module:Class (docs/extending.md)",
+           registry=registry.PLANNERS),
+        _s("planner_options", "str", "", "the planner's own options (its class's options: "
+           "docs/extending.md), NAME=VALUE pairs, comma-separated, each VALUE as TOML writes "
+           "it (0.2, 3, true, \"text\"); auto (or empty): its defaults"),
         _s("policy_file", "file", "",
            "offline policy for planner:=policy (hrc_pomdp solve -o FILE); only with that "
            "planner (none: no file)"),
-        _s("time_per_step", "float", 0.1, "DESPOT's time budget per decision (0: none, the "
-           "decision is bounded by max_trials alone, the same on any machine: experiments)",
-           minimum=0, maximum=60, smallest_nonzero=0.001, unit="s"),
-        _s("scenarios", "int", 500, "DESPOT's number of sampled scenarios K", minimum=1,
-           maximum=100000),
-        _s("depth", "int", 90, "DESPOT's maximum search depth", minimum=1, maximum=1000),
-        _s("lambda", "float", 0.1, "DESPOT's regularisation constant", minimum=0,
-           maximum=1000),
-        _s("max_trials", "int", 0, "cap on DESPOT trials per decision (0: time only; set it "
-           "for reproducible runs)", minimum=0, maximum=INT32_MAX),
+        # DESPOT's: defined once, with their limits, in ros_hrc.pomdp.despot_parameters.
+        *(_despot(name) for name in despot_parameters.SETTING_NAMES),
         _s("reactive_budget", "int", 8, "planner:=reactive of task seed helps after this many "
            "steps since the reset without the human getting the object (0: never for that "
            "reason)", minimum=0, maximum=INT32_MAX),
@@ -485,7 +525,7 @@ _TABLE: Tuple[Setting, ...] = (
         _s("tasks", "int", None, "play a sequence of this many tasks with one robot whose "
            "selector keeps what it learnt (the world reset between tasks, each ending by "
            "success, failure or timeout; /hrc/task_status per task); auto (or empty): no "
-           "sequence, episodes as on_episode_end says", minimum=1, maximum=INT32_MAX),
+           "sequence, episodes as on_episode_end says", minimum=1, maximum=MAX_TASKS),
         _s("schedule", "str", "", "which human plays which task of the sequence: auto (or "
            "empty): human_model every task; TYPE*K,TYPE2*K2,... (K tasks each, in order, repeated; "
            "TYPE>TYPE2*K drifts from TYPE to TYPE2 over the block); fabric (FABRIC's 10 humans "
@@ -495,7 +535,9 @@ _TABLE: Tuple[Setting, ...] = (
            "of the library), random, bpr (BPR-EI), bpr-pi (BPR-PI), bpr-fabric (FABRIC's "
            "BPR), bandit or oracle (told the true type); docs/selectors.md; or the robot "
            "that learns its human (robot_model its prior): pomdp_learning (root sampling), "
-           "pomdp_learning_mean (the posterior mean); docs/learning.md"),
+           "pomdp_learning_mean (the posterior mean); docs/learning.md; or a selector of an "
+           "installed package (its entry point in ros_hrc.selectors) or module:Class "
+           "(docs/extending.md)"),
         _s("library", "str", AUTO_WORD, "the policy library the selector chooses from: a "
            "manifest (library.toml) or a folder holding one; auto: the task's "
            "(models/fabric/library.toml, models/robot/library.toml)"),
@@ -541,16 +583,28 @@ _TABLE: Tuple[Setting, ...] = (
 #: table's order: hrc.launch's.
 SETTINGS: Dict[str, Setting] = {s.name: s for s in _TABLE}
 
-#: The selectors of ``selector:=`` (``fixed`` also as ``fixed:POLICY``); the robot process
-#: builds them with ros_hrc.agents.selectors.make_selector, whose SELECTOR_NAMES these are.
-#: The learning robot's (ros_hrc.agents.learning): one robot whose model of the human is
-#: learnt, root-sampled or its posterior mean; it plans with DESPOT (planner:=despot).
+#: The arguments of world.launch (the world alone: no loop, no solvers), in the table's order;
+#: its <arg> lines are written from the table (tools/make_settings_files.py) and its pre-flight
+#: (``hrc_check --world``) is given each of them.
+WORLD_SETTINGS: Tuple[str, ...] = tuple(name for name in SETTINGS if name in (
+    "task", "mode", "gui", "seed", "use_sim_time", "real_time_factor", "pause_when_idle",
+    "belt_speed", "away_time", "viz", "rviz", "snapshot_dir", "camera_rate", "publish_rate"))
+
+#: ``selector:=`` takes ``fixed`` (also as ``fixed:POLICY``), a selector of the registry
+#: (:mod:`ros_hrc.registry`, ``ros_hrc.selectors``: the robot process builds it with
+#: ros_hrc.agents.selectors.make_selector), or the learning robot's
+#: (ros_hrc.agents.learning): one robot whose model of the human is learnt, root-sampled or
+#: its posterior mean; it plans with DESPOT (planner:=despot).
 LEARNING_SELECTORS: Tuple[str, ...] = ("pomdp_learning", "pomdp_learning_mean")
 #: The learning robot's own settings (its prior strength, forgetting rate and draws).
 LEARNING_SETTINGS: Tuple[str, ...] = ("learning_strength", "learning_forgetting",
                                       "learning_draws")
-SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
-                              "oracle") + LEARNING_SELECTORS
+
+
+def selector_words() -> Tuple[str, ...]:
+    """The names ``selector:=`` takes now: fixed, the registry's selectors (ours and the
+    installed packages'), the learning robot's."""
+    return ("fixed",) + registry.names(registry.SELECTORS) + LEARNING_SELECTORS
 
 #: The settings a running stack can take in place (``/hrc/configure``, a warm stack's next
 #: cell: docs/experiments.md, "Warm stacks"): what its solver processes and its loop are built
@@ -560,7 +614,7 @@ SELECTORS: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", 
 IN_PLACE: FrozenSet[str] = frozenset((
     "human_model", "robot_model", "seed", "human_choice", "temperature", "manual_share",
     "step_delay", "max_steps", "on_episode_end", "end_on_goal", "episodes",
-    "wait_for_listener", "planner", "policy_file", "time_per_step", "scenarios", "depth",
+    "wait_for_listener", "planner", "planner_options", "policy_file", "time_per_step", "scenarios", "depth",
     "lambda", "max_trials", "reactive_budget", "reactive_wait", "tasks", "schedule",
     "selector", "library", "selector_model", "task_timeout", "bpr_forgetting",
     *LEARNING_SETTINGS))
@@ -605,7 +659,8 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     """Every setting, in table order: the given ones parsed, the others their defaults, then
     the checks that involve several (distinct ports, policy_file with planner:=policy) and the
     automatic ones (pause_when_idle: when real_time_factor is 0 or in manual mode; mdp_xterm:
-    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default). A model
+    in manual mode with a display, ``environ`` for DISPLAY, os.environ by default; an empty
+    snapshot_dir: ``$ROS_HOME/hrc_snapshots``, ``environ``'s ROS_HOME). A model
     not given (or given empty or ``auto``) is the task's default (:mod:`ros_hrc.tasks`).
 
     Raises SettingError on the first problem; unknown names are refused, all of them named.
@@ -643,8 +698,12 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     if out["time_per_step"] == 0 and out["max_trials"] == 0:
         raise SettingError("time_per_step", values.get("time_per_step", 0),
                            "0 (no time budget) needs max_trials > 0 to bound the decision")
+    planner_option_values(out["planner_options"])
     if out["away_time"] is None:
         out["away_time"] = task.away_time
+    if not out["snapshot_dir"]:
+        # What the world would use: said where the configuration is printed (hrc_check).
+        out["snapshot_dir"] = str(ros_home(environ) / SNAPSHOT_FOLDER)
     _resolve_sequence(out, values, task)
     if out["rviz"]:
         out["viz"] = True    # RViz shows what viz publishes
@@ -658,6 +717,31 @@ def resolve(values: Mapping[str, Any], environ: Optional[Mapping[str, str]] = No
     return out
 
 
+def planner_option_values(text: str) -> Dict[str, Any]:
+    """``planner_options``'s pairs (``explore=0.2,name="x"``) as a mapping, each value as TOML
+    reads it; SettingError (one line) for text that is not NAME=VALUE pairs."""
+    if not str(text).strip():
+        return {}
+    try:
+        return dict(tomllib.loads(f"options = {{{text}}}")["options"])
+    except tomllib.TOMLDecodeError as exc:
+        raise SettingError("planner_options", text, "must be NAME=VALUE pairs, comma-separated, "
+                           f"each VALUE as TOML writes it ({' '.join(str(exc).split())})") \
+            from None
+
+
+def planner_options_text(options: Mapping[str, Any]) -> str:
+    """``options`` as ``planner_options:=`` writes them (:func:`planner_option_values` reads
+    them back): ``explore=0.2,name="x"``."""
+    def shown(value: Any) -> str:
+        if isinstance(value, bool):
+            return "true" if value else "false"
+        if isinstance(value, str):
+            return json.dumps(value)
+        return repr(value)
+    return ",".join(f"{name}={shown(value)}" for name, value in options.items())
+
+
 def learning_planner_problem(selector: str, planner: str) -> str:
     """Why ``selector`` cannot run with ``planner`` ("" when it can): the learning robot
     plans with DESPOT on its posterior."""
@@ -668,15 +752,22 @@ def learning_planner_problem(selector: str, planner: str) -> str:
 
 def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: tasks.Task) -> None:
     """The sequence's settings (docs/sequences.md), checked together: a selector or a schedule
-    only with ``tasks``, a selector of :data:`SELECTORS`, a schedule whose types are the
+    only with ``tasks``, a selector of :func:`selector_words` (or module:Class), a schedule whose types are the
     task's (a schedule file's path made absolute), ``task_timeout`` auto: the task's;
     ``tasks`` not given is 0 once resolved (no sequence)."""
     selector = out["selector"]
     kind, sep, policy = selector.partition(":")
-    if kind not in SELECTORS or (sep and (kind != "fixed" or not policy.strip())):
+    if kind == "fixed" and sep and not policy.strip():
         raise SettingError("selector", values.get("selector"),
-                           f"must be one of {', '.join(SELECTORS)}, or fixed:POLICY (a policy "
-                           "of the library)")
+                           "fixed:POLICY needs a policy of the library after the colon")
+    if kind != "fixed" and selector not in LEARNING_SELECTORS and \
+            not registry.is_object_path(selector) and selector not in selector_words():
+        known = selector_words()
+        near = difflib.get_close_matches(selector, known, n=1)
+        hint = f"; did you mean {near[0]}?" if near else ""
+        raise SettingError("selector", values.get("selector"),
+                           f"unknown selector{hint} (known: {', '.join(known)}, fixed:POLICY "
+                           "(a policy of the library), or module:Class)")
     problem = learning_planner_problem(selector, out["planner"])
     if problem:
         raise SettingError("selector", values.get("selector"), problem)

@@ -31,11 +31,12 @@ from __future__ import annotations
 import operator
 import re
 from dataclasses import dataclass
-from typing import Iterable, Optional, Tuple
+from typing import TYPE_CHECKING, Iterable, Optional, Tuple
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
-__all__ = ["ROLES", "MAX_SEED", "MAX_EPISODE", "stream", "generator", "stream_seed",
+__all__ = ["ROLES", "MAX_SEED", "MAX_EPISODE", "checked_seed", "stream", "generator", "stream_seed",
            "EpisodeSchedule", "WORLD_EPISODE_PARAM", "WORLD_SEED_PARAM"]
 
 #: Who draws from a stream. Appending a role keeps every existing stream as it was; reordering
@@ -49,9 +50,20 @@ WORLD_EPISODE_PARAM = "/hrc/world/episode"
 #: next cell plays another seed on the same world).
 WORLD_SEED_PARAM = "/hrc/world/seed"
 
-#: The seed and episode travel through ROS messages and parameters as uint32.
-MAX_SEED = 2 ** 32 - 1
+#: The largest seed, the one range of every entry point (the ``seed`` launch argument, the
+#: solver processes' and hrc_experiment's, hrc_fit's and hrc_pomdp's ``--seed``): the seed is a
+#: ROS parameter (``/hrc/config``, :data:`WORLD_SEED_PARAM`, the nodes' own), and the parameter
+#: server's ints are XML-RPC's signed 32-bit ones (roslaunch fails with a traceback on a larger
+#: one). A run seeded past it could not be launched again.
+MAX_SEED = 2 ** 31 - 1
+#: The episode travels in ROS messages (Status, TaskStatus) as uint32.
 MAX_EPISODE = 2 ** 32 - 1
+
+
+def checked_seed(seed: int) -> int:
+    """``seed`` as an int when it is one from 0 to :data:`MAX_SEED`; ValueError (one line,
+    saying the range) otherwise."""
+    return _checked("seed", seed, MAX_SEED)
 
 
 def _checked(name: str, value: int, high: int) -> int:
@@ -68,10 +80,11 @@ def _checked(name: str, value: int, high: int) -> int:
 
 def stream(seed: int, episode: int, role: str) -> np.random.SeedSequence:
     """The SeedSequence of ``role``'s draws in episode ``episode`` of a run seeded ``seed``."""
-    seed = _checked("seed", seed, MAX_SEED)
+    seed = checked_seed(seed)
     episode = _checked("episode", episode, MAX_EPISODE)
     if role not in ROLES:
         raise ValueError(f"unknown stream role {role!r}: expected one of {', '.join(ROLES)}")
+    import numpy as np     # here: the seed's range is read by hrc_pomdp's parser, numpy-free
     return np.random.SeedSequence(entropy=seed, spawn_key=(episode, ROLES.index(role)))
 
 
@@ -84,12 +97,14 @@ def next_episode(episode: Optional[int]) -> int:
 
 def generator(seed: int, episode: int, role: str) -> np.random.Generator:
     """A fresh ``numpy.random.Generator`` on :func:`stream` (seed, episode, role)."""
+    import numpy as np
     return np.random.default_rng(stream(seed, episode, role))
 
 
 def stream_seed(seed: int, episode: int, role: str) -> int:
     """A 64-bit integer drawn from :func:`stream` (seed, episode, role), for a consumer that
     takes an integer seed (a planner, a process started with ``--seed``)."""
+    import numpy as np
     high, low = stream(seed, episode, role).generate_state(2, np.uint32)
     return (int(high) << 32) | int(low)
 

@@ -114,8 +114,8 @@ class Driver:
     def close_join_window(self) -> None:
         """Let ``reset_join_window`` pass after a reset finished: a reset asked for from now
         on is a new one (the tests that ask for one at once mean a new one)."""
-        if self.c._join_timer is not None:
-            self.c.timer_fired(self.c._join_timer)
+        if self.c.resets.join_timer is not None:
+            self.c.timer_fired(self.c.resets.join_timer)
 
     def ready(self, peer: Any = None) -> MdpReset:
         """Connect (seat) the MDP and complete its first reset: the MdpReset it got."""

@@ -83,6 +83,10 @@ def start_stack(*args, name="hrc", cwd=None):
     directory ``cwd`` (this process's by default), as a user runs it from there."""
     cmd = ["roslaunch", "ros_hrc", "hrc.launch", "gui:=false", "real_time_factor:=0",
            "step_delay:=0", "time_per_step:=0.05", "max_trials:=200", "seed:=3"] + list(args)
+    # Without RViz's publishers unless the test asks for them (viz.test does): the loop's tests
+    # do not read them, and they are three more processes to start (about 1 s of CPU).
+    if not any(word.startswith("viz:=") for word in args):
+        cmd.append("viz:=false")
     # The links' ports: free ones unless the test names them, never hrc.launch's own 7070
     # and 9090, so that launched tests (and anyone's stack) can run beside each other.
     if not any(word.startswith("pomdp_port:=") or word.startswith("human_port:=")

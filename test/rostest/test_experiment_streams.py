@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Reproducible studies (issue #21), through the real stacks: one (seed, episode) of a grid
-replays alone exactly, and the same grid gives the same rows with the machine loaded.
+replays alone exactly, and the same cell gives the same rows when its processes are stalled
+as a loaded machine stalls them (half of every 100 ms).
 
 Before: the human of (seed, episode) was seeded with seed + episode - 1 and the planner and
 the world once per stack, so an episode depended on the episodes run before it in its cell
@@ -8,14 +9,17 @@ the world once per stack, so an episode depended on the episodes run before it i
 shrank its search with the machine's load, so a loaded run gave other decisions. Now every
 episode draws from the streams of (seed, episode, role) and experiments bound DESPOT by
 trials, not time."""
-import csv
 import os
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 import unittest
 from pathlib import Path
 
+import psutil
 import rostest
 
 from ros_hrc.experiment.stack import CellSpec, decode_episode, worker_command, write_spec
@@ -27,17 +31,29 @@ HUMAN = "tired"
 STEP_LIMIT = 8
 
 
-def run_cell(episodes, log_dir):
+def run_cell(episodes, log_dir, stalled=False):
     """The cell (HUMAN, pomdp, seed 0) of ``episodes`` on a stack of its own, as
-    hrc_experiment's worker runs it: {episode: (episode row, step rows)} as dicts."""
+    hrc_experiment's worker runs it: {episode: (episode row, step rows)} as dicts.
+    ``stalled``: every process of the cell is stopped for half of each STALL_PERIOD
+    (:class:`Stalls`)."""
     spec = CellSpec(HUMAN, "pomdp", 0, episodes, step_limit=STEP_LIMIT, log_dir=str(log_dir),
                     human_model_file=str(resolve_model(HUMAN, "human")),
                     robot_model=str(resolve_model("robot", "robot")))
-    done = subprocess.run(worker_command(write_spec(spec, Path(log_dir))),
-                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr[-3000:]
+    proc = subprocess.Popen(worker_command(write_spec(spec, Path(log_dir))),
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    stalls = Stalls(proc.pid) if stalled else None
+    try:
+        stdout, stderr = proc.communicate(timeout=600)
+    finally:
+        if stalls:
+            stalls.stop()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, stderr[-3000:]
     out = {}
-    for line in done.stdout.splitlines():
+    for line in stdout.splitlines():
         decoded = decode_episode(line)
         if decoded:
             row, steps = decoded
@@ -51,54 +67,81 @@ def without_wall_time(row):
     return {k: v for k, v in row.items() if k not in WALL_COLUMNS}
 
 
-def run_experiment(out):
-    cmd = [sys.executable, "-m", "ros_hrc.experiment.cli", "--human-models", HUMAN,
-           "--policies", "pomdp", "--seeds", "0", "--episodes", "3", "--step-limit",
-           str(STEP_LIMIT), "--jobs", "1", "--no-plots", "--out", out]
-    done = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True,
-                          timeout=800)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+#: A stalled run's processes are stopped for the first half of each period, run the second.
+STALL_PERIOD = 0.1
 
 
-def read_rows(path):
-    with open(path, newline="") as f:
-        return [without_wall_time(row) for row in csv.DictReader(f)]
+class Stalls:
+    """What a loaded machine does to a run, without loading it: every process of the tree
+    under ``pid`` (the driver, its worker, roslaunch, roscore, the nodes and both solvers)
+    is stopped (SIGSTOP) for half of every STALL_PERIOD and continued for the other half, so
+    that the run's wall time is about twice its CPU time, as beside two processes spinning on
+    this machine's two cores. A planner bounded by wall time would search less; one bounded
+    by trials, as experiments are, decides the same. Before, two such processes spun for the
+    whole run, taking about 60 s of CPU from the tests running beside it."""
+
+    def __init__(self, pid):
+        self.root = psutil.Process(pid)
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _tree(self):
+        try:
+            return [self.root] + self.root.children(recursive=True)
+        except psutil.Error:
+            return []
+
+    def _signal(self, processes, signum):
+        for process in processes:
+            try:
+                process.send_signal(signum)
+            except psutil.Error:
+                pass
+
+    def _run(self):
+        tree, found = [], 0.0
+        while not self.done.is_set():
+            if time.monotonic() - found > 0.5:     # new processes: the stack starts them
+                tree, found = self._tree(), time.monotonic()
+            self._signal(tree, signal.SIGSTOP)
+            time.sleep(STALL_PERIOD / 2)
+            self._signal(tree, signal.SIGCONT)
+            time.sleep(STALL_PERIOD / 2)
+
+    def stop(self):
+        self.done.set()
+        self.thread.join()
+        self._signal(self._tree(), signal.SIGCONT)
 
 
 class TestReproducibleStudy(unittest.TestCase):
 
+    @classmethod
+    def setUpClass(cls):
+        # The cell as a grid plays it, which each test below plays again another way.
+        cls.work = tempfile.mkdtemp(prefix="hrc_streams_")
+        cls.grid = run_cell([0, 1, 2, 3], os.path.join(cls.work, "grid"))
+
     def test_one_episode_of_a_cell_replays_alone_exactly(self):
-        work = tempfile.mkdtemp(prefix="hrc_streams_")
-        grid = run_cell([0, 1, 2, 3], os.path.join(work, "grid"))
-        alone = run_cell([2], os.path.join(work, "alone"))
-        self.assertEqual(sorted(grid), [0, 1, 2, 3])
+        alone = run_cell([2], os.path.join(self.work, "alone"))
+        self.assertEqual(sorted(self.grid), [0, 1, 2, 3])
         self.assertEqual(sorted(alone), [2])
-        self.assertEqual(alone[2][1], grid[2][1], "episode 2's steps differ when run alone")
-        self.assertEqual(alone[2][0], grid[2][0], "episode 2's row differs when run alone")
+        self.assertEqual(alone[2][1], self.grid[2][1], "episode 2's steps differ when run alone")
+        self.assertEqual(alone[2][0], self.grid[2][0], "episode 2's row differs when run alone")
         # No two episodes share a stream: the four are not copies of one another.
         traces = {tuple((s["human_action"], s["human_state"], s["robot_action"])
-                        for s in steps) for _, steps in grid.values()}
+                        for s in steps) for _, steps in self.grid.values()}
         self.assertGreater(len(traces), 1, "every episode of the cell played the same")
 
-    def test_a_grid_run_twice_once_under_load_gives_the_same_rows(self):
-        quiet = tempfile.mkdtemp(prefix="hrc_quiet_")
-        loaded = tempfile.mkdtemp(prefix="hrc_loaded_")
-        run_experiment(quiet)
-        # Two processes spinning for the whole run (this machine's two cores), stopped by
-        # their own PIDs after.
-        burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"])
-                   for _ in range(2)]
-        try:
-            run_experiment(loaded)
-        finally:
-            for burner in burners:
-                burner.kill()
-                burner.wait()
-        for name in ("episodes.csv", "steps.csv", os.path.join("alone", "episodes.csv")):
-            first = read_rows(os.path.join(quiet, name))
-            second = read_rows(os.path.join(loaded, name))
-            self.assertTrue(first, name)
-            self.assertEqual(second, first, f"{name} differs under load")
+    def test_a_cell_played_again_under_load_gives_the_same_rows(self):
+        loaded = run_cell([0, 1, 2, 3], os.path.join(self.work, "loaded"), stalled=True)
+        self.assertEqual(sorted(loaded), [0, 1, 2, 3])
+        for episode in range(4):
+            self.assertEqual(loaded[episode][1], self.grid[episode][1],
+                             f"episode {episode}'s steps differ under load")
+            self.assertEqual(loaded[episode][0], self.grid[episode][0],
+                             f"episode {episode}'s row differs under load")
 
 
 if __name__ == "__main__":

@@ -764,7 +764,7 @@ class TestFuzz(unittest.TestCase):
         rospy.init_node("test_fuzz", anonymous=True)
         cls.log = StatusLog()
         cls.ports = {"pomdp": free_port(), "human": free_port()}
-        cls.proc = start_stack("mode:=auto", "viz:=false", "on_episode_end:=reset",
+        cls.proc = start_stack("mode:=auto", "on_episode_end:=reset",
                                "step_delay:=0.1", "max_steps:=30",
                                f"pomdp_port:={cls.ports['pomdp']}",
                                f"human_port:={cls.ports['human']}", name="fuzz")

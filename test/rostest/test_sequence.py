@@ -114,6 +114,10 @@ class TestSequence(unittest.TestCase):
                 self.assertFalse(first.object_left_belt, where)
             self.assertEqual(len(steps), report.steps, where)
             self.assertEqual(steps[-1].end_reason, report.end_reason, where)
+            # The policy its selector chose is known from the task's start (issue #41): every
+            # step of it names that policy, and the task's report names what it acts by.
+            self.assertEqual({s.policy for s in steps}, {report.policy}, where)
+            self.assertTrue(report.robot_model, where)
 
         # After the last task the loop waits: no sixth task, no step of another episode.
         rospy.sleep(3.0)

@@ -24,7 +24,8 @@ class TestViz(unittest.TestCase):
         rospy.init_node("test_viz", anonymous=True)
         cls.log = StatusLog()
         # Ports of its own: nothing else of the suite can hold them while it runs.
-        cls.proc = start_stack("mode:=auto", "on_episode_end:=continue", "human_model:=beginner",
+        cls.proc = start_stack("viz:=true", "mode:=auto", "on_episode_end:=continue",
+                               "human_model:=beginner",
                                "pomdp_port:=7371", "human_port:=9371",
                                name="viz")
         cls.buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30))

@@ -8,22 +8,26 @@ A library is a TOML manifest (``library.toml``)::
 
     [[policy]]
     name = "base"                         # letters, digits, _ . @ -: the selector names it so
-    planner = "despot"                    # a value of the planner setting
-    model = "robot/base.pomdpx"           # the robot model, relative to this file's folder
+    planner = "despot"                    # a planner: a value of the planner setting
+    model = "robot/base.pomdpx"           # the robot model, relative to this file's folder,
+                                          # or a name of the task's robot models ("robot")
 
     [[policy]]
     name = "reactive"
     planner = "reactive"
     reactive_wait = 15.0                  # an option: a setting of that planner
 
-A policy's other keys are its options: settings of the robot process (``ros_hrc.settings``)
-that apply to its planner -- DESPOT's ``time_per_step``, ``scenarios``, ``depth``, ``lambda``,
-``max_trials``; the offline policy's ``policy_file`` (a path, relative to the manifest's folder
-like ``model``); the reactive robot's tuning, the task's ``reactive_parameter``
-(``reactive_budget`` for the seed's, ``reactive_wait`` for fabric's). Each is checked as the
-launch checks it. ``model`` is needed by the planners that plan on it (``despot``,
-``policy``); for the others it may be left out (None: the robot process keeps the launch's
-``robot_model``, whose belief it reports).
+``planner`` is any name the ``planner`` setting takes: ours, an installed package's, or
+``module:Class`` (:mod:`ros_hrc.registry`; docs/extending.md). A policy's other keys are its
+options, as its planner class declares them (:class:`ros_hrc.pomdp.planner.Planner`): the
+settings of the robot process it reads (``settings_used``) -- DESPOT's ``time_per_step``,
+``scenarios``, ``depth``, ``lambda``, ``max_trials``; the offline policy's ``policy_file`` (a
+path, relative to the manifest's folder like ``model``); the reactive robot's tuning, the
+task's ``reactive_parameter`` (``reactive_budget`` for the seed's, ``reactive_wait`` for
+fabric's), each checked as the launch checks it -- and its own ``options``, each of the type
+of its default, passed to the planner as they are. ``model`` is needed by a planner that
+``plans_on_model`` (``despot``, ``policy``); for the others it may be left out (None: the
+robot process keeps the launch's ``robot_model``, whose belief it reports).
 
 :func:`load_library` reads a manifest (or a folder holding ``library.toml``; ``auto``: the
 task's own, :func:`library_manifest`), loads every robot model and checks it against the task
@@ -44,8 +48,10 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 
 from ros_hrc import settings, tasks
 from ros_hrc.errors import HrcError, did_you_mean
-from ros_hrc.model_files import MODELS_DIR, user_path
-from ros_hrc.models import load_robot_model, shown_path
+from ros_hrc.pomdp.planner import planner_class
+from ros_hrc.registry import RegistryError
+from ros_hrc.model_files import MODELS_DIR, names_a_file, user_path
+from ros_hrc.models import load_robot_model, model_path, shown_path
 from ros_hrc.tasks.definition import Task
 
 __all__ = ["LibraryPolicy", "PolicyLibrary", "LibraryError", "UnknownPolicy", "load_library",
@@ -61,10 +67,6 @@ POLICY_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.@-]*")
 _POLICY_KEYS = ("name", "planner", "model")
 #: The manifest's top-level keys.
 _MANIFEST_KEYS = ("task", "policy")
-#: The planners that plan on the robot model, so a policy of theirs must name one.
-_PLANS_ON_MODEL = ("despot", "policy")
-#: DESPOT's settings (the robot process's search budget and shape).
-_DESPOT_OPTIONS = ("time_per_step", "scenarios", "depth", "lambda", "max_trials")
 
 
 class LibraryError(HrcError):
@@ -83,7 +85,7 @@ class LibraryPolicy:
     """One policy of a library: a planner, the robot model it plans on and its options."""
 
     name: str
-    #: A value of the ``planner`` setting: "despot", "reactive", ...
+    #: A value of the ``planner`` setting: "despot", "reactive", ..., "module:Class"
     planner: str
     #: The robot model's absolute path (None: the planner needs none of its own).
     robot_model: Optional[Path]
@@ -142,12 +144,11 @@ def library_manifest(task: Union[Task, str]) -> Path:
     return shared / MANIFEST_NAME
 
 
-def planner_options(planner: str, task: Union[Task, str]) -> Tuple[str, ...]:
-    """The options (settings) a policy of ``planner`` may set on ``task``."""
-    which = tasks.get(task)
-    return {"despot": _DESPOT_OPTIONS, "policy": ("policy_file",),
-            "reactive": (which.reactive_parameter,) if which.reactive_robot else ()
-            }.get(planner, ())
+def planner_options(planner: Union[str, type], task: Union[Task, str]) -> Tuple[str, ...]:
+    """The options a policy of ``planner`` (its name or class) may set on ``task``: the
+    settings it reads, then its own options (:class:`ros_hrc.pomdp.planner.Planner`)."""
+    kind = planner_class(planner) if isinstance(planner, str) else planner
+    return tuple(kind.settings_used(tasks.get(task))) + tuple(kind.options)
 
 
 def load_library(path_or_auto: Union[str, Path], task: Union[Task, str]) -> PolicyLibrary:
@@ -234,23 +235,26 @@ def _policy(entry: Mapping[str, Any], index: int, folder: Path, which: Task,
                            f"(a name is letters, digits and _ . @ -, not starting with . @ -)")
     label = f"policy {name!r}"
     if "planner" not in entry:
-        raise LibraryError(f"{lines.of_policy(index, 'name')}: {label} has no planner (one "
-                           f"of {', '.join(settings.SETTINGS['planner'].choices or ())})")
+        raise LibraryError(f"{lines.of_policy(index, 'name')}: {label} has no planner (a "
+                           f"name the planner setting takes: {settings.SETTINGS['planner'].accepted()})")
     try:
         planner = settings.parse("planner", entry["planner"])
-    except settings.SettingError as exc:
+        kind = planner_class(planner)
+    except (settings.SettingError, RegistryError) as exc:
         raise LibraryError(f"{lines.of_policy(index, 'planner')}: {label}: {exc}") from None
     given = {key: value for key, value in entry.items() if key not in _POLICY_KEYS}
-    options = _options(given, planner, label, index, folder, which, lines)
-    robot_model = _robot_model(entry.get("model"), planner, label, index, folder, which, lines)
+    options = _options(given, planner, kind, label, index, folder, which, lines)
+    robot_model = _robot_model(entry.get("model"), planner, kind, label, index, folder, which,
+                               lines)
     return LibraryPolicy(name=name, planner=planner, robot_model=robot_model, options=options)
 
 
-def _options(given: Mapping[str, Any], planner: str, label: str, index: int, folder: Path,
-             which: Task, lines: "_Lines") -> Dict[str, Any]:
-    """The policy's options, each a setting of its planner, parsed as the launch parses it and
-    checked with the planner as a whole (:func:`ros_hrc.settings.resolve`)."""
-    allowed = planner_options(planner, which)
+def _options(given: Mapping[str, Any], planner: str, kind: type, label: str, index: int,
+             folder: Path, which: Task, lines: "_Lines") -> Dict[str, Any]:
+    """The policy's options: each setting its planner reads parsed as the launch parses it and
+    checked with the planner as a whole (:func:`ros_hrc.settings.resolve`); each of its own
+    options checked to be of its default's type, and passed on as it is."""
+    allowed = planner_options(kind, which)
     for key in given:
         if key not in allowed:
             what = "option" if key in settings.SETTINGS else "key"
@@ -258,30 +262,44 @@ def _options(given: Mapping[str, Any], planner: str, label: str, index: int, fol
             raise LibraryError(f"{lines.of_policy(index, key)}: {label}: unknown {what} {key!r} "
                                f"for planner {planner} ({takes}; a policy's keys: "
                                f"{', '.join(_POLICY_KEYS)})")
+    own = {key: value for key, value in given.items() if key in kind.options}
+    for key, value in own.items():
+        try:
+            own.update(kind.checked_options({key: value}))
+        except ValueError as exc:
+            raise LibraryError(f"{lines.of_policy(index, key)}: {label}: {exc}") from None
     values = {key: _in_folder(value, folder) if settings.SETTINGS[key].kind == "file" else value
-              for key, value in given.items()}
+              for key, value in given.items() if key not in own}
     try:
         resolved = settings.resolve({"task": which.name, "planner": planner, **values})
     except settings.SettingError as exc:
         key = exc.name if exc.name in given else ""
         line = lines.of_policy(index, key) if key else lines.of_policy(index, "planner")
         raise LibraryError(f"{line}: {label}: {exc}") from None
-    return {key: resolved[key] for key in given}
+    return {key: own[key] if key in own else resolved[key] for key in given}
 
 
-def _robot_model(model: Any, planner: str, label: str, index: int, folder: Path, which: Task,
-                 lines: "_Lines") -> Optional[Path]:
+def _robot_model(model: Any, planner: str, kind: type, label: str, index: int, folder: Path,
+                 which: Task, lines: "_Lines") -> Optional[Path]:
     """The policy's robot model (absolute), loaded and checked against the task; None when
     it names none and its planner plans on none."""
     if model is None:
-        if planner in _PLANS_ON_MODEL:
+        if kind.plans_on_model:
             raise LibraryError(f"{lines.of_policy(index, 'name')}: {label}: planner {planner} "
                                f"needs a model (model = \"FILE\", relative to the manifest)")
         return None
     where = lines.of_policy(index, "model")
     if not isinstance(model, str) or not model.strip():
         raise LibraryError(f"{where}: {label}: model must be a file name, got {model!r}")
-    path = Path(_in_folder(model, folder))
+    if not names_a_file(model.strip()):
+        # A name, as robot_model:= takes one: the task's model of that name (a library kept
+        # outside the package names the shipped models so).
+        try:
+            path = model_path(model.strip(), "robot", which)
+        except HrcError as exc:
+            raise LibraryError(f"{where}: {label}: {_one_line(exc)}") from None
+    else:
+        path = Path(_in_folder(model, folder))
     try:
         load_robot_model(str(path), which)
     except HrcError as exc:

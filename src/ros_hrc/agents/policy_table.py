@@ -20,9 +20,10 @@ The sequences name observations of the robot model (``O<bits>``, :mod:`ros_hrc.t
 from __future__ import annotations
 
 import logging
+import math
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -31,9 +32,6 @@ from ros_hrc.tasks import seed as task
 from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
 from ros_hrc.pomdp.model import Model
 from ros_hrc.agents.policy_sequences import DEFAULT_TRIALS, SEQUENCES, ObservationSequence
-
-#: A time budget that never binds: the trials alone bound the search.
-UNBOUNDED_SECONDS = 1e6
 
 
 @dataclass
@@ -64,7 +62,7 @@ def despot_config(trials: int = DEFAULT_TRIALS, scenarios: int = settings.defaul
                   pruning: float = settings.default("lambda")) -> DespotConfig:
     """The robot's online DESPOT settings, bounded by ``trials`` per decision instead of time."""
     return DespotConfig(scenarios=scenarios, depth=depth, pruning=pruning,
-                        time_per_step=UNBOUNDED_SECONDS, max_trials=trials)
+                        time_per_step=math.inf, max_trials=trials)   # no time budget
 
 
 def _mass(model: Model, belief: np.ndarray, states) -> float:

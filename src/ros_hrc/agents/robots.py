@@ -52,7 +52,8 @@ the policy needs is refused with a ValueError naming it. No ROS, no PyBullet.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Dict, Iterable, Optional
+from pathlib import Path
+from typing import Any, Callable, Dict, Iterable, Mapping, Optional, Tuple
 
 import numpy as np
 
@@ -128,7 +129,23 @@ def _observation_bits(model: Model, who: str) -> np.ndarray:
     return np.array([bits_by_name[n] for n in model.observations], dtype=int)
 
 
-class ReactivePlanner(BeliefPlanner):
+class ReactiveRobot(BeliefPlanner):
+    """``planner:=reactive``: the task's reactive robot (:func:`reactive_planner`), the seed's
+    rules (:class:`ReactivePlanner`, ``reactive_budget``) or fabric's reactive MDP
+    (:class:`ReactiveMdpPlanner`, ``reactive_wait``), both of this kind."""
+
+    @classmethod
+    def settings_used(cls, task_: Any) -> Tuple[str, ...]:
+        return (task_.reactive_parameter,) if task_.reactive_robot else ()
+
+    @classmethod
+    def from_settings(cls, model: Model, task_: Any, values: Mapping[str, Any]
+                      ) -> "ReactiveRobot":
+        return reactive_planner(task_, model, budget=values["reactive_budget"],
+                                wait=values["reactive_wait"], seed=values.get("seed"))
+
+
+class ReactivePlanner(ReactiveRobot):
     """Rule-based robot on the current observation; keeps the exact belief (module docstring).
 
     ``last_rule`` names the rule behind the latest ``act()``; ``steps`` counts observations
@@ -208,7 +225,7 @@ def mdp_policy(mdp: Model) -> Dict[str, str]:
     return {state: mdp.actions[int(a)] for state, a in zip(mdp.states, solution.policy)}
 
 
-class ReactiveMdpPlanner(BeliefPlanner):
+class ReactiveMdpPlanner(ReactiveRobot):
     """FABRIC's reactive robot (module docstring): the authors' rules name a state of the
     reactive MDP ``mdp`` from each observation, and the robot acts by the MDP's optimal
     policy; the exact belief over ``model``'s states is kept as by any planner.
@@ -238,6 +255,8 @@ class ReactiveMdpPlanner(BeliefPlanner):
         super().__init__(model, seed)  # exact belief: particles stay None
         self.reset()
 
+    reads_time = True
+
     def reset(self, belief: Optional[np.ndarray] = None) -> None:
         super().reset(belief)
         self._states.reset()
@@ -263,33 +282,48 @@ class ReactiveMdpPlanner(BeliefPlanner):
         return self._actions[self.policy[self._states.state]]
 
     def policy_text(self) -> str:
-        """The MDP's policy in one line, e.g. ``TaskHuman: idle, HumanNeedsHelp: grasp, ...``."""
-        return ", ".join(f"{state}: {action}" for state, action in self.policy.items())
+        """The MDP's policy in one line, e.g. ``the reactive MDP's policy (value iteration):
+        TaskHuman: idle, HumanNeedsHelp: grasp, ...``."""
+        return "the reactive MDP's policy (value iteration): " + ", ".join(f"{state}: {action}" for state, action in self.policy.items())
 
 
 def _rules_reactive(task_: Task, model: Model, budget: int, wait: float,
-                   seed: Optional[int]) -> BeliefPlanner:
+                   seed: Optional[int]) -> ReactiveRobot:
     return ReactivePlanner(model, ReactiveConfig(budget=budget), seed=seed)
 
 
+def _reactive_mdp_file(task_: Task) -> Path:
+    """The file of the reactive MDP the task's ``mdp`` reactive robot acts by."""
+    return resolve_model(fabric_reactive.REACTIVE_MDP_MODEL, "robot", task_.model_dirs["robot"])
+
+
 def _mdp_reactive(task_: Task, model: Model, budget: int, wait: float,
-                     seed: Optional[int]) -> BeliefPlanner:
-    path = resolve_model(fabric_reactive.REACTIVE_MDP_MODEL, "robot", task_.model_dirs["robot"])
-    return ReactiveMdpPlanner(model, load_model(path), ReactiveMdpConfig(wait=wait), seed=seed)
+                     seed: Optional[int]) -> ReactiveRobot:
+    return ReactiveMdpPlanner(model, load_model(_reactive_mdp_file(task_)),
+                              ReactiveMdpConfig(wait=wait), seed=seed)
 
 
 #: The reactive robots (``planner:=reactive``) by their kind, a task's ``reactive_robot``: the
 #: seed's rules on its bits (``reactive_budget``), the successor's reactive MDP
 #: (``reactive_wait``). A task of no kind has none (the pre-flight refuses ``planner:=reactive``).
-REACTIVE_ROBOTS: Dict[str, Callable[..., BeliefPlanner]] = {
+REACTIVE_ROBOTS: Dict[str, Callable[..., ReactiveRobot]] = {
     "rules": _rules_reactive,
     "mdp": _mdp_reactive,
 }
 
 
+def reactive_robot_model(task_: Task) -> str:
+    """What the task's reactive robot acts by, where a report names a policy's robot model
+    (``/hrc/task_status.robot_model``): the reactive MDP's file (fabric's), else the robot by
+    its name and kind (the seed's: ``reactive (rules)``); "" for a task without one."""
+    if task_.reactive_robot == "mdp":
+        return str(_reactive_mdp_file(task_))
+    return f"reactive ({task_.reactive_robot})" if task_.reactive_robot else ""
+
+
 def reactive_planner(task_: Task, model: Model, budget: int = DEFAULT_REACTIVE_BUDGET,
                      wait: float = fabric_reactive.DEFAULT_WAIT,
-                     seed: Optional[int] = None) -> BeliefPlanner:
+                     seed: Optional[int] = None) -> ReactiveRobot:
     """The task's reactive robot over ``model`` (``budget``: the seed's, ``wait``: fabric's);
     ValueError for a task without one."""
     if not task_.reactive_robot:
@@ -299,6 +333,13 @@ def reactive_planner(task_: Task, model: Model, budget: int = DEFAULT_REACTIVE_B
 
 class NoRobotPlanner(BeliefPlanner):
     """The robot never acts (always the idle action); keeps the exact belief."""
+
+    @classmethod
+    def from_settings(cls, model: Model, task_: Any, values: Mapping[str, Any]
+                      ) -> "NoRobotPlanner":
+        """Idle at the task's idle action."""
+        return cls(model, NoRobotConfig(idle_action=task_.robot_idle_action),
+                   seed=values.get("seed"))
 
     def __init__(self, model: Model, config: Optional[NoRobotConfig] = None,
                  seed: Optional[int] = None) -> None:

@@ -93,8 +93,10 @@ class SelectorModel:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        set_(self, "policies", tuple(str(p) for p in self.policies))
-        set_(self, "types", tuple(str(t) for t in self.types))
+        # Names as given: str() made the types 0..9 of a file the names "0".."9", which no
+        # human's type matched (the oracle then identified nobody, silently).
+        set_(self, "policies", tuple(self.policies))
+        set_(self, "types", tuple(self.types))
         set_(self, "mean", _frozen(self.mean, float))
         set_(self, "std", _frozen(self.std, float))
         set_(self, "signature", _frozen(self.signature, float))
@@ -118,9 +120,20 @@ class SelectorModel:
         return self.types.index(name) if name in self.types else None
 
 
+def _not_a_name(what: str, names: Sequence[Any]) -> str:
+    """The first of ``names`` that is not a string, said in one line ('' when all are)."""
+    for index, name in enumerate(names):
+        if not isinstance(name, str):
+            return (f"{what}[{index}] is {json.dumps(name, default=repr)}, not a name: each of "
+                    f"the {what} is named by a string")
+    return ""
+
+
 def _names_problem(what: str, names: Sequence[str]) -> str:
     if not names:
         return f"no {what}"
+    if _not_a_name(what, names):
+        return _not_a_name(what, names)
     if any(not n for n in names):
         return f"an empty name among the {what}"
     if len(set(names)) != len(names):
@@ -311,7 +324,10 @@ def load_selector_model(path: Union[str, Path], task: Any, policies: Sequence[st
     if not isinstance(library, dict) or not isinstance(library.get("policies"), list):
         raise ModelFormatError(str(path), None, "library must be an object with a list "
                                                 "'policies'")
-    trained, wanted = [str(p) for p in library["policies"]], [str(p) for p in policies]
+    problem = _not_a_name("policies", library["policies"])
+    if problem:
+        raise ModelError(f"{path}: library.{problem}")
+    trained, wanted = list(library["policies"]), [str(p) for p in policies]
     if trained != wanted:
         raise ModelError(f"{path}: trained on the policies {', '.join(trained) or '(none)'}; "
                          f"the library's are {', '.join(wanted) or '(none)'} (retrain: make "

@@ -16,6 +16,10 @@ task's utility). docs/selectors.md says what each one does and why; in short:
   bandit          UCB1 over the policies from the utilities alone (MABWiser), no model
   oracle          told the human's true type, the policy best for it in the model
 
+Each is a :class:`Selector` found by name in :mod:`ros_hrc.registry` (``ros_hrc.selectors``),
+as a selector of the user's own package is (docs/extending.md); ``fixed:<policy>`` is made
+here.
+
 The signature of a step (:func:`signature_code`) is FABRIC's six human observables packed in
 six bits. The performance model is Gaussian, N(mean[τ, π], std[τ, π]) of the task utility,
 and the signature model a distribution over the 64 codes per (policy, type): both come from
@@ -30,16 +34,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Dict, Optional, Protocol, Sequence, Tuple
+from typing import ClassVar, Dict, Optional, Sequence, Tuple, Type
 
 import numpy as np
 from scipy.special import logsumexp
 
+from ros_hrc import registry
 from ros_hrc.agents.selector_model import SIGNATURE_CODES, SelectorModel
 from ros_hrc.tasks.utility import UTILITY_MAX
 
-__all__ = ["SELECTOR_NAMES", "NEEDS_MODEL", "DEFAULT_FORGETTING", "SIGNATURE_OBSERVABLES",
-           "TaskResult", "Selector", "signature_code", "make_selector",
+__all__ = ["FIXED", "DEFAULT_FORGETTING", "SIGNATURE_OBSERVABLES",
+           "TaskResult", "Selector", "selector_class", "signature_code", "make_selector",
            "signature_log_likelihood", "type_posterior", "mix_with_uniform",
            "expected_utilities", "utility_ceiling", "improvement_target",
            "probability_of_improvement", "expected_improvement",
@@ -47,12 +52,9 @@ __all__ = ["SELECTOR_NAMES", "NEEDS_MODEL", "DEFAULT_FORGETTING", "SIGNATURE_OBS
            "FixedSelector", "RandomSelector", "BprSelector", "FabricBprSelector",
            "BanditSelector", "OracleSelector"]
 
-#: The values of the ``selector`` setting. ``fixed`` alone is today's single robot (the
-#: robot process keeps its one planner, no selector is made); ``fixed:<policy>`` is made here.
-SELECTOR_NAMES: Tuple[str, ...] = ("fixed", "random", "bpr", "bpr-pi", "bpr-fabric", "bandit",
-                                   "oracle")
-#: The selectors that cannot run without a selector model file.
-NEEDS_MODEL = frozenset({"bpr", "bpr-pi", "bpr-fabric", "oracle"})
+#: ``selector:=fixed`` alone is today's single robot (the robot process keeps its one planner,
+#: no selector is made); ``fixed:<policy>`` is made here. Every other selector is registered.
+FIXED = "fixed"
 #: ``bpr_forgetting``'s default: after each task, 5 % of the belief is spread evenly over the
 #: types (docs/selectors.md, "Forgetting").
 DEFAULT_FORGETTING = 0.05
@@ -68,27 +70,48 @@ class TaskResult:
     utility: float
 
 
-class Selector(Protocol):
-    """A selector, as the robot process drives it (one per sequence)."""
+class Selector:
+    """A selector, as the robot process drives it (one per sequence). Every ability the
+    process uses is declared here, with the default of a selector without it; a selector is
+    made by :meth:`create`."""
 
     #: "bpr", "fixed:policy3", ...
-    name: str
+    name: str = ""
+    #: Whether it cannot run without a selector model (``selector_model:=``, make
+    #: train-selector); the held-out rule of a trained model applies to it (hrc_experiment).
+    needs_model: ClassVar[bool] = False
     #: The human types its belief is over; () for a selector with no type belief.
-    type_names: Tuple[str, ...]
+    type_names: Tuple[str, ...] = ()
     #: One line on something worth saying about its last choice or update ("" when nothing).
-    note: str
+    note: str = ""
+
+    @classmethod
+    def create(cls, policies: Tuple[str, ...], model: Optional[SelectorModel],
+               rng: np.random.Generator, forgetting: float) -> "Selector":
+        """A fresh selector for one sequence over the library's ``policies`` (the selector
+        model ``model``: None without one; of these policies when given), drawing from
+        ``rng``, with the BPR belief's floor ``forgetting``. By default ``cls(policies, rng)``."""
+        return cls(policies, rng)
 
     def choose(self) -> str:
         """The policy for the next task (draws from the selector's own generator)."""
+        raise NotImplementedError
 
     def observe(self, result: TaskResult) -> None:
-        """Learn from the task just played."""
+        """Learn from the task just played (by default nothing)."""
 
     def belief(self) -> np.ndarray:
         """The belief over ``type_names`` (an empty array when it has none)."""
+        return np.zeros(0)
 
     def tell_true_type(self, name: str) -> None:
         """The human's true type for the next task: only the oracle uses it."""
+
+
+def selector_class(name: str) -> Type[Selector]:
+    """The selector ``name`` names (``selector:=``, not ``fixed``): a registered name or
+    ``module:Class`` (:mod:`ros_hrc.registry`). RegistryError (a ValueError, one line)."""
+    return registry.load(registry.SELECTORS, name, Selector)
 
 
 # -- the signature --------------------------------------------------------------------------------
@@ -307,23 +330,7 @@ def _uniform(n: int) -> np.ndarray:
     return np.full(n, 1.0 / n) if n else np.zeros(0)
 
 
-class _BlindSelector:
-    """What a selector that learns nothing between tasks and holds no type belief answers
-    (``fixed`` and ``random``): a task's result and the true type change nothing."""
-
-    type_names: Tuple[str, ...] = ()
-
-    def observe(self, result: TaskResult) -> None:
-        pass
-
-    def belief(self) -> np.ndarray:
-        return np.zeros(0)
-
-    def tell_true_type(self, name: str) -> None:
-        pass
-
-
-class FixedSelector(_BlindSelector):
+class FixedSelector(Selector):
     """``fixed:<policy>``: always that policy."""
 
     def __init__(self, policy: str) -> None:
@@ -335,7 +342,7 @@ class FixedSelector(_BlindSelector):
         return self.policy
 
 
-class RandomSelector(_BlindSelector):
+class RandomSelector(Selector):
     """``random``: a policy drawn uniformly from the library for each task."""
 
     name = "random"
@@ -349,13 +356,21 @@ class RandomSelector(_BlindSelector):
         return self.policies[int(self.rng.integers(len(self.policies)))]
 
 
-class BprSelector:
-    """``bpr`` (rule "ei") and ``bpr-pi`` (rule "pi"): Bayesian policy reuse over the model's
-    types. The belief starts uniform; after each task it is updated from the task's
-    signature (:func:`type_posterior`) and mixed with uniform by ``forgetting``
-    (:func:`mix_with_uniform`). ``choose`` takes the policy of largest expected improvement
-    (or probability of improvement) over Ū = max_π Σ_τ β(τ) E[U | τ, π]; ties go to the
-    library's first."""
+class BprSelector(Selector):
+    """``bpr`` (rule "ei") and ``bpr-pi`` (rule "pi", :class:`BprPiSelector`): Bayesian
+    policy reuse over the model's types. The belief starts uniform; after each task it is
+    updated from the task's signature (:func:`type_posterior`) and mixed with uniform by
+    ``forgetting`` (:func:`mix_with_uniform`). ``choose`` takes the policy of largest expected
+    improvement (or probability of improvement) over Ū = max_π Σ_τ β(τ) E[U | τ, π]; ties go
+    to the library's first."""
+
+    needs_model = True
+    #: Its score: "ei" (expected improvement) or "pi" (probability of improvement).
+    RULE = "ei"
+
+    @classmethod
+    def create(cls, policies, model, rng, forgetting) -> "BprSelector":
+        return cls(model, cls.RULE, float(forgetting))
 
     def __init__(self, model: SelectorModel, rule: str, forgetting: float) -> None:
         if rule not in ("ei", "pi"):
@@ -397,16 +412,24 @@ class BprSelector:
     def belief(self) -> np.ndarray:
         return self._belief.copy()
 
-    def tell_true_type(self, name: str) -> None:
-        pass
+
+class BprPiSelector(BprSelector):
+    """``bpr-pi``: :class:`BprSelector` scoring by the probability of improvement."""
+
+    RULE = "pi"
 
 
-class FabricBprSelector:
+class FabricBprSelector(Selector):
     """``bpr-fabric``: FABRIC's BPR — their belief update (:func:`fabric_type_posterior`, which
     forgets nothing beyond its 1e-5) and their score (:func:`fabric_scores`), ties broken by
     their 1e-5 uniform noise drawn from the selector's generator."""
 
     name = "bpr-fabric"
+    needs_model = True
+
+    @classmethod
+    def create(cls, policies, model, rng, forgetting) -> "FabricBprSelector":
+        return cls(model, rng)
 
     def __init__(self, model: SelectorModel, rng: np.random.Generator) -> None:
         self.model = model
@@ -432,18 +455,14 @@ class FabricBprSelector:
     def belief(self) -> np.ndarray:
         return self._belief.copy()
 
-    def tell_true_type(self, name: str) -> None:
-        pass
 
-
-class BanditSelector:
+class BanditSelector(Selector):
     """``bandit``: UCB1 (MABWiser's ``LearningPolicy.UCB1``, α = 1: Auer et al.'s bound
     mean + sqrt(2 ln n / n_π)) over the library, rewarded with :func:`bandit_reward` of each
     task's utility. Each policy is played once first (UCB1's start), in an order drawn from the
     selector's generator; no model, no types."""
 
     name = "bandit"
-    type_names: Tuple[str, ...] = ()
 
     def __init__(self, policies: Sequence[str], rng: np.random.Generator) -> None:
         from mabwiser.mab import MAB, LearningPolicy   # pandas and scikit-learn: only when used
@@ -470,20 +489,19 @@ class BanditSelector:
         self._decisions.append(result.policy)
         self._rewards.append(bandit_reward(result.utility))
 
-    def belief(self) -> np.ndarray:
-        return np.zeros(0)
 
-    def tell_true_type(self, name: str) -> None:
-        pass
-
-
-class OracleSelector:
+class OracleSelector(Selector):
     """``oracle``: told the human's true type before each task (``tell_true_type``), it takes
     the policy of largest mean utility for that type in the model. A type the model was not
     trained on (or none told yet) gets the policy best on average over the model's types, and
     ``note`` says so. Its belief is all on the told type (uniform when it is unknown)."""
 
     name = "oracle"
+    needs_model = True
+
+    @classmethod
+    def create(cls, policies, model, rng, forgetting) -> "OracleSelector":
+        return cls(model)
 
     def __init__(self, model: SelectorModel) -> None:
         self.model = model
@@ -505,9 +523,6 @@ class OracleSelector:
         self.note = ""
         return m.policies[int(np.argmax(m.mean[row]))]
 
-    def observe(self, result: TaskResult) -> None:
-        pass
-
     def belief(self) -> np.ndarray:
         row = self.model.type_index(self._true_type) if self._true_type is not None else None
         if row is None:
@@ -519,9 +534,10 @@ class OracleSelector:
 
 def make_selector(spec: str, policies: Sequence[str], model: Optional[SelectorModel],
                   seed: int, forgetting: float) -> Selector:
-    """The selector ``spec`` names ('fixed:<policy>', 'random', 'bpr', 'bpr-pi', 'bpr-fabric',
-    'bandit', 'oracle') over the library ``policies``, with the selector model ``model`` (the
-    BPRs and the oracle need one; it must be of these policies), its generator seeded with
+    """The selector ``spec`` names ('fixed:<policy>', or a registered selector: 'random', 'bpr',
+    'bpr-pi', 'bpr-fabric', 'bandit', 'oracle', an installed package's, or 'module:Class')
+    over the library ``policies``, with the selector model ``model`` (one that
+    ``needs_model`` needs one; it must be of these policies), its generator seeded with
     ``seed`` (the caller's ``streams.stream_seed(run seed, sequence, "selector")``) and
     ``forgetting`` the BPR belief's floor (``bpr_forgetting``, 0 <= ε < 1). ValueError with
     one line for anything else."""
@@ -531,10 +547,7 @@ def make_selector(spec: str, policies: Sequence[str], model: Optional[SelectorMo
     if not policies or len(set(policies)) != len(policies):
         raise ValueError(f"the library's policies must be distinct and at least one, got "
                          f"{', '.join(policies) or '(none)'}")
-    if name not in SELECTOR_NAMES:
-        raise ValueError(f"unknown selector {text!r}; known: fixed:<policy>, "
-                         f"{', '.join(n for n in SELECTOR_NAMES if n != 'fixed')}")
-    if name == "fixed":
+    if name == FIXED:
         if not argument:
             raise ValueError("selector 'fixed' names no policy: 'fixed' alone is the launch's "
                              "single robot, 'fixed:<policy>' a library policy")
@@ -542,27 +555,24 @@ def make_selector(spec: str, policies: Sequence[str], model: Optional[SelectorMo
             raise ValueError(f"selector {text!r}: no policy {argument!r} in the library; its "
                              f"policies: {', '.join(policies)}")
         return FixedSelector(argument)
-    if colon:
+    if colon and name in registry.names(registry.SELECTORS):
         raise ValueError(f"selector {name!r} takes no argument, got {text!r}")
+    try:
+        kind = selector_class(text)    # a registered name or module:Class
+    except registry.RegistryError as exc:
+        raise ValueError(f"{exc}; also fixed:<policy>") from None
     if isinstance(forgetting, bool) or not isinstance(forgetting, (int, float)) or not \
             0.0 <= float(forgetting) < 1.0:
         raise ValueError(f"bpr_forgetting must be a number from 0 to below 1, got {forgetting!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"a selector's seed must be an integer >= 0, got {seed!r}")
-    if name in NEEDS_MODEL:
+    if kind.needs_model:
         if model is None:
-            raise ValueError(f"selector {name!r} needs a selector model; none was given (make "
+            raise ValueError(f"selector {text!r} needs a selector model; none was given (make "
                              "train-selector writes one)")
         if model.policies != policies:
             raise ValueError(f"the selector model is of the policies {', '.join(model.policies)}; "
                              f"the library's are {', '.join(policies)} (make train-selector)")
-    rng = np.random.default_rng(int(seed))
-    if name == "random":
-        return RandomSelector(policies, rng)
-    if name == "bandit":
-        return BanditSelector(policies, rng)
-    if name == "oracle":
-        return OracleSelector(model)
-    if name == "bpr-fabric":
-        return FabricBprSelector(model, rng)
-    return BprSelector(model, "ei" if name == "bpr" else "pi", float(forgetting))
+    selector = kind.create(policies, model, np.random.default_rng(int(seed)), float(forgetting))
+    selector.name = text      # what the reports call it: the name it was asked by
+    return selector

@@ -21,6 +21,12 @@ before the YAML. Not on stdout: roslaunch reads stdout as the value of ``/hrc/co
 never shows it, while it passes the command's stderr through to the terminal, so the line is
 seen when the launch starts; a YAML comment would be parsed away unseen.
 
+The planner (``planner:=``: ours, an installed package's or ``module:Class``;
+docs/extending.md) is imported and checked to be a planner as the robot process will find it,
+and a selector of a sequence likewise (below): an unknown name is one line with the known
+names and the nearest, a module that does not import or a class of another kind one line
+naming it and why.
+
 A sequence (``tasks:=N``, docs/sequences.md) is checked whole before anything starts: its
 schedule (every type the task's, a schedule file readable and well formed: the file and the
 line), and with a selector other than ``fixed`` the policy library (each policy's robot model
@@ -141,6 +147,24 @@ def check_models(config: Mapping[str, object], notes: Optional[List[str]] = None
             raise CheckError(f"policy_file:={typed('policy_file')}: {text}") from None
 
 
+def check_planner(config: Mapping[str, object]) -> None:
+    """The planner ``planner:=`` names, imported and checked to be a planner, and its own
+    options (``planner_options:=``) checked against it, as the robot process will find them (:func:`ros_hrc.pomdp.planner.planner_class`): a name no package
+    declares, a module that does not import or a class of another kind is refused now, one
+    line, before anything starts."""
+    from ros_hrc.pomdp.planner import planner_class
+    from ros_hrc.registry import RegistryError
+
+    try:
+        kind = planner_class(str(config["planner"]))
+    except RegistryError as exc:
+        raise CheckError(f"planner:={config['planner']}: {exc.reason}") from None
+    try:
+        kind.checked_options(settings.planner_option_values(str(config["planner_options"])))
+    except ValueError as exc:
+        raise CheckError(f"planner_options:={config['planner_options']}: {exc}") from None
+
+
 def typed_value(config: Mapping[str, object], given: Mapping[str, str], name: str) -> str:
     """Setting ``name`` as the user typed it (``given``: the words' values), or its resolved
     value when it was not typed or typed as ``auto``."""
@@ -249,6 +273,7 @@ def check(words: Sequence[str], port_check: bool = True,
     problem. Each model named by position adds its mapping line to ``notes``."""
     given = parse_words(words)
     config = settings.resolve(given)
+    check_planner(config)
     check_models(config, notes, given)
     check_sequence(config, given)
     check_display(config)

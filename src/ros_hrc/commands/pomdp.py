@@ -36,12 +36,14 @@ import time
 from typing import TYPE_CHECKING, Callable, List, Optional, Sequence, TextIO, Tuple
 
 from ros_hrc.command_line import ranged_number
-from ros_hrc.commands.pomdp_common import (MAX_SECONDS, MAX_TRIALS, MODEL_HELP, PROG,
+from ros_hrc.streams import MAX_SEED
+from ros_hrc.commands.pomdp_common import (MAX_SECONDS, MODEL_HELP, PROG,
                                            add_memory_limit, emit, load_with_progress, model_file,
                                            one_line, precision_arg, progress, require_finite,
                                            seconds_arg, seed_arg, solver_errors_exit_2)
 from ros_hrc.commands.pomdp_simulate import register_simulate
 from ros_hrc.errors import HrcError, ModelError, ModelFormatError
+from ros_hrc.pomdp.despot_parameters import parameter
 from ros_hrc.pomdp.memory import MemoryLimitError
 
 if TYPE_CHECKING:
@@ -274,10 +276,11 @@ def _register_policy(subparsers) -> None:
                         f"{q.name} ({' '.join(q.observations)}: {q.what})" for q in SEQUENCES))
     p.add_argument("model", help="a robot model: a name in models/robot/ or a .pomdp/.pomdpx "
                                  "file with the task's states, actions and observations")
-    p.add_argument("--trials", type=ranged_number(int, 1, MAX_TRIALS), default=DEFAULT_TRIALS,
+    p.add_argument("--trials", type=ranged_number(int, 1, parameter("max_trials").high),
+                   default=DEFAULT_TRIALS,
                    metavar="N", help=f"DESPOT trials per decision (default {DEFAULT_TRIALS})")
     p.add_argument("--seed", type=seed_arg, default=0, metavar="K",
-                   help="the planner's seed, 0 to 2**64-1 (default 0)")
+                   help=f"the planner's seed, 0 to {MAX_SEED} (default 0)")
     p.add_argument("--sequence", action="append", type=_policy_sequence, metavar="NAME=OBS,...",
                    help="a sequence of your own, e.g. fails_after_warning=O7,O19,O7,O7 "
                         "(repeatable; given, only these are run)")

@@ -15,10 +15,11 @@ import math
 import sys
 from typing import TYPE_CHECKING, Callable, Optional, TextIO
 
-from ros_hrc.command_line import ranged_number
+from ros_hrc.command_line import ranged_number, seed_argument
 from ros_hrc.errors import HrcError, ModelError, SolverError
 from ros_hrc.model_files import names_a_file, resolve_model
 from ros_hrc.pomdp import memory
+from ros_hrc.pomdp.despot_parameters import parameter
 
 if TYPE_CHECKING:
     from ros_hrc.pomdp.model import Model
@@ -31,12 +32,10 @@ MODEL_HELP = ("a .pomdp or .pomdpx file, or a shipped model's name (robot, human
               "then in the other tasks')")
 
 #: Upper limits of the numeric options: beyond them a run could not finish or fit in memory.
-MAX_SECONDS = 1e6                  # --timeout, --time-per-step: 11.6 days
+#: DESPOT's options take their limits from ros_hrc.pomdp.despot_parameters (:func:`despot_option`),
+#: the seed its range from ros_hrc.streams, as the launch arguments do.
+MAX_SECONDS = 1e6                  # --timeout: 11.6 days
 MAX_RUNS = 10_000_000              # --sim-len, --sim-num, and their product
-MAX_SCENARIOS = 1_000_000          # --scenarios, --particles
-MAX_DEPTH = 100_000                # --depth
-MAX_TRIALS = 10**12                # --max-trials
-MAX_SEED = 2**64 - 1
 MAX_MEMORY = 1 << 50               # --memory-limit: 1 PiB
 
 
@@ -132,18 +131,34 @@ def precision_arg(text: str) -> float:
     return ranged_number(float, 0.0, largest_value(), low_open=True)(text)
 
 
-def regularization_arg(text: str) -> float:
-    """An argparse type: a regularization of 0 or more, at most ``model.MAX_VALUE``."""
-    return ranged_number(float, 0.0, largest_value())(text)
-
-
 seconds_arg = ranged_number(float, 0.0, MAX_SECONDS)
-fraction_arg = ranged_number(float, 0.0, 1.0)
 run_count_arg = ranged_number(int, 1, MAX_RUNS)
-scenario_count_arg = ranged_number(int, 1, MAX_SCENARIOS)
-depth_arg = ranged_number(int, 0, MAX_DEPTH)
-trial_count_arg = ranged_number(int, 0, MAX_TRIALS)
-seed_arg = ranged_number(int, 0, MAX_SEED)
+
+
+#: An argparse type: a seed, in the one range of every seed (ros_hrc.streams.MAX_SEED).
+seed_arg = seed_argument
+
+
+def despot_option(group, name: str, metavar: str, **more) -> None:
+    """Add DESPOT's parameter ``name`` to ``group`` as its definition says
+    (:mod:`ros_hrc.pomdp.despot_parameters`): the option, the kind, the limits (refused in one
+    line that says them), the default and the doc."""
+    p = parameter(name)
+
+    def parse(text: str):
+        try:
+            return p.parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    parse.__name__ = p.kind.__name__
+    shown = "none" if p.default is None else p.default
+    help_text = f"{p.doc}; {p.requirement()[len('must be '):]} (default {shown})"
+    if p.choices:
+        group.add_argument(p.option, dest=p.field, choices=p.choices, default=p.default,
+                           help=help_text.replace("%", "%%"), **more)
+    else:
+        group.add_argument(p.option, dest=p.field, type=parse, default=p.default,
+                           metavar=metavar, help=help_text.replace("%", "%%"), **more)
 
 
 def memory_size_arg(text: str) -> int:

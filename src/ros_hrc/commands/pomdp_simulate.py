@@ -5,15 +5,14 @@ Registered by :mod:`ros_hrc.commands.pomdp`.
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from typing import TYPE_CHECKING, Optional, Tuple
 
-from ros_hrc.commands.pomdp_common import (MAX_DEPTH, MAX_RUNS, MAX_SCENARIOS, MODEL_HELP,
-                                           add_memory_limit,
-                                           depth_arg, emit, fraction_arg, load_with_progress,
-                                           progress, regularization_arg, run_count_arg,
-                                           scenario_count_arg, seconds_arg, seed_arg,
-                                           solver_errors_exit_2, trial_count_arg)
+from ros_hrc.streams import MAX_SEED
+from ros_hrc.commands.pomdp_common import (MAX_RUNS, MODEL_HELP, add_memory_limit,
+                                           despot_option, emit, load_with_progress, progress,
+                                           run_count_arg, seed_arg, solver_errors_exit_2)
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import memory
 
@@ -44,33 +43,19 @@ def register_simulate(subparsers) -> None:
     p.add_argument("--sim-num", type=run_count_arg, required=True, metavar="M",
                    help=f"number of runs (1 to {MAX_RUNS})")
     p.add_argument("--seed", type=seed_arg, default=0, metavar="K",
-                   help="random seed, 0 to 2**64-1 (default 0)")
+                   help=f"random seed, 0 to {MAX_SEED} (default 0)")
     p.add_argument("--lookahead", action="store_true",
                    help="policy: choose by one-step lookahead over the policy's values")
     p.add_argument("--estimator", choices=["realised", "expected"], default="realised",
                    help="sum the realised rewards R(s,a,s') (default), or the expected "
                         "rewards R(s,a) at the visited states, as SARSOP's pomdpsim does: "
                         "the same mean, a narrower interval when rewards depend on s'")
-    d = p.add_argument_group("DESPOT (--planner despot)")
-    d.add_argument("--time-per-step", type=seconds_arg, default=1.0, metavar="S",
-                   help="search time per decision (default 1)")
-    d.add_argument("--scenarios", type=scenario_count_arg, default=500, metavar="K",
-                   help=f"1 to {MAX_SCENARIOS} (default 500)")
-    d.add_argument("--depth", type=depth_arg, default=90, metavar="D",
-                   help=f"0 to {MAX_DEPTH} (default 90)")
-    d.add_argument("--lambda", dest="pruning", type=regularization_arg, default=0.1, metavar="L",
-                   help="regularization per policy node, >= 0 (default 0.1)")
-    d.add_argument("--xi", type=fraction_arg, default=0.95, metavar="X",
-                   help="0 to 1 (default 0.95)")
-    d.add_argument("--max-trials", type=trial_count_arg, default=None, metavar="N",
-                   help="also stop each search after N trials (reproducible runs)")
-    d.add_argument("--upper", choices=["mdp", "fib", "trivial"], default="mdp",
-                   help="upper bound (default mdp)")
-    d.add_argument("--lower", choices=["blind", "policy", "rollout"], default="blind",
-                   help="default policy (default blind: the best fixed action)")
-    d.add_argument("--particles", type=scenario_count_arg, default=None, metavar="N",
-                   help="particle belief of N particles (default: exact belief for models "
-                        "of up to 5000 states)")
+    d = p.add_argument_group("DESPOT (--planner despot)", "its parameters, as the launch "
+                             "arguments of the same names take them")
+    for name, metavar in (("time_per_step", "S"), ("scenarios", "K"), ("depth", "D"),
+                          ("lambda", "L"), ("xi", "X"), ("max_trials", "N"), ("upper", None),
+                          ("lower", None), ("particles", "N")):
+        despot_option(d, name, metavar)
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (mean, ci95_low, ci95_high, ms_per_step, ...)")
     add_memory_limit(p)
@@ -83,6 +68,18 @@ def _check_simulate(args: argparse.Namespace) -> Optional[Tuple[str, str]]:
         return "--sim-num", (f"SIM-LEN x SIM-NUM must be at most {MAX_RUNS} steps, got "
                              f"{args.sim_len} x {args.sim_num}")
     return None
+
+
+def duration(ms: float) -> str:
+    """A duration of ``ms`` milliseconds in the unit that shows three significant digits
+    (``12.3 ms``, ``845 µs``, ``90.2 ns``); 0 is ``0 ms``."""
+    for unit, scale in (("s", 1e-3), ("ms", 1.0), ("µs", 1e3), ("ns", 1e6)):
+        value = ms * scale
+        if value >= 1.0 or unit == "ns":
+            break
+    if value == 0:
+        return "0 ms"
+    return f"{value:.3g} {unit}"
 
 
 def _batch_chooser(model: Model, args: argparse.Namespace, used: int):
@@ -130,6 +127,7 @@ def _planner_factory(model: Model, args: argparse.Namespace, used: int):
     ``used``: bytes the model and the simulation take already, out of ``--memory-limit``."""
     from ros_hrc.pomdp import despot
     from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner, DespotTables
+    from ros_hrc.pomdp.despot_parameters import DESPOT_PARAMETERS, config_value
     from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
     from ros_hrc.pomdp.policy import load as load_policy
 
@@ -144,10 +142,8 @@ def _planner_factory(model: Model, args: argparse.Namespace, used: int):
     if args.planner == "mdp":
         solution = _mdp_solution(model, used, limit, source)
         return (lambda seed: MdpPlanner(model, solution, seed)), "value iteration (MDP)"
-    config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.pruning,
-                          xi=args.xi, time_per_step=args.time_per_step,
-                          max_trials=args.max_trials, upper=args.upper, lower=args.lower,
-                          particles=args.particles)
+    config = DespotConfig(**{p.field: config_value(p.name, getattr(args, p.field))
+                             for p in DESPOT_PARAMETERS})
     config.validate()
     fixed = used + despot.memory_needed(model, config)
     memory.require(fixed + 1000 * despot.BYTES_PER_NODE, limit, source,
@@ -157,9 +153,12 @@ def _planner_factory(model: Model, args: argparse.Namespace, used: int):
     config.max_nodes = int((limit - fixed) // despot.BYTES_PER_NODE)
     progress("precomputing DESPOT's bounds ...")
     tables = DespotTables(model, config.upper, config.lower)
-    label = (f"DESPOT ({args.time_per_step:g} s per step, K={args.scenarios}, D={args.depth}, "
-             f"lambda={args.pruning:g}"
-             + (f", at most {args.max_trials} trials" if args.max_trials is not None else "")
+    budget = (f"{config.time_per_step:g} s per step" if math.isfinite(config.time_per_step)
+              else "no time budget")
+    label = (f"DESPOT ({budget}, K={config.scenarios}, D={config.depth}, "
+             f"lambda={config.pruning:g}"
+             + (f", at most {config.max_trials} trials" if config.max_trials is not None
+                else "")
              + ")")
     return (lambda seed: DespotPlanner(model, config, seed, tables=tables)), label
 
@@ -207,8 +206,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
               f"({facts['ci95_low']:.6g}, {facts['ci95_high']:.6g})")
         print(f"  estimator      {args.estimator}: the mean of the runs' discounted sums of "
               f"{_ESTIMATOR_WORDS[args.estimator]}")
-        print(f"  time per step  {result.ms_per_step:.3f} ms (act p50 {result.ms_act_p50:.3f} "
-              f"ms, p99 {result.ms_act_p99:.3f} ms)")
+        # A saved policy's choice takes microseconds: a fixed "ms" with 3 decimals printed 0.000.
+        batch = "; the runs step together, each step's time shared among them" \
+            if result.batched else ""
+        print(f"  time per step  {duration(result.ms_per_step)} (act p50 "
+              f"{duration(result.ms_act_p50)}, p99 {duration(result.ms_act_p99)}{batch})")
         if result.zero_probability_events:
             print(f"  {result.zero_probability_events} observation(s) of probability zero: the "
                   "belief kept its prediction")

@@ -47,7 +47,7 @@ from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParse
 from ros_hrc.experiment.cluster import add_argument as add_cluster_argument
 from ros_hrc.experiment.cluster import check_reachable as check_cluster
 from ros_hrc.experiment.episode import DEFAULT_POLICIES as POLICIES_BY_DEFAULT
-from ros_hrc.experiment.episode import ALONE_POLICY, ROBOT_POLICIES, robot_policy
+from ros_hrc.experiment.episode import ALONE_POLICY, policy_names, robot_policy
 from ros_hrc.experiment.grid import (DEFAULT_HUMANS, GridError, apply_task_defaults,
                                      check_held_out, expand_policies, plan_alone_cells,
                                      plan_cells, resolve_files, task_of)
@@ -60,17 +60,18 @@ from ros_hrc.experiment.statistics import headline, summarize, write_summary
 from ros_hrc.experiment.store import ResultsStore
 from ros_hrc.model_files import user_path
 from ros_hrc.experiment.sequence_rows import CEILING
-from ros_hrc.experiment.sequences import (ceiling_model, MAX_SEQUENCE, MODEL_SELECTORS, PER_TYPE,
-                                          STUDY_SELECTORS,
+from ros_hrc.experiment.sequences import (ceiling_model, MAX_SEQUENCE, model_selectors, PER_TYPE,
+                                          STUDY_ROBOTS,
                                           SELECTOR_MODEL_FILE,
                                           check_trained_elsewhere, expand_selectors,
                                           load_study_library, resolve_schedules,
                                           plan_sequence_cells, selector_model_file)
 from ros_hrc.experiment.sequence_study import run_sequences
-from ros_hrc import settings
+from ros_hrc import registry, settings
 from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model,
                                  positional_mapping_line)
 from ros_hrc.settings import SettingError
+from ros_hrc.pomdp.planner import planner_class
 
 NAME = "hrc_experiment"
 DEFAULT_POLICIES = ",".join(POLICIES_BY_DEFAULT)
@@ -144,8 +145,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"human scenarios or .pomdpx files, comma-separated (the task's: "
                         f"{DEFAULT_HUMANS} for the seed, every shipped type for fabric)")
     p.add_argument("--policies", type=names_argument, default=None,
-                   help=f"robot policies, comma-separated, of {', '.join(ROBOT_POLICIES)} (the "
-                        f"task's: {DEFAULT_POLICIES} for the seed, "
+                   help=f"robot policies, comma-separated, of {', '.join(policy_names())}, "
+                        f"reactive@N, an installed package's or module:NAME (docs/extending.md; "
+                        f"the task's: {DEFAULT_POLICIES} for the seed, "
                         f"{','.join(tasks.get('fabric').study_policies)} for fabric)")
     p.add_argument("--reactive-budgets", type=budgets_argument, default=[],
                    help="also run the reactive robot with each of these budgets (policies "
@@ -208,10 +210,11 @@ def add_sequence_arguments(p: argparse.ArgumentParser) -> None:
                         f"({DEFAULT_SEQUENCES})")
     p.add_argument("--selectors", type=names_argument, default=None,
                    help=f"with --sequence: selectors, comma-separated, of "
-                        f"{', '.join(STUDY_SELECTORS)} and fixed:<policy> (default "
-                        f"{DEFAULT_SELECTORS}); fixed stands for every library policy as "
-                        "fixed:<policy>; docs/selectors.md and docs/learning.md say what each is "
-                        f"({CEILING} needs --ceiling-models)")
+                        f"{', '.join(registry.BUILT_IN[registry.SELECTORS])} (docs/selectors.md), "
+                        f"{', '.join(STUDY_ROBOTS)} (docs/learning.md; {CEILING} needs "
+                        "--ceiling-models), fixed (every library policy, as fixed:<policy>), "
+                        "an installed package's or module:Class (docs/extending.md); default "
+                        f"{DEFAULT_SELECTORS}")
     p.add_argument("--library", default=None,
                    help="with --sequence: the policy library, a manifest or a folder holding "
                         "library.toml (auto: the task's)")
@@ -283,7 +286,7 @@ def validate_sequences(args: argparse.Namespace) -> List[str]:
         for human in dict.fromkeys(args.human_models):
             ceiling_model(args, human)
     args.selector_model_file = selector_model_file(args, library)
-    users = [s for s in args.selectors if s in MODEL_SELECTORS]
+    users = model_selectors(args.selectors)
     warnings: List[str] = []
     if users and args.selector_model_file is None:
         expected = Path(library.manifest).parent / SELECTOR_MODEL_FILE
@@ -330,10 +333,15 @@ def validate_grid(args: argparse.Namespace) -> None:
     one line naming the argument or the file and the offending names. Once all is good, each
     model file named by position gets its mapping printed, one line per file."""
     expand_policies(args)
-    unknown = [p for p in args.policies if not _known(p)]
-    if unknown:
-        raise GridError(f"--policies: unknown robot policies {', '.join(unknown)}; known: "
-                        f"{', '.join(ROBOT_POLICIES)}, reactive@N")
+    for policy in dict.fromkeys(args.policies):
+        try:
+            found = robot_policy(policy)
+        except KeyError as exc:
+            raise GridError(f"--policies: {exc}") from None
+        try:
+            planner_class(found.planner)
+        except ValueError as exc:
+            raise GridError(f"--policies: {policy}: {exc}") from None
     resolve_files(args)
     loaded = []
     try:
@@ -361,14 +369,6 @@ def validate_grid(args: argparse.Namespace) -> None:
     mappings = (positional_mapping_line(model) for model in loaded)
     for line in dict.fromkeys(m for m in mappings if m):   # once per file, by its line
         print(f"{NAME}: {line}", flush=True)
-
-
-def _known(policy: str) -> bool:
-    try:
-        robot_policy(policy)
-    except KeyError:
-        return False
-    return True
 
 
 def report(store: ResultsStore, out: Path, plots: bool, written_before: Sequence[Path] = ()

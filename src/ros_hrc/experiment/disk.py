@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Dict, Iterable, Optional, Union
 
 from ros_hrc.errors import HrcError
-from ros_hrc.link.token import ros_home
+from ros_hrc.model_files import ros_home
 
 #: The errors of a write that found no room: the disk is full, or the user's quota is.
 FULL_DISK_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})

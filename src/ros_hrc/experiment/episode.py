@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, replace
-from typing import Dict, Optional, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ros_hrc import tasks
+from ros_hrc import registry, tasks
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.utility import sim_span
 from ros_hrc.experiment.paired import counterfactual_outcome
@@ -25,37 +25,39 @@ from ros_hrc.pomdp.typed import TypeLayout
 
 @dataclass(frozen=True)
 class RobotPolicy:
-    """A robot policy of a grid: the robot process's ``--planner``, the robot model it runs
-    with (None: the grid's ``--robot-model``) and, for ``reactive@N``, its budget (None: the
-    grid's ``--reactive-budget``)."""
+    """A robot policy of a grid (``hrc_experiment --policies``): the robot process's
+    ``--planner`` (a name the ``planner`` setting takes), the robot model it runs with (None:
+    the grid's ``--robot-model``; a name of the task's robot models or a file) and, for
+    ``reactive@N``, its budget (None: the grid's ``--reactive-budget``), and its planner's own
+    options (``planner_options:=``; the planner's defaults where not given). Found by name in
+    :mod:`ros_hrc.registry` (``ros_hrc.policies``): ours below, an installed package's, or
+    ``module:NAME`` (docs/extending.md)."""
     planner: str
     robot_model: Optional[str] = None
     doc: str = ""
     reactive_budget: Optional[int] = None
+    options: Mapping[str, Any] = field(default_factory=dict)
 
 
-#: Robot policies of a grid, by name. ``reactive@N`` (N >= 1) is the reactive robot with
-#: budget N (:func:`robot_policy`); a sweep of them is how the baseline is tuned.
-ROBOT_POLICIES: Dict[str, RobotPolicy] = {
-    "pomdp": RobotPolicy("despot", None, "anticipates the human's state of mind: the robot POMDP "
-                                         "(the authors' model by default), planned online with "
-                                         "DESPOT"),
-    "pomdp_fitted": RobotPolicy("despot", "robot_fitted", "the same planner on the robot model "
-                                                          "fitted to the world (hrc_fit)"),
-    "pomdp_considerate": RobotPolicy("despot", "robot_considerate_fitted",
-                                     "the same planner on the considerate robot model (success "
-                                     "valued once; acting against a warning and pre-empting "
-                                     "costly), its T and O fitted to the world (hrc_fit)"),
-    "pomdp_types": RobotPolicy("despot", "robot_types",
-                               "the same planner on the robot model of human types: its hidden "
-                               "state is (type, task state), each type's T and O fitted to the "
-                               "world (hrc_fit --types), so it infers whom it works with"),
-    "reactive": RobotPolicy("reactive", None, "treats the need for help as observable "
-                                              "(agents/robots.py)"),
-    "no_robot": RobotPolicy("none", None, "never acts"),
-    "explore": RobotPolicy("explore", None, "a uniformly random action each step: hrc_fit's "
-                                            "exploring robot"),
-}
+# Ours, registered in ros_hrc.registry.BUILT_IN under their names.
+POMDP = RobotPolicy("despot", None, "anticipates the human's state of mind: the robot POMDP (the "
+                                    "authors' model by default), planned online with DESPOT")
+POMDP_FITTED = RobotPolicy("despot", "robot_fitted", "the same planner on the robot model "
+                                                     "fitted to the world (hrc_fit)")
+POMDP_CONSIDERATE = RobotPolicy("despot", "robot_considerate_fitted",
+                                "the same planner on the considerate robot model (success "
+                                "valued once; acting against a warning and pre-empting "
+                                "costly), its T and O fitted to the world (hrc_fit)")
+POMDP_TYPES = RobotPolicy("despot", "robot_types",
+                          "the same planner on the robot model of human types: its hidden "
+                          "state is (type, task state), each type's T and O fitted to the "
+                          "world (hrc_fit --types), so it infers whom it works with")
+REACTIVE_ROBOT = RobotPolicy("reactive", None, "treats the need for help as observable "
+                                               "(agents/robots.py)")
+NO_ROBOT = RobotPolicy("none", None, "never acts")
+EXPLORE = RobotPolicy("explore", None, "a uniformly random action each step: hrc_fit's "
+                                       "exploring robot")
+
 #: The policies of ``make experiment``'s default grid.
 DEFAULT_POLICIES = ("pomdp", "pomdp_fitted", "pomdp_considerate", "reactive", "no_robot")
 #: The robot that infers its human's type (issue #31); in a sequence study it is a selector
@@ -69,17 +71,30 @@ MAX_REACTIVE_BUDGET = 2**31 - 1
 _REACTIVE_AT = re.compile(r"reactive@([0-9]{1,10})")
 
 
+class UnknownPolicy(KeyError):
+    """A policy name that finds no robot policy: one line (the registry's, with the known
+    names and the nearest)."""
+
+    def __str__(self) -> str:        # KeyError would quote the message
+        return str(self.args[0])
+
+
 def robot_policy(name: str) -> RobotPolicy:
-    """The policy a grid names: one of :data:`ROBOT_POLICIES` or ``reactive@N``. KeyError
-    for any other name."""
-    if name in ROBOT_POLICIES:
-        return ROBOT_POLICIES[name]
+    """The policy a grid names: ``reactive@N``, or a robot policy of the registry (ours, an
+    installed package's, ``module:NAME``). UnknownPolicy (a KeyError, one line) otherwise."""
     match = _REACTIVE_AT.fullmatch(name)
     if match and 1 <= int(match.group(1)) <= MAX_REACTIVE_BUDGET:
-        base = ROBOT_POLICIES[REACTIVE]
-        return replace(base, reactive_budget=int(match.group(1)),
+        return replace(REACTIVE_ROBOT, reactive_budget=int(match.group(1)),
                        doc=f"the reactive robot with budget {int(match.group(1))}")
-    raise KeyError(name)
+    try:
+        return registry.load(registry.POLICIES, name, RobotPolicy, instance=True)
+    except registry.RegistryError as exc:
+        raise UnknownPolicy(f"{exc}; or reactive@N") from None
+
+
+def policy_names() -> Tuple[str, ...]:
+    """The robot policies a grid may name now (ours first, then installed packages')."""
+    return registry.names(registry.POLICIES)
 
 
 def is_reactive(name: str) -> bool:

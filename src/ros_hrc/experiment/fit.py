@@ -61,7 +61,7 @@ from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from ros_hrc.command_line import counted, own_arguments
+from ros_hrc.command_line import counted, own_arguments, seed_argument
 from ros_hrc.errors import HrcError, ModelError
 from ros_hrc.experiment.arguments import (MAX_JOBS, MAX_STEP_LIMIT, OneLineParser, at_least,
                                           file_error_line, names_argument, say_one_line)
@@ -80,14 +80,14 @@ from ros_hrc.experiment.store import ResultsStore
 from ros_hrc import settings
 from ros_hrc.tasks import seed as task
 from ros_hrc.tasks.schedule import type_name
-from ros_hrc.settings import SettingError
 from ros_hrc.models import (ModelNotFound, load_human_model, load_robot_model, model_path,
                                  shown_path)
 from ros_hrc.model_files import user_path
 from ros_hrc.pomdp.output import check_writable, write_text_atomically
 from ros_hrc.pomdp.fit import ExperienceCounts, fit_model, support_lines, write_fitted
 from ros_hrc.pomdp.model import Model
-from ros_hrc.pomdp.typed import check_type_name, compose
+from ros_hrc.pomdp.type_names import check_type_name
+from ros_hrc.pomdp.typed import compose
 from ros_hrc.tasks.utility import utility_rewards
 
 NAME = "hrc_fit"
@@ -111,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
                         f"{DEFAULT_HUMANS} for the seed, every shipped type for fabric)")
     p.add_argument("--episodes", type=at_least(1, MAX_EPISODES), default=100,
                    help="episodes per human model (100)")
-    p.add_argument("--seed", type=_seed, default=0,
+    p.add_argument("--seed", type=seed_argument, default=0,
                    help="seed of the stacks: the human MDP and the exploring robot (0)")
     p.add_argument("--step-limit", type=at_least(1, MAX_STEP_LIMIT), default=None,
                    help="steps before an episode ends (the task's, as hrc_experiment: 15 for "
@@ -146,14 +146,6 @@ def build_parser() -> argparse.ArgumentParser:
                         f"{POOLED_FILE}, with --types {TYPES_FILE}; the seed's: "
                         f"models/robot/)")
     return p
-
-
-def _seed(text: str) -> int:
-    """A seed as hrc.launch takes it (ros_hrc.settings' ``seed``: its range)."""
-    try:
-        return settings.parse("seed", text.strip())
-    except SettingError as exc:
-        raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1]) from None
 
 
 def _non_negative(text: str) -> float:

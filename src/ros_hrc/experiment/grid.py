@@ -25,6 +25,7 @@ from ros_hrc.experiment.provenance import file_sha256, ranges_text, read_fitted_
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
 from ros_hrc.experiment.zoo import zoo_argument
 from ros_hrc.models import ModelNotFound, model_path, shown_path
+from ros_hrc.pomdp.planner import planner_class
 from ros_hrc.model_files import user_path
 
 #: The study evaluates on the zoo's held-out humans (the robot model is fitted on the others).
@@ -122,8 +123,10 @@ def robot_model_of(policy: str, grid_model: str, task: Optional[tasks.Task] = No
         return own      # validate_grid refuses it, naming the policy
 
 
-#: Planners whose decisions depend on the robot model (the held-out rule applies to them).
-MODEL_PLANNERS = ("despot", "policy")
+def plans_on_model(policy: str) -> bool:
+    """Whether the policy's planner decides on its robot model, so the held-out rule applies
+    to it (its class says: :attr:`ros_hrc.pomdp.planner.Planner.plans_on_model`)."""
+    return planner_class(robot_policy(policy).planner).plans_on_model
 
 
 def in_sample_streams(args: argparse.Namespace) -> Dict[Tuple[str, str, int], Set[int]]:
@@ -133,7 +136,7 @@ def in_sample_streams(args: argparse.Namespace) -> Dict[Tuple[str, str, int], Se
     found: Dict[Tuple[str, str, int], Set[int]] = {}
     digests = {human: file_sha256(path) for human, path in args.human_files.items()}
     for policy in dict.fromkeys(args.policies):
-        if robot_policy(policy).planner not in MODEL_PLANNERS:
+        if not plans_on_model(policy):
             continue
         model_file = robot_model_of(policy, args.robot_model, task_of(args))
         try:

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ros_hrc import settings, tasks
-from ros_hrc.command_line import own_arguments
+from ros_hrc.command_line import own_arguments, seed_argument
 from ros_hrc.errors import HrcError
 from ros_hrc.experiment.arguments import OneLineParser, names_argument, say_one_line
 from ros_hrc.experiment.grid import GridError, task_humans
@@ -77,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the types to perturb, comma-separated (the task's shipped types)")
     p.add_argument("--concentration", type=float, default=20.0,
                    help="the Dirichlet concentration c: larger is closer to the type (20)")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=seed_argument, default=0,
                    help="the draw's seed; one seed, one set of humans (0)")
     p.add_argument("--out", required=True,
                    help="the folder to write <type>.pomdpx into (made if missing)")

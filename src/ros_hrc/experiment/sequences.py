@@ -28,7 +28,8 @@ import argparse
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Set, Tuple
 
-from ros_hrc.agents.selectors import NEEDS_MODEL, SELECTOR_NAMES
+from ros_hrc import registry
+from ros_hrc.agents.selectors import selector_class
 from ros_hrc.experiment.episode import TYPES_POLICY
 from ros_hrc.experiment.grid import (GridError, resolve_files, robot_model_of, task_launch_args,
                                      task_of)
@@ -36,7 +37,6 @@ from ros_hrc.experiment.provenance import file_sha256, read_fitted_on
 from ros_hrc.experiment.sequence_rows import CEILING, POOLED, launched_selector
 from ros_hrc.settings import LEARNING_SELECTORS, LEARNING_SETTINGS
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
-from ros_hrc.errors import did_you_mean
 from ros_hrc.model_files import user_path
 from ros_hrc.models import model_path
 
@@ -46,13 +46,10 @@ FABRIC = "fabric"
 SCHEDULE_WORDS = (PER_TYPE, FABRIC)
 #: The selector that stands for every library policy (``fixed:<policy>`` each).
 FIXED = "fixed"
-#: Every name ``--selectors`` takes besides ``fixed:<policy>`` (one library policy): the robot
-#: process's selectors, the robot of human types, the learning robots, the pooled prior and
-#: the ceiling. The help and the refusal of an unknown name list these, in this order.
-STUDY_SELECTORS: Tuple[str, ...] = tuple(dict.fromkeys(
-    (*SELECTOR_NAMES, TYPES_POLICY, *LEARNING_SELECTORS, POOLED, CEILING)))
-#: Selectors whose choices rest on the trained selector model (the held-out rule applies).
-MODEL_SELECTORS = tuple(sorted(NEEDS_MODEL))
+#: The study's own robots that ``--selectors`` takes beside the registry's selectors
+#: (``ros_hrc.selectors``) and ``fixed``: the robot of human types, the ceiling, the pooled
+#: prior and the learning robots.
+STUDY_ROBOTS: Tuple[str, ...] = (TYPES_POLICY, CEILING, POOLED) + LEARNING_SELECTORS
 #: The selector model's file name, beside the library's manifest (``models/fabric/`` and
 #: ``models/robot/``), where ``selector_model:=auto`` finds it.
 SELECTOR_MODEL_FILE = "selector_model.json"
@@ -63,8 +60,10 @@ MAX_SEQUENCE = 100000
 def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]:
     """``--selectors`` as the cells run them: ``fixed`` becomes ``fixed:<policy>`` for every
     library policy (in the library's order), ``fixed:<policy>`` is checked against the
-    library, the others against the known selectors. GridError (one line naming the known
-    ones) for an unknown name."""
+    library, the study's own words (the robot of types, the learning robot, pooled, ceiling)
+    kept, the others looked up as selectors of the registry (ours, an installed package's,
+    module:Class; :func:`ros_hrc.agents.selectors.selector_class`, which imports it). GridError
+    (one line naming the known ones and the nearest) for an unknown name."""
     out: List[str] = []
     for name in names:
         if name == FIXED:
@@ -75,13 +74,24 @@ def expand_selectors(names: Sequence[str], policies: Sequence[str]) -> List[str]
                 raise GridError(f"--selectors: {name}: no policy {policy!r} in the library "
                                 f"(its policies: {', '.join(policies)})")
             out.append(name)
-        elif name in STUDY_SELECTORS:
+        elif name in STUDY_ROBOTS:
             out.append(name)
         else:
-            hint = did_you_mean(name, STUDY_SELECTORS)
-            raise GridError(f"--selectors: unknown selector {name!r}; {hint + ' ' if hint else ''}"
-                            f"known: {', '.join(STUDY_SELECTORS)}, {FIXED}:<policy>")
+            try:
+                selector_class(name)
+            except registry.RegistryError as exc:
+                raise GridError(f"--selectors: {exc}; also fixed, fixed:<policy>, "
+                                f"{', '.join(STUDY_ROBOTS)}") from None
+            out.append(name)
     return list(dict.fromkeys(out))
+
+
+def model_selectors(names: Sequence[str]) -> List[str]:
+    """The selectors of ``names`` whose choices rest on the trained selector model (the
+    held-out rule applies to them): those whose class ``needs_model``."""
+    return [name for name in names
+            if name.partition(":")[0] != FIXED and name not in STUDY_ROBOTS
+            and selector_class(name).needs_model]
 
 
 def load_study_library(args: argparse.Namespace):
@@ -135,9 +145,9 @@ def resolve_schedules(args: argparse.Namespace) -> None:
 
 def check_trained_elsewhere(args: argparse.Namespace, model_seeds: Sequence[int]) -> List[str]:
     """The held-out rule of a selector model: one trained on seeds S is not evaluated on S.
-    GridError (one line) when a selector that uses it (:data:`MODEL_SELECTORS`) would run on
+    GridError (one line) when a selector that uses it (:func:`model_selectors`) would run on
     one of its seeds, unless ``--allow-in-sample``; then the warning line, returned."""
-    users = [s for s in args.selectors if s in MODEL_SELECTORS]
+    users = model_selectors(args.selectors)
     shared = sorted(set(model_seeds) & set(args.seeds))
     if not users or not shared:
         return []

@@ -34,7 +34,7 @@ from typing import (Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequ
                     Union)
 
 from ros_hrc.errors import HrcError
-from ros_hrc.experiment.episode import ROBOT_POLICIES, robot_policy
+from ros_hrc.experiment.episode import robot_policy
 from ros_hrc.experiment.rows import EpisodeRow, StepRow
 from ros_hrc.experiment.sequence_rows import SequenceRow, TaskRow
 from ros_hrc.link.transport import DEFAULT_HOST, free_port
@@ -217,13 +217,15 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
     ``spec.extra_args`` (``name:=value``) come last and win."""
     if spec.sequence:
         planner = settings.default("planner")     # the selector's policies plan instead
+        planner_options = ""
         episodes = sequence_task_episodes(spec)
     else:
         try:
-            planner = robot_policy(spec.robot_policy).planner
-        except KeyError:
-            raise ValueError(f"unknown robot policy {spec.robot_policy!r}; known: "
-                             f"{', '.join(ROBOT_POLICIES)}, reactive@N") from None
+            policy = robot_policy(spec.robot_policy)
+        except KeyError as exc:
+            raise ValueError(str(exc)) from None
+        planner = policy.planner
+        planner_options = settings.planner_options_text(policy.options)
         episodes = EpisodeRanges.of(spec.episodes)
     values = {
         "human_model": spec.human_model_file or spec.human_model, "robot_model": spec.robot_model,
@@ -241,6 +243,8 @@ def launch_settings(spec: CellSpec, ports: Mapping[str, int]) -> Dict[str, str]:
         "scenarios": spec.scenarios, "depth": spec.depth, "lambda": spec.lambda_,
         "pomdp_port": ports["pomdp"], "human_port": ports["human"],
     }
+    if planner_options:        # (an empty launch argument would not be the default)
+        values["planner_options"] = planner_options
     out = {name: _launch_text(value) for name, value in values.items()}
     for word in spec.extra_args:
         name, sep, value = word.partition(":=")

@@ -13,7 +13,7 @@ Types and their fields (``?`` marks an optional field, left out of the JSON when
     observation  step, observation, bits, state, elapsed?  coordinator -> POMDP (7070)
     decision     step, action, belief [p...], belief_states?, decision_ms?, surprise?, rule?,
                  action_names?, action_values?, type_names?, type_belief?,
-                 learnt_name?, learnt_value?, learnt_spread?
+                 learnt_name?, learnt_value?, learnt_spread?, policy?
                                                            POMDP -> coordinator: answers observation
     action       step, action, belief? [p...], belief_states?, decision_ms?
                                                            "carry out this action" (no link
@@ -280,9 +280,10 @@ class Decision(Message):
     none), and ``type_names`` with ``type_belief`` (a robot model of human types,
     :mod:`ros_hrc.pomdp.typed`: its belief over the types; ``belief`` is then over the task's
     states, the types summed out; both or neither), and a learning robot's figure of its
-    learnt model (``learnt_name``, ``learnt_value``, ``learnt_spread``: all or none). A
-    reply: it carries ``reply_to`` and
-    ``epoch`` of the observation."""
+    learnt model (``learnt_name``, ``learnt_value``, ``learnt_spread``: all or none), and in
+    a sequence of tasks ``policy``, the policy that decides the task (the one its selector
+    chose when the task started). A reply: it carries ``reply_to`` and ``epoch`` of the
+    observation."""
 
     TYPE: ClassVar[str] = "decision"
     step: int
@@ -299,12 +300,15 @@ class Decision(Message):
     learnt_name: Optional[str] = None
     learnt_value: Optional[float] = None
     learnt_spread: Optional[float] = None
+    policy: Optional[str] = None
 
     def _validate(self, check: Checker) -> None:
         _validate_learnt(self, check)
         self._set("step", check.integer("step", self.step, maximum=MAX_UINT32))
         self._set("action", check.text("action", self.action))
         self._set("belief", check.belief_list("belief", self.belief))
+        if self.policy is not None:
+            self._set("policy", check.text("policy", self.policy))
         if self.action_names is not None or self.action_values is not None:
             names, values = check.named_numbers("action_names", self.action_names,
                                                 "action_values", self.action_values)

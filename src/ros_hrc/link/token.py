@@ -45,7 +45,8 @@ from pathlib import Path
 from typing import Any, Dict, Mapping, Optional, Tuple
 
 from ros_hrc.errors import LinkError
-from ros_hrc.process_tree import parent_of
+from ros_hrc.model_files import ros_home
+from ros_hrc.process_tree import alive, parent_of
 
 #: The environment variable naming a token file, for a process run by hand.
 TOKEN_FILE_ENV = "HRC_LINK_TOKEN_FILE"
@@ -66,12 +67,6 @@ _PROOF_FORMAT = "ros_hrc link|{role}|{port}|{who}|{nonce}"
 
 class TokenError(LinkError):
     """The link token cannot be made, found or read; one line saying which file and why."""
-
-
-def ros_home(environ: Optional[Mapping[str, str]] = None) -> Path:
-    """The directory ROS keeps per-user state in: ``$ROS_HOME``, or ``~/.ros`` without it."""
-    environ = os.environ if environ is None else environ
-    return Path(environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros"))
 
 
 def token_dir(environ: Optional[Mapping[str, str]] = None) -> Path:
@@ -263,14 +258,19 @@ def remove_token(path: os.PathLike) -> bool:
         return False
 
 
-def _alive(pid: int) -> bool:
+def launcher_of(path: os.PathLike) -> Optional[int]:
+    """The pid of the process that launched the session of token file ``path`` (its second
+    line, ``launcher PID``: :func:`mint_token`), or None when the file cannot be read or
+    names none."""
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:   # someone else's process: alive
-        return True
-    return True
+        with open(path, "rb") as f:
+            lines = f.read(1024).split(b"\n")
+    except OSError:
+        return None
+    words = lines[1].split() if len(lines) > 1 else []
+    if len(words) == 2 and words[0] == b"launcher" and words[1].isdigit():
+        return int(words[1])
+    return None
 
 
 def prune_tokens(environ: Optional[Mapping[str, str]] = None) -> int:
@@ -283,16 +283,11 @@ def prune_tokens(environ: Optional[Mapping[str, str]] = None) -> int:
     except OSError:
         return 0
     for path in entries:
-        try:
-            with open(path, "rb") as f:
-                lines = f.read(1024).split(b"\n")
-        except OSError:
-            continue
-        words = lines[1].split() if len(lines) > 1 else []
-        if len(words) == 2 and words[0] == b"launcher" and words[1].isdigit():
-            if not _alive(int(words[1])):
-                removed += remove_token(path)
-                remove_token(path.with_name(path.name[:-len(_TOKEN_SUFFIX)] + _SETTINGS_SUFFIX))
+        launcher = launcher_of(path)
+        # A launcher that is a zombie has ended too (it only waits to be reaped).
+        if launcher is not None and not alive(launcher):
+            removed += remove_token(path)
+            remove_token(path.with_name(path.name[:-len(_TOKEN_SUFFIX)] + _SETTINGS_SUFFIX))
     return removed
 
 
@@ -304,14 +299,11 @@ def stop_launch(session: str, environ: Optional[Mapping[str, str]] = None) -> Op
     import signal
 
     try:
-        with open(session_token_file(session, environ), "rb") as f:
-            lines = f.read(1024).split(b"\n")
-    except (OSError, TokenError):
+        launcher = launcher_of(session_token_file(session, environ))
+    except TokenError:      # not a session's name
         return None
-    words = lines[1].split() if len(lines) > 1 else []
-    if len(words) != 2 or words[0] != b"launcher" or not words[1].isdigit():
+    if launcher is None:
         return None
-    launcher = int(words[1])
     pid: Optional[int] = os.getpid()
     for _ in range(8):          # roslaunch, or an xterm (launch-prefix) under it
         pid = parent_of(pid) if pid else None

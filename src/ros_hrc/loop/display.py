@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from ros_hrc import tasks
-from ros_hrc.command_line import counted  # noqa: F401  (the loop's lines count with it)
-from ros_hrc.pomdp.typed import ranked_types
+from ros_hrc.command_line import counted
+from ros_hrc.pomdp.type_names import ranked_types
 from ros_hrc.tasks.definition import Task
 
 
@@ -85,6 +85,40 @@ def action_values_text(status, width: int = 80) -> str:
         if i and len(text) + len(item) + len(more) > width:
             return text + f" (+{len(ranked) - i} more)"
         text += item
+    return text
+
+
+#: The step block's label column ("robot belief      : "): what a line's text has left of a
+#: terminal's 80 columns.
+BELIEF_LINE_WIDTH = 80 - len("robot belief      : ")
+
+
+def belief_text(belief_states: Sequence[str], belief: Sequence[float],
+                width: int = BELIEF_LINE_WIDTH) -> str:
+    """The robot's belief over its model's states in at most ``width`` characters, for the
+    step block: every state in the model's order when they all fit (a model of 5 states),
+    else the most likely first (ties in the model's order), as many as fit, and the rest
+    summed, e.g. ``NeedsHelp 0.612 | MayBeTired 0.201 | +9 others 0.187`` (fabric's eleven);
+    states that would show as 0.000 are only summed. "" without a belief."""
+    items = [f"{name} {p:.3f}" for name, p in zip(belief_states, belief)]
+    whole = " | ".join(items)
+    if len(whole) <= width:
+        return whole
+    order = sorted(range(len(items)), key=lambda i: (-belief[i], i))
+    shown: List[int] = []
+    for i in order:
+        if f"{belief[i]:.3f}" == "0.000":
+            break
+        rest = len(order) - len(shown) - 1
+        tail = f" | +{rest} others 0.000" if rest else ""    # the widest a tail can be
+        if shown and len(" | ".join(items[j] for j in shown + [i]) + tail) > width:
+            break
+        shown.append(i)
+    rest = [i for i in order if i not in shown]
+    text = " | ".join(items[i] for i in shown)
+    if rest:
+        others = f"+{len(rest)} {'other' if len(rest) == 1 else 'others'}"
+        text += f"{' | ' if text else ''}{others} {sum(belief[i] for i in rest):.3f}"
     return text
 
 

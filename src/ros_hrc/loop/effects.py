@@ -319,6 +319,9 @@ class StepReport:
     learnt_name: str = ""
     learnt_value: float = 0.0
     learnt_spread: float = 0.0
+    #: In a sequence of tasks: the policy that decides the task (its selector's choice at
+    #: the task's start; "": no sequence).
+    policy: str = ""
     sim_time: float = 0.0
     episode_start_time: float = 0.0
     object_holder: str = "none"

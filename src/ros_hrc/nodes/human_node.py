@@ -96,8 +96,9 @@ from ros_hrc.link.transport import MessageClient, MessageServer, Peer, link_url
 from ros_hrc import settings, tasks
 from ros_hrc.loop.coordinator import (EPISODE_OVER, RESET_JOIN_WINDOW, WAIT_NOTE_EVERY,
                                       WORLD_CALL_TIMEOUT, Coordinator, CoordinatorConfig)
-from ros_hrc.loop.display import STEP_BLOCK_TYPES, action_values_text, learnt_text, task_line
-from ros_hrc.pomdp.typed import ranked_types
+from ros_hrc.loop.display import (STEP_BLOCK_TYPES, action_values_text, belief_text,
+                                  learnt_text, task_line)
+from ros_hrc.pomdp.type_names import ranked_types
 from ros_hrc.loop.effects import (DECISION_IN_REPORT, ReactionRequest, STEP_TIMINGS, StepReport,
                                   StepRequest, TaskStatusReport)
 from ros_hrc.loop.runner import LoopRunner, ReportPort
@@ -202,12 +203,15 @@ def format_step(status: Status, task: Optional[tasks.Task] = None) -> str:
                   f"STEP FAILED       : {status.fault}"]
         return "\n".join(lines)
     bits = status.observation_bits
-    belief = " | ".join(f"{name} {p:.3f}" for name, p in zip(status.belief_states, status.belief))
+    belief = belief_text(status.belief_states, status.belief)
     lines += [
         f"human observation : {status.human_observation}",
         f"robot observation : {status.robot_observation} ({task.describe_bits(bits)})",
         f"human state       : {status.human_state} ({status.human_state_index})",
         f"robot state       : {status.robot_state}",
+        # A sequence's task starts: the policy its selector chose, shown once, at step 0.
+        *([f"robot policy      : {status.policy} (decides this task)"]
+          if status.policy and status.step == 0 else []),
         f"robot action      : {status.robot_action or '-'}",
         f"robot belief      : {belief or '-'}",
     ]

@@ -152,14 +152,14 @@ class WorldNodeConfig:
         """Read the parameters once (:func:`ros_hrc.nodes.common.read_config`), then decide
         what they leave open: the automatic pause_when_idle, the default paths."""
         given = read_config(cls, get_param)
-        # resolve() decides an automatic pause_when_idle (when real_time_factor is 0).
+        # resolve() decides an automatic pause_when_idle (when real_time_factor is 0) and the
+        # snapshots' default folder.
         pace = settings.resolve({"real_time_factor": given.real_time_factor,
                                  "pause_when_idle": given.pause_when_idle})
         config = replace(
             given, away_time=given.away_time or 0.0,
             pause_when_idle=pace["pause_when_idle"],
-            snapshot_dir=given.snapshot_dir or os.path.join(rospkg.get_ros_home(),
-                                                            "hrc_snapshots"),
+            snapshot_dir=given.snapshot_dir or pace["snapshot_dir"],   # $ROS_HOME's
             model_dir=given.model_dir or os.path.join(rospkg.RosPack().get_path("ros_hrc"),
                                                       "models", "urdf"))
         if config.action_timeout <= 0 or config.tf_rate <= 0:

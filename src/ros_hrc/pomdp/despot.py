@@ -68,19 +68,18 @@ from functools import reduce
 from itertools import accumulate
 from operator import add
 from dataclasses import dataclass
-from typing import Dict, List, Optional
+from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 import numpy as np
 
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import mdp, sampling
+from ros_hrc.pomdp.despot_parameters import (DESPOT_PARAMETERS, EXACT_BELIEF_MAX_STATES,
+                                             SETTING_NAMES, config_value, parameter)
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.planner import BeliefPlanner, PlannerStats
 from ros_hrc.pomdp.policy import Policy
 from ros_hrc.pomdp.sampling import U_MAX, ModelSampler
-
-#: Above this many states the default belief is a particle filter rather than exact.
-EXACT_BELIEF_MAX_STATES = 5000
 
 #: Particle count of the default particle belief.
 DEFAULT_PARTICLES = 2000
@@ -104,40 +103,43 @@ EXPAND_WEIGHT = 0.1
 #: bytes on Tiger and the robot model, 1.4 KB on RockSample_7_8 (13 actions), rounded up.
 BYTES_PER_NODE = 2048
 
+def _default(name: str):
+    return parameter(name).default
+
+
 @dataclass
 class DespotConfig:
-    """DESPOT's parameters (the paper's names in brackets)."""
+    """DESPOT's parameters (the paper's names in brackets). Their defaults, limits and docs
+    are :mod:`ros_hrc.pomdp.despot_parameters`'; here ``time_per_step`` inf is no time budget
+    and ``max_trials`` None no cap (a command line's 0 for both: ``config_value``)."""
 
-    scenarios: int = 500               # [K] scenarios sampled per search
-    depth: int = 90                    # [D] maximum depth of the tree
-    pruning: float = 0.1               # [λ] regularization: the cost of one policy node
-    xi: float = 0.95                   # [ξ] target gap fraction in the excess uncertainty
-    time_per_step: float = 1.0         # seconds of search per act(); inf: no time budget
+    scenarios: int = _default("scenarios")          # [K] scenarios sampled per search
+    depth: int = _default("depth")                  # [D] maximum depth of the tree
+    pruning: float = _default("lambda")             # [λ] regularization: one policy node's cost
+    xi: float = _default("xi")                      # [ξ] target gap fraction of the excess
+    time_per_step: float = _default("time_per_step")   # seconds of search per act(); inf: none
     max_trials: Optional[int] = None   # stop after this many trials too (reproducible runs)
-    upper: str = "mdp"                 # "mdp" | "fib" | "trivial"
-    lower: str = "blind"               # "blind" | "policy" | "rollout"
+    upper: str = _default("upper")                  # "mdp" | "fib" | "trivial"
+    lower: str = _default("lower")                  # "blind" | "policy" | "rollout"
     particles: Optional[int] = None    # particle belief of this size; None: exact when small
     gap_tolerance: float = 1e-6        # [ε0] stop early once the root gap is this small
     max_nodes: Optional[int] = None    # stop a search once its tree has this many nodes
 
     def validate(self) -> None:
-        """SolverError when a parameter is out of range."""
-        if self.scenarios < 1 or self.depth < 0:
-            raise SolverError("DESPOT needs at least one scenario and a non-negative depth")
-        if not math.isfinite(self.pruning) or math.isnan(self.time_per_step) \
-                or self.pruning < 0 or not 0.0 <= self.xi <= 1.0 or self.time_per_step < 0:
-            raise SolverError("DESPOT needs pruning >= 0, 0 <= xi <= 1 and time_per_step >= 0, "
-                              "pruning finite")
+        """SolverError, one line naming the parameter and its limits, when one is out of
+        range."""
+        for p in DESPOT_PARAMETERS:
+            value = getattr(self, p.field)
+            none = (p.name == "time_per_step" and value == math.inf) or (
+                value is None and (p.name in ("max_trials", "particles")))
+            if not none and not p.accepts(value):
+                raise SolverError(p.refusal(value))
         if math.isinf(self.time_per_step) and self.max_trials is None:
             # Work-bounded search (experiments): the trials alone end it, so they must.
-            raise SolverError("DESPOT without a time budget (time_per_step inf) needs "
+            raise SolverError("DESPOT without a time budget (time_per_step 0) needs "
                               "max_trials")
         if self.max_nodes is not None and self.max_nodes < 1:
             raise SolverError(f"max_nodes must be at least 1, got {self.max_nodes}")
-        if self.upper not in ("fib", "mdp", "trivial") or self.lower not in ("blind", "policy",
-                                                                        "rollout"):
-            raise SolverError(f"unknown bound: upper={self.upper!r} (fib|mdp|trivial), "
-                              f"lower={self.lower!r} (blind|policy|rollout)")
 
 
 def memory_needed(model: Model, config: DespotConfig) -> int:
@@ -300,6 +302,26 @@ class _QNode:
 
 class DespotPlanner(BeliefPlanner):
     """Online planner: ``reset``, then ``act`` / ``update`` in turn (see planner.Planner)."""
+
+    plans_on_model = True
+    #: The robot process's settings of its search: the launch arguments of DESPOT's
+    #: parameters (``lambda`` is the config's ``pruning``).
+    SETTINGS = SETTING_NAMES
+
+    @classmethod
+    def settings_used(cls, task: Any) -> Tuple[str, ...]:
+        return cls.SETTINGS
+
+    @classmethod
+    def from_settings(cls, model: Model, task: Any, values: Mapping[str, Any]
+                      ) -> "DespotPlanner":
+        """DESPOT with the settings' budget and shape; ``time_per_step`` 0: no time budget,
+        the trials alone bound the search (no clock read in a decision)."""
+        if values["time_per_step"] == 0 and not values["max_trials"]:
+            raise ValueError("--time-per-step 0 (no time budget) needs --max-trials > 0")
+        config = DespotConfig(**{parameter(name).field: config_value(name, values[name])
+                                 for name in cls.SETTINGS})
+        return cls(model, config, seed=values.get("seed"))
 
     def __init__(self, model: Model, config: Optional[DespotConfig] = None,
                  seed: Optional[int] = None, tables: Optional[DespotTables] = None,

@@ -6,6 +6,15 @@ A planner keeps a belief and is driven in lockstep::
     a = planner.act()                # choose from the current belief (stats in last_stats)
     planner.update(a, o)             # the world answered with observation o
 
+What else the robot process asks of a planner is on :class:`Planner` too, each with a default
+a planner overrides when it has the ability: ``reseed`` (a new episode's random stream),
+``observe_time`` (the simulated time of the next observation, for ``reads_time`` planners),
+``last_rule`` and ``mdp_state`` (why a rule-based robot chose), ``policy_text`` (its policy in
+one line at start-up); and how it is made: ``from_settings`` (from the robot process's
+settings), ``plans_on_model`` (whether it plans on the robot model: the one place that says
+so), ``settings_used`` and ``options`` (what a library policy of it may set). The robot
+process finds a planner by name (``planner:=``) in :mod:`ros_hrc.registry` (docs/extending.md).
+
 A run starts from ``reset(model.start_belief(state))`` (``simulate`` does so): with fully
 observable state variables (mixed observability) the planner knows their values from the first
 step, so it starts from the initial belief conditioned on them (an MDP: a point mass on the start
@@ -25,16 +34,18 @@ import logging
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Dict, Optional
+from typing import Any, ClassVar, Dict, Mapping, Optional, Tuple, Type
 
 import numpy as np
 
+from ros_hrc import registry
 from ros_hrc.errors import SolverError, ZeroProbabilityObservation
 from ros_hrc.pomdp import belief as belief_mod
 from ros_hrc.pomdp import mdp
 from ros_hrc.pomdp.belief import Belief, make_belief
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.policy import Policy
+from ros_hrc.pomdp.policy import load as load_policy
 
 log = logging.getLogger("ros_hrc.pomdp")
 
@@ -56,12 +67,81 @@ class PlannerStats:
 
 
 class Planner(ABC):
-    """Chooses actions from a belief it keeps up to date."""
+    """Chooses actions from a belief it keeps up to date.
+
+    Every ability the robot process uses is declared here; the defaults are those of a
+    planner without it (module docstring)."""
 
     model: Model
     last_stats: PlannerStats
     zero_probability_events: int = 0
     last_update_zero_probability: bool = False
+
+    #: Whether it plans on the robot model: a library policy of it must name a model, the
+    #: held-out rule of a fitted model applies to it (hrc_experiment), and the reports call
+    #: the launch's one robot by its model's name. The one place that says so; a planner that
+    #: decides without the model (a baseline) keeps its belief over the launch's model.
+    plans_on_model: ClassVar[bool] = False
+    #: Whether it reads each observation's simulated time (``observe_time``); the robot process
+    #: says once when the observations carry none.
+    reads_time: ClassVar[bool] = False
+    #: Its own options and their defaults: keys a library policy of it may set besides the
+    #: settings it reads (``settings_used``); given to ``from_settings`` with the settings.
+    options: ClassVar[Mapping[str, Any]] = {}
+    #: The rule behind the last ``act`` (a rule-based robot; None: it has no rules).
+    last_rule: Optional[str] = None
+    #: The state of its own MDP the last observation named (None: it has none).
+    mdp_state: Optional[str] = None
+
+    @classmethod
+    def settings_used(cls, task: Any) -> Tuple[str, ...]:
+        """The robot process's settings it reads on ``task`` (a ``ros_hrc.tasks`` Task), which
+        a library policy of it may set as options (none by default)."""
+        return ()
+
+    @classmethod
+    def from_settings(cls, model: Model, task: Any, values: Mapping[str, Any]) -> "Planner":
+        """A planner on ``model`` from the robot process's settings ``values`` (setting name
+        -> resolved value, ``seed`` among them) and its own ``options`` (their defaults where
+        not given). By default ``cls(model, seed=..., **options)``. ValueError (one line)
+        for values it cannot take."""
+        own = {name: values.get(name, default) for name, default in cls.options.items()}
+        return cls(model, seed=values.get("seed"), **own)
+
+    @classmethod
+    def checked_options(cls, given: Mapping[str, Any]) -> Dict[str, Any]:
+        """``given`` (option name -> value: a library policy's keys, ``planner_options``)
+        checked against its ``options``: each a name it declares, of its default's type (an
+        integer for a float default is taken as the float). ValueError (one line naming the
+        option) otherwise."""
+        out: Dict[str, Any] = {}
+        for name, value in given.items():
+            if name not in cls.options:
+                takes = ", ".join(cls.options) or "none"
+                raise ValueError(f"unknown option {name!r} (its options: {takes})")
+            default = cls.options[name]
+            if isinstance(default, float) and isinstance(value, int) and \
+                    not isinstance(value, bool):
+                value = float(value)
+            if not isinstance(value, type(default)) or (isinstance(value, bool)
+                                                        and not isinstance(default, bool)):
+                raise ValueError(f"option {name} must be a {type(default).__name__} like its "
+                                 f"default {default!r}, got {value!r}")
+            out[name] = value
+        return out
+
+    def reseed(self, seed: int) -> None:
+        """Draw from ``seed``'s stream from now on (each episode's reset). By default nothing:
+        a planner that draws nothing at random."""
+
+    def observe_time(self, elapsed: Optional[float]) -> None:
+        """The simulated seconds since the episode's reset of the next observation (None:
+        unknown). By default ignored (``reads_time`` False)."""
+
+    def policy_text(self) -> Optional[str]:
+        """Its policy in one line, printed at start-up after ``<process>: `` (None: nothing to
+        print), e.g. ``the reactive MDP's policy (value iteration): ...``."""
+        return None
 
     @abstractmethod
     def reset(self, belief: Optional[np.ndarray] = None) -> None:
@@ -128,6 +208,21 @@ class PolicyPlanner(BeliefPlanner):
     lookahead, R(b,a) + γ Σ_o P(o|b,a) V(b_ao), over the policy's value function V.
     """
 
+    plans_on_model = True
+
+    @classmethod
+    def settings_used(cls, task: Any) -> Tuple[str, ...]:
+        return ("policy_file",)
+
+    @classmethod
+    def from_settings(cls, model: Model, task: Any, values: Mapping[str, Any]
+                      ) -> "PolicyPlanner":
+        """The policy file ``policy_file`` read against ``model``, with the lookahead."""
+        if not values.get("policy_file"):
+            raise ValueError("--planner policy needs --policy FILE (hrc_pomdp solve -o FILE)")
+        return cls(model, load_policy(values["policy_file"], model), seed=values.get("seed"),
+                   lookahead=True)
+
     def __init__(self, model: Model, policy: Policy, seed: Optional[int] = None,
                  lookahead: bool = False) -> None:
         policy.check(model)
@@ -186,3 +281,9 @@ class MdpPlanner(BeliefPlanner):
         self.last_stats = PlannerStats(lower=float(q[a]), upper=float(q[a]),
                                        action_values=dict(enumerate(q.tolist())))
         return a
+
+
+def planner_class(name: str) -> Type[Planner]:
+    """The planner ``name`` names (``planner:=``): a registered name or ``module:Class``
+    (:mod:`ros_hrc.registry`). RegistryError (a ValueError, one line) otherwise."""
+    return registry.load(registry.PLANNERS, name, Planner)

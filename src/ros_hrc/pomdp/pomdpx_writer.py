@@ -58,11 +58,6 @@ def _matrix_text(dense: np.ndarray, indent: str) -> str:
     return "\n" + "\n".join(rows) + "\n" + indent[:-2]
 
 
-def _matrix_text(dense: np.ndarray, indent: str) -> str:
-    rows = [indent + " ".join(format_number(x) for x in row) for row in dense]
-    return "\n" + "\n".join(rows) + "\n" + indent[:-2]
-
-
 def _entries(tag: str, model_actions: Sequence[str], tables: Sequence[sp.csr_matrix],
              rows: Sequence[str], cols: Sequence[str]) -> List[str]:
     """Each action's table as <Entry> elements: a matrix when small, else one entry per

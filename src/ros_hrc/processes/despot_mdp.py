@@ -63,18 +63,17 @@ import time
 from typing import Dict, Optional, Sequence, TextIO, Tuple
 
 from ros_hrc import tasks
-from ros_hrc.command_line import (parse_launch_options, print_whole_lines, ranged_number,
-                                  reread_launch_options)
+from ros_hrc.command_line import ranged_number, reread_launch_options
 from ros_hrc.errors import HrcError, LinkError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_REFUSED, Ack, Configure, Error, Message,
                                    NextState, Reaction, Reset, Step, is_reply_to, reply_error)
-from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import LinkClosed, MessageClient, link_url
 from ros_hrc import settings
 from ros_hrc.models import load_human_model, positional_mapping_line
 from ros_hrc.pomdp.model import Model
 from ros_hrc.streams import next_episode, stream_seed
 from ros_hrc.agents.human import HumanAgent, HumanAgentConfig
+from ros_hrc.processes.solver_process import CANNOT_START, solver_parser, start_solver
 
 NAME = "despot_mdp"
 
@@ -215,12 +214,6 @@ class MdpProcess:
             return int(text)
         except ValueError:
             return None
-
-    def _send(self, msg: Message) -> None:
-        try:
-            self.client.send(msg)
-        except LinkError as exc:
-            self.print(f"(could not send {msg.type}: {exc})")
 
     def print(self, text: str = "") -> None:
         print(text, file=self.out, flush=True)
@@ -529,14 +522,9 @@ def _isatty(stream: TextIO) -> bool:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=NAME, description="The simulated human: an MDP agent "
-                                "linked to the human node by websocket.")
-    settings.add_argument(p, "task")
-    settings.add_argument(p, "human_model", "--model")
-    settings.add_argument(p, "host")
-    settings.add_argument(p, "human_port", "--port")
+    p = solver_parser(NAME, "The simulated human: an MDP agent linked to the human node by "
+                      "websocket.", "human_model", "human_port")
     settings.add_argument(p, "mode")
-    settings.add_argument(p, "seed")
     settings.add_argument(p, "human_choice", "--choice")
     settings.add_argument(p, "temperature")
     settings.add_argument(p, "manual_share")
@@ -546,7 +534,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reply-timeout", type=ranged_number(float, 0.0, 86400.0, low_open=True),
                    default=300.0,
                    help="seconds to wait for the world and the robot to finish a step")
-    add_token_arguments(p)
     return p
 
 
@@ -570,18 +557,10 @@ def human_line(model: Model, args: argparse.Namespace) -> str:
 
 
 def main(argv: Optional[list] = None) -> int:
-    print_whole_lines()
-    args = parse_launch_options(build_parser(), argv)
-    try:
-        task, model, agent = build_agent(args)
-        token = launch_token(args)
-    except (HrcError, OSError, ValueError) as exc:
-        print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
-        if args.link_session and stop_launch(args.link_session):
-            # Respawned, it would fail the same way about once a second: stop the launch.
-            print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
-                  file=sys.stderr, flush=True)
-        return 2
+    started = start_solver(NAME, build_parser(), argv, build_agent)
+    if started is None:
+        return CANNOT_START
+    args, (task, model, agent), token = started
     client = MessageClient(link_url(args.human_port, args.host), NAME, connect_timeout=3600.0,
                            send_timeout=args.reply_timeout, token=token)
     process = MdpProcess(agent, client, args, argv=argv)

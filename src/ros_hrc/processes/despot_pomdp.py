@@ -5,8 +5,10 @@ It loads the robot POMDP (checked against the states, actions and observations o
 on port 7070 for the coordinator (``hrc_human``). For each ``observation``: update the
 belief with the robot's previous action and the observation (the task's idle action before
 the first step, ``rIdle`` for the seed: the robot starts idle), plan (DESPOT by default, a
-saved offline policy, or a baseline robot of ``ros_hrc.agents.robots``: the reactive robot
-or no robot, which keep the belief but decide without it), and answer with a ``decision``.
+saved offline policy, a baseline robot of ``ros_hrc.agents.robots``: the reactive robot
+or no robot, which keep the belief but decide without it, or a planner of the user's own
+package: ``planner:=`` is any name of :mod:`ros_hrc.registry`, docs/extending.md), and answer
+with a ``decision``.
 The coordinator has the robot carry it out (the world's /robot/* services), not this
 process.
 A ``reset`` puts the belief back to the model's initial belief (and the reactive robot's step
@@ -60,7 +62,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import sys
 import threading
 import time
@@ -71,26 +72,25 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from ros_hrc import tasks
-from ros_hrc.command_line import (parse_launch_options, print_whole_lines,
-                                  reread_launch_options)
+from ros_hrc.command_line import reread_launch_options
 from ros_hrc.errors import HrcError, LinkError
+from ros_hrc.registry import RegistryError
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_STALE, Ack, Configure, Decision,
                                    DispatchTable, Message, Observation, Reset, TaskEnd,
                                    TaskReport, reply_error)
-from ros_hrc.link.token import add_token_arguments, launch_token, stop_launch
 from ros_hrc.link.transport import MessageServer, Peer
 from ros_hrc import settings
 from ros_hrc.models import load_robot_model, positional_mapping_line
 from ros_hrc.models import shown_path as shown_model
 from ros_hrc.streams import next_episode, stream_seed
 from ros_hrc.pomdp.model import Model
-from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
-from ros_hrc.pomdp.planner import Planner, PolicyPlanner
-from ros_hrc.pomdp.policy import load as load_policy
-from ros_hrc.pomdp.typed import TypeLayout, ranked_types
+from ros_hrc.pomdp.planner import Planner, planner_class
+from ros_hrc.pomdp.type_names import ranked_types
+from ros_hrc.pomdp.typed import TypeLayout
 from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of, selector_of
-from ros_hrc.agents.robots import ExplorePlanner, NoRobotConfig, NoRobotPlanner, reactive_planner
+from ros_hrc.agents.robots import reactive_robot_model
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
+from ros_hrc.processes.solver_process import CANNOT_START, solver_parser, start_solver
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
 from ros_hrc.tasks.definition import Task
 from ros_hrc.tasks.schedule import nearest_type
@@ -124,9 +124,7 @@ class RobotAgent:
         """Back to ``belief`` (the model's initial belief when not given); for ``episode``
         (when given), the planner draws from that episode's stream, from its start."""
         if episode is not None:
-            reseed = getattr(self.planner, "reseed", None)
-            if reseed is not None:
-                reseed(stream_seed(self.seed, episode, "planner"))
+            self.planner.reseed(stream_seed(self.seed, episode, "planner"))
             self.episode = episode
         self.planner.reset(belief)
         self.last_action = self.first_action
@@ -136,12 +134,10 @@ class RobotAgent:
     def step(self, observation: str, elapsed: Optional[float] = None):
         """Belief update with (previous action, observation), then plan: (action, ms, note).
         ``elapsed``: the simulated seconds since the episode's reset (None: unknown), for a
-        planner that counts time (``observe_time``: the fabric reactive robot)."""
+        planner that counts time (``reads_time``: the fabric reactive robot)."""
         o = self.model.index("observation", observation)
         note = ""
-        observe_time = getattr(self.planner, "observe_time", None)
-        if observe_time is not None:
-            observe_time(elapsed)
+        self.planner.observe_time(elapsed)
         started = time.perf_counter()
         self.history.append((self.last_action, o))
         self.planner.update(self.last_action, o)
@@ -245,6 +241,11 @@ class SequenceRobot:
         if self.selection is not None:
             return self.selection.spec
         return selector_of(self.learner.planning) if self.learner is not None else "fixed"
+
+    @property
+    def task_policy(self) -> Optional[str]:
+        """The policy that decides the task under way (None: no task has started)."""
+        return self.record.policy if self.record is not None else None
 
     def start_task(self, index: int, episode: int, true_type: str) -> str:
         """A reset starts task ``index`` (of episode ``episode``; its human ``true_type``):
@@ -399,7 +400,7 @@ class PomdpProcess:
             policy = self.sequence.start_task(msg.task_index, episode, msg.true_type or "")
             self.agent = self.sequence.agents[policy]
             start = self.sequence.record.start_belief
-            note = getattr(self.sequence.selector, "note", "")
+            note = self.sequence.selector.note if self.sequence.selector is not None else ""
             print(f"\n##### TASK {msg.task_index}: selector {self.sequence.name} chose policy "
                   f"{policy}{'; ' + note if note else ''} #####", flush=True)
         self.agent.reset(episode, start)
@@ -426,16 +427,15 @@ class PomdpProcess:
         at = f" at {msg.elapsed:.1f} s" if msg.elapsed is not None else ""
         print(f"\n-----Step {msg.step}-----\n- Observation = {msg.observation} "
               f"(bits {msg.bits}){at}; true state (not seen) = {msg.state}", flush=True)
-        if msg.elapsed is None and hasattr(self.agent.planner, "observe_time") \
-                and not self._said_no_time:
+        if msg.elapsed is None and self.agent.planner.reads_time and not self._said_no_time:
             self._said_no_time = True
             print(f"{NAME}: observations carry no time (elapsed): the reactive robot's wait "
                   "(rule waited) cannot apply", file=sys.stderr, flush=True)
         if note:
             print(f"- NOTE: {note}", flush=True)
         # The reactive robot says which of its rules chose the action (and the MDP state).
-        rule = getattr(self.agent.planner, "last_rule", None)
-        mdp_state = getattr(self.agent.planner, "mdp_state", None)
+        rule = self.agent.planner.last_rule
+        mdp_state = self.agent.planner.mdp_state
         why = (f"rule {rule}, " if rule else "") + (f"MDP state {mdp_state}, " if mdp_state else "")
         print(f"- Belief:\n{self._belief_text()}\n- Action = {model.actions[action]} "
               f"({why}{decision_ms:.1f} ms)", flush=True)
@@ -450,6 +450,7 @@ class PomdpProcess:
                         type_names=list(layout.types) if type_belief is not None else None,
                         type_belief=type_belief.tolist() if type_belief is not None else None,
                         **figure_fields(self.sequence.figure if self.sequence else None),
+                        policy=self.sequence.task_policy if self.sequence else None,
                         epoch=msg.epoch, reply_to=msg.id)
 
     def on_task_end(self, msg: TaskEnd, peer: Peer) -> Message:
@@ -497,42 +498,33 @@ def figure_text(figure: LearntFigure) -> str:
 
 
 def build_planner(model: Model, args: argparse.Namespace) -> Planner:
-    """The planner the command line asks for: DESPOT, a saved offline policy, the reactive
-    robot, no robot or the exploring robot."""
-    if args.planner == "despot":
-        if args.time_per_step == 0 and not args.max_trials:
-            raise ValueError("--time-per-step 0 (no time budget) needs --max-trials > 0")
-        # 0: no time budget, the trials alone bound the search (no clock read in a decision).
-        config = DespotConfig(scenarios=args.scenarios, depth=args.depth, pruning=args.lambda_,
-                              time_per_step=args.time_per_step or math.inf,
-                              max_trials=args.max_trials or None)
-        return DespotPlanner(model, config, seed=args.seed)
-    if args.planner == "policy":
-        if not args.policy_file:
-            raise ValueError("--planner policy needs --policy FILE (hrc_pomdp solve -o FILE)")
-        return PolicyPlanner(model, load_policy(args.policy_file, model), seed=args.seed,
-                             lookahead=True)
-    if args.planner == "reactive":
-        return reactive_planner(tasks.get(args.task), model, budget=args.reactive_budget,
-                                wait=args.reactive_wait, seed=args.seed)
-    if args.planner == "none":
-        idle = tasks.get(args.task).robot_idle_action
-        return NoRobotPlanner(model, NoRobotConfig(idle_action=idle), seed=args.seed)
-    if args.planner == "explore":
-        return ExplorePlanner(model, seed=args.seed)
-    raise ValueError(f"unknown planner {args.planner!r}: "
-                     f"{', '.join(settings.SETTINGS['planner'].choices)}")
+    """The planner the command line asks for (``--planner``: a registered name or
+    ``module:Class``, :func:`ros_hrc.pomdp.planner.planner_class`), made from the options
+    (:meth:`ros_hrc.pomdp.planner.Planner.from_settings`). Raises ValueError (one line)."""
+    try:
+        kind = planner_class(args.planner)
+        own = kind.checked_options(settings.planner_option_values(args.planner_options))
+    except RegistryError as exc:
+        raise ValueError(f"--planner {args.planner}: {exc.reason}") from None
+    except ValueError as exc:
+        raise ValueError(f"--planner-options {args.planner_options}: {exc}") from None
+    return kind.from_settings(model, tasks.get(args.task), {**planner_settings(args), **own})
+
+
+def planner_settings(args: argparse.Namespace) -> Dict[str, object]:
+    """The options as a planner reads them: setting name -> value (``lambda`` for argparse's
+    ``lambda_``), with a library policy's own options among them."""
+    values = dict(vars(args))
+    values["lambda"] = values.pop("lambda_", settings.default("lambda"))
+    return values
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=NAME, description="The robot's POMDP planner: a websocket "
-                                "server answering each observation with a decision.")
-    settings.add_argument(p, "task")
-    settings.add_argument(p, "robot_model", "--model")
-    settings.add_argument(p, "host")
-    settings.add_argument(p, "pomdp_port", "--port")
+    p = solver_parser(NAME, "The robot's POMDP planner: a websocket server answering each "
+                      "observation with a decision.", "robot_model", "pomdp_port")
     settings.add_argument(p, "link_read_timeout")
     settings.add_argument(p, "planner")
+    settings.add_argument(p, "planner_options")
     settings.add_argument(p, "policy_file", "--policy")
     settings.add_argument(p, "reactive_budget")
     settings.add_argument(p, "reactive_wait")
@@ -541,21 +533,19 @@ def build_parser() -> argparse.ArgumentParser:
     settings.add_argument(p, "depth")
     settings.add_argument(p, "lambda", "--lambda", dest="lambda_")
     settings.add_argument(p, "max_trials")
-    settings.add_argument(p, "seed")
     settings.add_argument(p, "selector")
     settings.add_argument(p, "library")
     settings.add_argument(p, "selector_model")
     settings.add_argument(p, "bpr_forgetting")
     for name in settings.LEARNING_SETTINGS:
         settings.add_argument(p, name)
-    add_token_arguments(p)
     return p
 
 
 def fixed_policy_name(args: argparse.Namespace) -> str:
     """What the reports call the launch's one robot (``selector:=fixed``): its model's name
     for a planner that plans on it, else the planner's name (reactive, none, explore)."""
-    if args.planner in ("despot", "policy"):
+    if planner_class(args.planner).plans_on_model:
         return Path(str(args.robot_model)).stem
     return args.planner
 
@@ -565,6 +555,7 @@ def policy_arguments(args: argparse.Namespace, settings_of_policy: Mapping[str, 
     """The command line's options with a library policy's settings (its planner, robot model
     and options) in their place."""
     values = dict(vars(args))
+    values["planner_options"] = ""     # the launch's are its planner's; the policy's its own
     for name, value in settings_of_policy.items():
         values["lambda_" if name == "lambda" else name] = value
     return argparse.Namespace(**values)
@@ -602,8 +593,9 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
     if not uses_library(args.selector):
         name = fixed_policy_name(args)
         agent = RobotAgent(model, planner, first_action=first, seed=args.seed)
+        acts_by = reactive_robot_model(task) if args.planner == "reactive" else model.source
         # The forgetting a model of human types carries its type belief across tasks with.
-        return SequenceRobot(task, {name: agent}, {name: model.source or ""}, seed=args.seed,
+        return SequenceRobot(task, {name: agent}, {name: acts_by or ""}, seed=args.seed,
                              forgetting=args.bpr_forgetting)
     selection = load_selection(args.selector, args.library, args.selector_model, task)
     agents: Dict[str, RobotAgent] = {}
@@ -616,13 +608,16 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
             str(policy.robot_model), task)
         agents[policy.name] = RobotAgent(pmodel, build_planner(pmodel, pargs),
                                          first_action=first, seed=args.seed)
-        files[policy.name] = str(policy.robot_model or "")
+        # What the reports name as its model: its file; the reactive robot's own (its MDP's
+        # file, or its name), not the belief model it keeps.
+        files[policy.name] = str(policy.robot_model) if policy.robot_model is not None else (
+            reactive_robot_model(task) if policy.planner == "reactive" else "")
         options = ", ".join(f"{k} {v}" for k, v in policy.options.items())
         print(f"{NAME}: policy {policy.name}: planner {policy.planner}"
               f"{', ' + shown_model(policy.robot_model) if policy.robot_model else ''}"
               f"{', ' + options if options else ''}", flush=True)
     model_line = (f"selector model {shown_model(selection.model.path)}" if selection.model
-                  is not None and getattr(selection.model, "path", None) else "no selector model")
+                  is not None and selection.model.path else "no selector model")
     print(f"{NAME}: selector {args.selector} over {len(agents)} policies of "
           f"{shown_model(selection.library.manifest)}; {model_line}", flush=True)
     return SequenceRobot(task, agents, files, selection, seed=args.seed,
@@ -647,18 +642,10 @@ def robot_line(model: Model, planner: Planner, args: argparse.Namespace) -> str:
 
 
 def main(argv: Optional[list] = None) -> int:
-    print_whole_lines()
-    args = parse_launch_options(build_parser(), argv)
-    try:
-        model, planner, sequence = build_robot(args)
-        token = launch_token(args)
-    except (HrcError, OSError, ValueError) as exc:
-        print(f"{NAME}: {exc}", file=sys.stderr, flush=True)
-        if args.link_session and stop_launch(args.link_session):
-            # Respawned, it would fail the same way about once a second: stop the launch.
-            print(f"{NAME}: cannot start on this launch's settings: stopping the launch",
-                  file=sys.stderr, flush=True)
-        return 2
+    started = start_solver(NAME, build_parser(), argv, build_robot)
+    if started is None:
+        return CANNOT_START
+    args, (model, planner, sequence), token = started
     process = PomdpProcess(next(iter(sequence.agents.values())), sequence, args, argv)
     server = MessageServer(args.pomdp_port, process.dispatch, host=args.host, name=NAME,
                            read_timeout=args.link_read_timeout, token=token)
@@ -672,9 +659,9 @@ def main(argv: Optional[list] = None) -> int:
         print(f"{NAME}: {mapping}", file=sys.stderr, flush=True)
     print(f"{NAME}: {robot_line(model, planner, args)}; observations on {server.url}",
           flush=True)
-    policy_text = getattr(planner, "policy_text", None)
+    policy_text = planner.policy_text()
     if policy_text is not None:
-        print(f"{NAME}: the reactive MDP's policy (value iteration): {policy_text()}", flush=True)
+        print(f"{NAME}: {policy_text}", flush=True)
     try:
         threading.Event().wait()
     except KeyboardInterrupt:

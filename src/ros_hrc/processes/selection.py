@@ -20,8 +20,9 @@ from ros_hrc import settings
 from ros_hrc.agents.library import PolicyLibrary, load_library
 from ros_hrc.agents.selector_model import SelectorModel, load_selector_model
 from ros_hrc.agents.learning import planning_of
-from ros_hrc.agents.selectors import NEEDS_MODEL, Selector, make_selector
+from ros_hrc.agents.selectors import FIXED, Selector, make_selector, selector_class
 from ros_hrc.errors import HrcError
+from ros_hrc.registry import RegistryError
 from ros_hrc.model_files import user_path
 from ros_hrc.models import shown_path
 from ros_hrc.streams import stream_seed
@@ -65,7 +66,16 @@ def load_selection(selector: str, library: str, selector_model: str, task: Task)
     """The library ``library`` names and the selector model ``selector_model`` names (each a
     setting's value; ``auto`` the defaults), checked against ``task``, the library and
     ``selector``. Raises :class:`SelectionError` (one line, naming the argument)."""
-    kind, _, policy = selector.strip().partition(":")
+    spec = selector.strip()
+    kind, _, policy = spec.partition(":")
+    if kind == FIXED:
+        needs_model = False
+    else:
+        policy = ""           # the colon of module:Class
+        try:
+            needs_model = selector_class(spec).needs_model
+        except RegistryError as exc:
+            raise SelectionError(f"selector:={selector}: {exc.reason}") from None
     try:
         loaded = load_library(library, task)
     except HrcError as exc:
@@ -79,7 +89,7 @@ def load_selection(selector: str, library: str, selector_model: str, task: Task)
     auto = selector_model.strip() in ("", settings.AUTO_WORD)
     path = auto_selector_model(loaded) if auto else user_path(selector_model.strip())
     if auto and not path.is_file():
-        if kind in NEEDS_MODEL:
+        if needs_model:
             raise SelectionError(f"selector:={selector} needs a selector model, and the "
                                  f"library has none (looked for {shown_path(path)}): `make "
                                  "train-selector` writes it, or give selector_model:=FILE")
@@ -87,7 +97,7 @@ def load_selection(selector: str, library: str, selector_model: str, task: Task)
     try:
         model = load_selector_model(path, task, loaded.names())
     except HrcError as exc:
-        if auto and kind not in NEEDS_MODEL:
+        if auto and not needs_model:
             return Selection(selector, loaded, None)   # not needed: another library's, unused
         raise SelectionError(f"selector_model:={selector_model}: {' '.join(str(exc).split())}"
                              ) from None

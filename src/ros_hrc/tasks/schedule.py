@@ -33,6 +33,7 @@ from typing import Optional, Sequence, Tuple
 from ros_hrc.errors import did_you_mean
 
 __all__ = ["ScheduleError", "Block", "TaskPlay", "Schedule", "parse_schedule", "nearest_type",
+           "MAX_TASKS",
            "FABRIC_SCHEDULE_NAME", "FABRIC_HUMANS", "FABRIC_TASKS_PER_HUMAN"]
 
 #: The word that names FABRIC's own schedule.
@@ -47,6 +48,11 @@ FABRIC_HUMANS: Tuple[str, ...] = (
     "beginner_nontired_collaborative", "expert_tired_noncollaborative")
 #: Their ``interactionNumber``: tasks per human before the switch.
 FABRIC_TASKS_PER_HUMAN = 30
+
+#: The most tasks a sequence has, and so a block: ``tasks:=N``'s cap (ros_hrc.settings takes it
+#: from here). N is a ROS parameter, an XML-RPC int32, and a task's number travels as uint32
+#: (TaskStatus.task_index); a block of more tasks could never be played to its end.
+MAX_TASKS = 2**31 - 1
 
 _INLINE_BLOCK = re.compile(r"(?P<human>[^*>\s]+)(?:>(?P<to>[^*>\s]+))?(?:\*(?P<k>[0-9]+))?\Z")
 
@@ -154,8 +160,10 @@ def _inline(text: str, known: Sequence[str]) -> Schedule:
             raise ScheduleError(f"block {number} {part!r} is not TYPE, TYPE*K or TYPE>TYPE2*K "
                                 "(K a whole number >= 1)")
         k = int(match["k"]) if match["k"] is not None else 1
-        if k < 1:
-            raise ScheduleError(f"block {number} {part!r}: K must be >= 1")
+        if not 1 <= k <= MAX_TASKS:
+            shown = part if len(part) <= 60 else f"{part[:40]}... ({len(part)} characters)"
+            raise ScheduleError(f"block {number} {shown!r}: K must be a whole number from 1 to "
+                                f"{MAX_TASKS} (the most tasks a sequence has, as tasks:=)")
         blocks.append(Block(_check_type(match["human"], known, ""), k,
                             _check_type(match["to"], known, "") if match["to"] else ""))
     return Schedule(tuple(blocks))
@@ -197,8 +205,9 @@ def _from_file(path: Path, known: Sequence[str]) -> Schedule:
         human, tasks, drift = table.get("human"), table.get("tasks"), table.get("drift_to", "")
         if not isinstance(human, str) or not human:
             raise ScheduleError(f"{where}human must be a type name (a string)")
-        if isinstance(tasks, bool) or not isinstance(tasks, int) or tasks < 1:
-            raise ScheduleError(f"{where}tasks must be a whole number >= 1, not {tasks!r}")
+        if isinstance(tasks, bool) or not isinstance(tasks, int) or not 1 <= tasks <= MAX_TASKS:
+            raise ScheduleError(f"{where}tasks must be a whole number from 1 to {MAX_TASKS} "
+                                f"(the most tasks a sequence has, as tasks:=), not {tasks!r}")
         if not isinstance(drift, str):
             raise ScheduleError(f"{where}drift_to must be a type name (a string)")
         blocks.append(Block(_check_type(human, known, where), tasks,

@@ -9,7 +9,7 @@ import textwrap
 import time
 
 from ros_hrc.link.protocol import Hello, Reset, decode, encode
-from ros_hrc.link.token import mint_token, prune_tokens
+from ros_hrc.link.token import launcher_of, mint_token, prune_tokens
 from raw_client import RawConnection
 
 #: A safety net for a server that never answers; no test asserts a time.
@@ -25,6 +25,31 @@ def test_tokens_of_ended_launches_are_pruned_and_live_ones_kept(tmp_path):
     unknown = mint_token("unknown", environ=home)
     assert prune_tokens(home) == 1
     assert not gone.exists() and live.exists() and unknown.exists()
+
+
+def test_a_token_whose_launcher_is_a_zombie_is_pruned(tmp_path):
+    """A launcher that ended but is not reaped yet (a zombie) has ended: os.kill(pid, 0)
+    said it was alive, and its token stayed."""
+    import psutil
+    home = {"ROS_HOME": str(tmp_path / "ros_home")}
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    try:
+        deadline = time.monotonic() + SAFETY
+        while psutil.Process(child.pid).status() != psutil.STATUS_ZOMBIE:
+            assert time.monotonic() < deadline, "the child never ended"
+            time.sleep(0.02)
+        zombie = mint_token("zombie", launcher_pid=child.pid, environ=home)
+        assert launcher_of(zombie) == child.pid
+        assert prune_tokens(home) == 1 and not zombie.exists()
+    finally:
+        child.wait()
+
+
+def test_the_launcher_is_read_from_the_tokens_second_line_or_is_none(tmp_path):
+    home = {"ROS_HOME": str(tmp_path / "ros_home")}
+    assert launcher_of(mint_token("with", launcher_pid=4321, environ=home)) == 4321
+    assert launcher_of(mint_token("without", environ=home)) is None
+    assert launcher_of(tmp_path / "missing.token") is None
 
 
 # -- the accept loop survives running out of file descriptors -------------------------------

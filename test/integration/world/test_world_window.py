@@ -360,16 +360,16 @@ def _atom(ask=False):
     "there" or "gone". Atoms live until the X server resets, which it does when its last client
     leaves: an atom still there after its maker left tells that another client held the
     server."""
-    from ros_hrc.world.x11 import _Display
+    from ros_hrc.world.x11 import open_display
 
     deadline = time.monotonic() + 20
-    d = _Display()
-    while not d.display and time.monotonic() < deadline:   # cut while the server resets
+    d = open_display()
+    while d is None and time.monotonic() < deadline:   # cut while the server resets
         time.sleep(0.1)
-        d = _Display()
-    assert d.display, "no display"
+        d = open_display()
+    assert d is not None, "no display"
     try:
-        return "there" if d.x.XInternAtom(d.display, b"_ROS_HRC_PROBE", int(ask)) else "gone"
+        return "there" if d.intern_atom("_ROS_HRC_PROBE", only_if_exists=ask) else "gone"
     finally:
         d.close()
 

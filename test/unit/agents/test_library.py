@@ -140,9 +140,11 @@ def at(tmp_path, line: int) -> str:
 
 @pytest.mark.parametrize("body, line, says", [
     ('task = "fabric"\n[[policy]]\nname = "a"\nplanner = "desspot"\nmodel = "x"\n', 4,
-     "policy 'a': planner:=desspot: must be one of despot, policy, reactive, none, explore"),
+     "policy 'a': planner:=desspot: unknown planner 'desspot'; did you mean despot? (known: despot, "
+         "policy, reactive, none, explore"),
     ('task = "fabric"\n[[policy]]\nname = "a"\nmodel = "x"\n', 3,
-     "policy 'a' has no planner (one of despot, policy, reactive, none, explore)"),
+     "policy 'a' has no planner (a name the planner setting takes: a planner of ours (despot, "
+     "policy, reactive, none, explore), an installed package's"),
     ('task = "fabric"\n[[policy]]\nname = "a"\nplanner = "despot"\n', 3,
      "policy 'a': planner despot needs a model"),
     ('task = "fabric"\n[[policy]]\nname = "fixed:base"\nplanner = "none"\n', 3,

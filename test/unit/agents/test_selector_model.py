@@ -157,6 +157,23 @@ def test_every_refusal_is_one_line_naming_the_file(tmp_path):
         assert text.startswith(str(path)) and "\n" not in text, text
 
 
+@pytest.mark.parametrize("change, message", [
+    (set_("types", [0, 1]), "types[0] is 0, not a name: each of the types is named by a string"),
+    (set_("types", ["expert", 7]), "types[1] is 7, not a name"),
+    (set_("library", {"manifest": "m", "policies": ["base", 3]}),
+     "library.policies[1] is 3, not a name"),
+])
+def test_a_name_that_is_not_a_string_is_refused_naming_the_file_and_field(tmp_path, change,
+                                                                          message):
+    """str() made integer types the names "0".."9", which no human's type matched: the oracle
+    then identified nobody, without a word."""
+    path = written(tmp_path, change)
+    with pytest.raises(HrcError) as caught:
+        load_selector_model(path, "fabric", POLICIES)
+    text = str(caught.value)
+    assert text.startswith(f"{path}: {message}") and "\n" not in text, text
+
+
 def test_missing_and_malformed_files(tmp_path):
     with pytest.raises(HrcError, match="no such selector model file.*make train-selector"):
         load_selector_model(tmp_path / "none.json", "fabric", POLICIES)

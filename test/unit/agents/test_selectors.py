@@ -9,7 +9,7 @@ import pytest
 from ros_hrc import tasks
 from ros_hrc.agents.selector_model import HEADER_KEYS, SIGNATURE_CODES, SelectorModel
 from ros_hrc.agents.selectors import (
-    DEFAULT_FORGETTING, SELECTOR_NAMES, TaskResult, bandit_reward, expected_improvement,
+    DEFAULT_FORGETTING, TaskResult, bandit_reward, expected_improvement,
     fabric_scores, fabric_type_posterior, make_selector, probability_of_improvement,
     signature_code, signature_log_likelihood, type_posterior)
 
@@ -378,7 +378,12 @@ def test_oracle_plays_the_best_policy_of_the_true_type():
 def test_make_selector_refuses_in_one_line():
     model = model_of(MEAN_1T, STD_1T)
     cases = [
-        ("best", model, 0, 0.0, "unknown selector 'best'; known: fixed:<policy>, random"),
+        ("banditt", model, 0, 0.0, "unknown selector 'banditt'; did you mean bandit?"),
+        ("beast", model, 0, 0.0, r"\(known: random, bpr, bpr-pi, bpr-fabric, bandit, oracle, "
+                                 r"or module:Class\); also fixed:<policy>"),
+        ("ros_hrc.agents.selectors:TaskResult", model, 0, 0.0,
+         "selector ros_hrc.agents.selectors:TaskResult: TaskResult is not a subclass of "
+         "ros_hrc.agents.selectors.Selector"),
         ("fixed", model, 0, 0.0, "names no policy"),
         ("fixed:policy9", model, 0, 0.0, "no policy 'policy9' in the library"),
         ("random:x", model, 0, 0.0, "takes no argument"),
@@ -399,8 +404,9 @@ def test_make_selector_refuses_in_one_line():
 
 
 def test_every_selector_name_is_made():
+    from ros_hrc import registry
     model = model_of(MEAN_1T, STD_1T)
-    for name in SELECTOR_NAMES:
+    for name in ("fixed",) + registry.names(registry.SELECTORS):
         spec = "fixed:policy0" if name == "fixed" else name
         selector = make_selector(spec, model.policies, model, seed=2, forgetting=0.05)
         assert selector.name == spec

@@ -67,7 +67,7 @@ class LocalLoop:
         agent = HumanAgent(human, HumanAgentConfig(seed=seed), reaction=self.task.reaction)
         self.mdp = MdpProcess(agent, client=self, out=self.terminal, args=SimpleNamespace(
             mode="auto", seed=seed, step_delay=0.0, reply_timeout=5.0))
-        args = SimpleNamespace(planner=planner, time_per_step=0.0, max_trials=max_trials,
+        args = SimpleNamespace(planner=planner, planner_options="", time_per_step=0.0, max_trials=max_trials,
                                scenarios=100, depth=30, lambda_=0.1, seed=seed,
                                reactive_budget=8, reactive_wait=reactive_wait, policy_file="",
                                task=self.task.name)

@@ -72,7 +72,7 @@ def test_without_arguments_every_default(capsys):
     ("pomdp_port:=70000", "hrc.launch: pomdp_port:=70000: must be an integer from 1 to 65535"),
     ("human_port:=abc", "hrc.launch: human_port:=abc: must be an integer from 1 to 65535, "
                         "got 'abc'"),
-    ("planner:=bogus", "hrc.launch: planner:=bogus: must be one of despot, policy, reactive, none, "
+    ("planner:=bogus", "hrc.launch: planner:=bogus: unknown planner 'bogus' (known: despot, policy, reactive, none, "
      "explore"),
     ("time_per_step:=-1", "hrc.launch: time_per_step:=-1: must be 0 or a number from 0.001 to 60 (s)"),
     ("scenarios:=0", "hrc.launch: scenarios:=0: must be an integer from 1 to 100000"),
@@ -222,6 +222,21 @@ def test_every_path_is_made_absolute_where_the_check_runs(tmp_path, monkeypatch,
     assert config["robot_model"] == str(root / "r.pomdp")
     assert config["human_model"] == str(root / "h.pomdpx")
     assert config["snapshot_dir"] == str(tmp_path / "shots")
+
+
+@pytest.mark.parametrize("world", [[], ["--world"]], ids=["hrc.launch", "world.launch"])
+def test_an_empty_snapshot_dir_is_printed_as_the_folder_it_stands_for(tmp_path, monkeypatch,
+                                                                       capsys, world):
+    """The doc says empty is $ROS_HOME/hrc_snapshots: the configuration printed says which."""
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "ros home"))
+    assert main(world + ["--no-port-check", "snapshot_dir:="]) == 0
+    config = yaml.safe_load(capsys.readouterr().out)
+    assert config["snapshot_dir"] == str(tmp_path / "ros home" / "hrc_snapshots")
+    monkeypatch.delenv("ROS_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert main(world + ["--no-port-check", "snapshot_dir:="]) == 0
+    assert yaml.safe_load(capsys.readouterr().out)["snapshot_dir"] == str(
+        tmp_path / ".ros" / "hrc_snapshots")
 
 
 def test_a_window_needs_a_display_that_answers(monkeypatch):

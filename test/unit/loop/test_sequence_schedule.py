@@ -5,7 +5,8 @@ import pytest
 from ros_hrc import settings, tasks
 from ros_hrc.model_files import model_names
 from ros_hrc.settings import SettingError
-from ros_hrc.tasks.schedule import (FABRIC_HUMANS, ScheduleError, TaskPlay, parse_schedule)
+from ros_hrc.tasks.schedule import (FABRIC_HUMANS, MAX_TASKS, ScheduleError, TaskPlay,
+                                     parse_schedule)
 from ros_hrc.tasks.utility import TaskOutcome, task_utility
 
 FABRIC_TYPES = model_names(tasks.get("fabric").model_dirs["human"])
@@ -69,6 +70,29 @@ def test_a_malformed_inline_block_is_one_line(text):
     assert "\n" not in str(info.value)
 
 
+def test_a_block_count_is_capped_as_tasks_is(tmp_path):
+    """``tasks:=`` stops at 2**31 - 1; a block count did not: beginner*99999999999999999999 was
+    accepted and played."""
+    top = settings.SETTINGS["tasks"].maximum
+    assert top == MAX_TASKS == 2**31 - 1
+    assert parse_schedule(f"tired*{top}", SEED_TYPES, "humanModel").blocks[0].tasks == top
+    for k in (str(top + 1), "99999999999999999999"):
+        with pytest.raises(ScheduleError) as info:
+            parse_schedule(f"expert,tired*{k}", SEED_TYPES, "humanModel")
+        assert str(info.value) == (f"block 2 'tired*{k}': K must be a whole number from 1 to "
+                                   f"{top} (the most tasks a sequence has, as tasks:=)")
+    path = tmp_path / "long.toml"
+    path.write_text(f'[[block]]\nhuman = "expert"\ntasks = {top + 1}\n')
+    with pytest.raises(ScheduleError, match=rf"{path}:1: tasks must be a whole number from 1 "
+                                            rf"to {top} .*not {top + 1}"):
+        parse_schedule(str(path), SEED_TYPES, "humanModel")
+    # through the launch's settings: one line naming the argument
+    with pytest.raises(SettingError) as info:
+        settings.resolve({"tasks": "3", "schedule": "beginner*99999999999999999999"})
+    assert str(info.value).startswith("schedule:=beginner*99999999999999999999: block 1 ")
+    assert f"from 1 to {top}" in str(info.value) and "\n" not in str(info.value)
+
+
 def test_a_schedule_file_gives_blocks_with_drift(tmp_path):
     path = tmp_path / "two.toml"
     path.write_text('[[block]]\nhuman = "expert"\ntasks = 2\n\n'
@@ -88,7 +112,7 @@ def test_a_schedule_file_error_names_the_file_and_line(tmp_path):
     with pytest.raises(ScheduleError, match=rf"{path}: not TOML: .*line 3"):
         parse_schedule(str(path), SEED_TYPES, "humanModel")
     path.write_text('[[block]]\nhuman = "expert"\ntasks = 0\n')
-    with pytest.raises(ScheduleError, match=rf"{path}:1: tasks must be a whole number >= 1"):
+    with pytest.raises(ScheduleError, match=rf"{path}:1: tasks must be a whole number from 1 to"):
         parse_schedule(str(path), SEED_TYPES, "humanModel")
     with pytest.raises(ScheduleError, match="cannot read it"):
         parse_schedule(str(tmp_path / "missing.toml"), SEED_TYPES, "humanModel")
@@ -105,7 +129,10 @@ def test_the_sequence_settings_are_checked_together(tmp_path):
         "selector:=bpr: only with a sequence: a selector chooses between the tasks of a "
         "sequence": {"selector": "bpr"},
         "schedule:=tired*2: only with a sequence": {"schedule": "tired*2"},
-        "selector:=ucb: must be one of fixed, random, bpr": {"selector": "ucb", "tasks": "2"},
+        "selector:=ucb: unknown selector (known: fixed, random, bpr": {"selector": "ucb",
+                                                                        "tasks": "2"},
+        "selector:=bpx: unknown selector; did you mean bpr? (known: fixed, random": {
+            "selector": "bpx", "tasks": "2"},
         "schedule:=sleepy*2: unknown human type 'sleepy'; known: ": {"schedule": "sleepy*2",
                                                                      "tasks": "2"},
         "task_timeout:=0: must be a number > 0 and <= 1000000 (s)": {"task_timeout": "0"},
@@ -136,10 +163,12 @@ def test_a_task_play_of_a_file_model_is_labelled_by_its_stem():
     assert TaskPlay("/x/y/tired.pomdpx").true_type == "tired"
 
 
-def test_the_selector_settings_are_the_selectors_module_s():
+def test_the_selector_settings_are_the_registry_s():
+    from ros_hrc import registry
     from ros_hrc.agents.learning import LEARNING_SELECTORS
-    from ros_hrc.agents.selectors import DEFAULT_FORGETTING, SELECTOR_NAMES
+    from ros_hrc.agents.selectors import DEFAULT_FORGETTING
 
-    # The library's selectors, then the learning robot's (one robot, its model learnt).
-    assert settings.SELECTORS == SELECTOR_NAMES + tuple(LEARNING_SELECTORS)
+    # fixed, the registry's selectors, then the learning robot's (one robot, its model learnt).
+    assert settings.selector_words() == ("fixed",) + registry.names(registry.SELECTORS) + \
+        tuple(LEARNING_SELECTORS)
     assert settings.default("bpr_forgetting") == DEFAULT_FORGETTING

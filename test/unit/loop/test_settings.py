@@ -1,6 +1,7 @@
 """ros_hrc.settings: one default per launch argument, one line per refused value."""
 import argparse
 import importlib.util
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -12,6 +13,7 @@ from ros_hrc.settings import SETTINGS, Setting, SettingError
 
 ROOT = Path(__file__).resolve().parents[3]
 LAUNCH = ROOT / "launch" / "hrc.launch"
+WORLD_LAUNCH = ROOT / "launch" / "world.launch"
 MAKER = ROOT / "tools" / "make_settings_files.py"
 
 DEFAULTS = {
@@ -24,7 +26,7 @@ DEFAULTS = {
     "human_port": 9090, "link_read_timeout": 5.0, "start_mdp": True, "mdp_xterm": None, "human_choice": "optimal",
     "temperature": 1.0, "manual_share": 0.8, "step_delay": 1.0, "max_steps": 0,
     "on_episode_end": "wait", "end_on_goal": True, "episodes": "live", "wait_for_listener": False,
-    "start_pomdp": True, "planner": "despot",
+    "start_pomdp": True, "planner": "despot", "planner_options": "",
     "policy_file": "", "time_per_step": 0.1, "scenarios": 500, "depth": 90, "lambda": 0.1,
     "max_trials": 0, "reactive_budget": 8, "reactive_wait": 15.0, "read_stdin": True,
     "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
@@ -73,9 +75,7 @@ def test_hrc_launch_and_the_settings_reference_are_written_from_the_table():
 
 def test_a_default_edited_in_hrc_launch_by_hand_is_caught_and_written_back(tmp_path, capsys):
     maker = make_settings_files()
-    for path in (LAUNCH, ROOT / "docs" / "settings.md"):
-        (tmp_path / path.parent.name).mkdir()
-        (tmp_path / path.relative_to(ROOT)).write_text(path.read_text(encoding="utf-8"))
+    _copy_written_files(tmp_path)
     copy = tmp_path / "launch" / "hrc.launch"
     edited = copy.read_text().replace('name="belt_speed" default="0.02"',
                                       'name="belt_speed" default="0.03"')
@@ -88,6 +88,41 @@ def test_a_default_edited_in_hrc_launch_by_hand_is_caught_and_written_back(tmp_p
     assert maker.main(["--check", "--root", str(tmp_path)]) == 0
     copy.write_text(edited.replace(maker.BEGIN, "<!-- gone -->"))
     assert maker.main(["--root", str(tmp_path)]) == 2
+
+
+def _copy_written_files(root):
+    """The files tools/make_settings_files.py writes, copied under ``root``."""
+    for path in (LAUNCH, WORLD_LAUNCH, ROOT / "docs" / "settings.md"):
+        (root / path.parent.name).mkdir(exist_ok=True)
+        (root / path.relative_to(ROOT)).write_text(path.read_text(encoding="utf-8"))
+
+
+def test_a_default_edited_in_world_launch_by_hand_is_caught_and_written_back(tmp_path, capsys):
+    maker = make_settings_files()
+    _copy_written_files(tmp_path)
+    copy = tmp_path / "launch" / "world.launch"
+    edited = copy.read_text().replace('name="camera_rate" default="0.0"',
+                                      'name="camera_rate" default="5"')
+    assert edited != copy.read_text()
+    copy.write_text(edited)
+    assert maker.main(["--check", "--root", str(tmp_path)]) == 1
+    assert "world.launch differs from the settings table" in capsys.readouterr().err
+    assert maker.main(["--root", str(tmp_path)]) == 0
+    assert copy.read_text() == WORLD_LAUNCH.read_text()
+
+
+def test_world_launch_takes_the_world_settings_with_the_tables_defaults_and_checks_them_all():
+    root = ET.parse(WORLD_LAUNCH).getroot()
+    args = {a.get("name"): a.get("default") for a in root.iter("arg")
+            if not a.get("name").startswith("_")}
+    assert tuple(args) == settings.WORLD_SETTINGS
+    for name, default in args.items():
+        assert default == SETTINGS[name].launch_default, name
+    # its pre-flight (hrc_check --world) is given every one of them
+    command = next(p.get("command") for p in root.iter("param") if "hrc_check" in
+                   (p.get("command") or ""))
+    given = re.findall(r"(\w+):=", command)
+    assert sorted(given) == sorted(settings.WORLD_SETTINGS)
 
 
 def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
@@ -131,7 +166,7 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("depth", "0", "depth:=0: must be an integer from 1 to 1000"),
     # a server that never cut off a client that stopped reading would hold its frames for good
     ("link_read_timeout", "0", "link_read_timeout:=0: must be a number > 0 and <= 3600 (s)"),
-    ("lambda", "-0.1", "lambda:=-0.1: must be a number from 0 to 1000"),
+    ("lambda", "-0.1", "lambda:=-0.1: must be a number from 0 to 1000000"),
     ("max_trials", "-1", "max_trials:=-1: must be an integer from 0 to 2147483647"),
     ("reactive_budget", "-2", "reactive_budget:=-2: must be an integer from 0 to 2147483647"),
     ("max_steps", "-1", "max_steps:=-1: must be an integer from 0 to 2147483647"),
@@ -144,8 +179,10 @@ def test_the_table_covers_every_argument_of_hrc_launch_with_its_default():
     ("manual_share", "0", "manual_share:=0: must be a number > 0 and <= 1"),
     ("manual_share", "1.5", "manual_share:=1.5: must be a number > 0 and <= 1"),
     ("mode", "semi", "mode:=semi: must be one of auto, manual"),
-    ("planner", "bogus", "planner:=bogus: must be one of despot, policy, reactive, none, "
-     "explore"),
+    ("planner", "bogus", "planner:=bogus: unknown planner 'bogus' (known: despot, policy, reactive, none, "
+     "explore, or module:Class)"),
+    ("planner", "despt", "planner:=despt: unknown planner 'despt'; did you mean despot? (known: despot, "
+     "policy, reactive, none, explore, or module:Class)"),
     ("on_episode_end", "stop", "on_episode_end:=stop: must be one of wait, reset, continue"),
     ("human_choice", "greedy", "human_choice:=greedy: must be one of optimal, softmax, random"),
     ("gui", "maybe", "gui:=maybe: must be true or false (also 1/0, yes/no, on/off), got 'maybe'"),
@@ -254,10 +291,10 @@ def test_unknown_names_are_refused_naming_them():
 
 
 def test_resolve_fills_every_default_in_table_order():
-    config = settings.resolve({}, environ={})
+    config = settings.resolve({}, environ={"ROS_HOME": "/ros home"})
     assert list(config) == list(SETTINGS)
     expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False, away_time=0.0,
-                    task_timeout=80.0, tasks=0)
+                    task_timeout=80.0, tasks=0, snapshot_dir="/ros home/hrc_snapshots")
     assert config == expected
 
 

@@ -26,13 +26,13 @@ BAD = [
     (SOLVE, "--precision", NOT_FINITE + ["0", "-0.1", "1e200"]),
     (SIMULATE, "--sim-len", NOT_FINITE + ["0", "-3", "1.5", "10000001"]),
     (SIMULATE, "--sim-num", NOT_FINITE + ["0", "-3", "10000001"]),
-    (SIMULATE, "--seed", NOT_FINITE + ["-1", "1e3", str(2**64)]),
-    (SIMULATE, "--time-per-step", NOT_FINITE + ["-0.5", "1e9"]),
-    (SIMULATE, "--scenarios", NOT_FINITE + ["0", "-1", "1000000001"]),
-    (SIMULATE, "--depth", NOT_FINITE + ["-1", "1000000000"]),
+    (SIMULATE, "--seed", NOT_FINITE + ["-1", "1e3", str(2**31), str(2**64)]),
+    (SIMULATE, "--time-per-step", NOT_FINITE + ["-0.5", "0.0005", "61", "1e9"]),
+    (SIMULATE, "--scenarios", NOT_FINITE + ["0", "-1", "100001", "1000000001"]),
+    (SIMULATE, "--depth", NOT_FINITE + ["-1", "0", "1001", "1000000000"]),
     (SIMULATE, "--lambda", NOT_FINITE + ["-0.1", "1e300"]),
     (SIMULATE, "--xi", NOT_FINITE + ["-0.1", "1.5"]),
-    (SIMULATE, "--max-trials", NOT_FINITE + ["-1", "1e3", "10" * 20]),
+    (SIMULATE, "--max-trials", NOT_FINITE + ["-1", "1e3", str(2**31), "10" * 20]),
     (SIMULATE, "--particles", NOT_FINITE + ["0", "-5", "100000000000"]),
 ] + [(command, "--memory-limit", NOT_FINITE + ["0", "-1G", "512K", "5Q", "2P"])
      for command in (INFO, CONVERT, SOLVE, SIMULATE)]
@@ -88,9 +88,9 @@ def test_memory_sizes_read_with_units_and_plain_numbers_are_mib(text, size):
 
 
 def test_the_largest_good_numbers_are_accepted():
-    args = build_parser().parse_args(SIMULATE + ["--seed", str(2**64 - 1), "--xi", "1",
-                                                 "--time-per-step", "0", "--depth", "0"])
-    assert args.seed == 2**64 - 1 and args.xi == 1.0 and args.depth == 0
+    args = build_parser().parse_args(SIMULATE + ["--seed", str(2**31 - 1), "--xi", "1",
+                                                 "--time-per-step", "0", "--depth", "1000"])
+    assert args.seed == 2**31 - 1 and args.xi == 1.0 and args.depth == 1000
 
 
 # -- help (failure 5) -----------------------------------------------------------------------------

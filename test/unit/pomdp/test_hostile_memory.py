@@ -75,8 +75,8 @@ def test_many_actions_on_few_states_use_the_sparse_tables():
 
 
 def test_despot_too_large_for_the_memory_limit_is_refused_in_one_line(torus, capsys):
-    argv = ["simulate", str(torus), "--planner", "despot", "--scenarios", "1000000",
-            "--depth", "100000", "--sim-len", "1", "--sim-num", "1"]
-    assert run(argv + ["--memory-limit", "4G"]) == 1
+    argv = ["simulate", str(torus), "--planner", "despot", "--scenarios", "100000",
+            "--depth", "1000", "--sim-len", "1", "--sim-num", "1"]
+    assert run(argv + ["--memory-limit", "1G"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "simulating with DESPOT" in err and "--memory-limit" in err

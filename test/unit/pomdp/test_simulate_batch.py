@@ -1,5 +1,6 @@
 """Simulation of many runs at once (issue #24) and the expected-reward estimator."""
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,7 @@ from solver_models import TIGER_OPTIMUM, build_chain, build_tiger, make_model
 from ros_hrc.errors import SolverError
 from ros_hrc.pomdp import offline
 from ros_hrc.commands.pomdp import run
+from ros_hrc.commands.pomdp_simulate import duration
 from ros_hrc.pomdp.planner import MdpPlanner, PolicyPlanner
 from ros_hrc.pomdp.simulate import (policy_chooser, q_chooser, simulate, simulate_batch)
 
@@ -99,3 +101,24 @@ def test_the_command_names_its_estimator_and_runs_a_policy_all_at_once(capsys, t
     assert run(argv) == 0
     out = capsys.readouterr().out
     assert "estimator      realised" in out and "R(s,a,s')" in out
+
+
+def test_a_saved_policys_time_per_step_is_shown_in_a_unit_that_shows_it(capsys, tmp_path):
+    """A saved policy chooses in microseconds: "time per step 0.000 ms" said nothing."""
+    policy = tmp_path / "tiger.policy"
+    assert run(["solve", TIGER, "--precision", "0.1", "-o", str(policy)]) == 0
+    capsys.readouterr()
+    assert run(["simulate", TIGER, "--policy", str(policy), "--sim-len", "20",
+                "--sim-num", "400"]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines()
+                if "time per step" in line)
+    assert "0.000" not in line
+    shown = re.findall(r"([0-9.]+) (s|ms|µs|ns)\b", line)
+    assert len(shown) == 3 and all(float(value) > 0 for value, _unit in shown), line
+    assert "the runs step together" in line
+
+
+@pytest.mark.parametrize("ms, text", [(0.0, "0 ms"), (12.34, "12.3 ms"), (0.845, "845 µs"),
+                                      (2e-5, "20 ns"), (1500.0, "1.5 s")])
+def test_durations_take_the_unit_that_shows_three_digits(ms, text):
+    assert duration(ms) == text

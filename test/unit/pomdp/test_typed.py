@@ -10,7 +10,8 @@ import scipy.sparse as sp
 from ros_hrc.errors import ModelError
 from ros_hrc.pomdp.belief import update
 from ros_hrc.pomdp.model import Model
-from ros_hrc.pomdp.typed import TypeLayout, compose, split_state, typed_state
+from ros_hrc.pomdp.type_names import split_state, typed_state
+from ros_hrc.pomdp.typed import TypeLayout, compose
 from solver_models import build_tiger
 
 
