@@ -76,7 +76,9 @@ def attribute(text: str) -> str:
 
 def arg_line(setting: Setting, world: bool = False) -> str:
     """One ``<arg name default doc/>`` line."""
-    return (f'{INDENT}<arg name="{setting.name}" default="{attribute(setting.launch_default)}" '
+    default = setting.world_default if world and setting.world_default is not None \
+        else setting.launch_default
+    return (f'{INDENT}<arg name="{setting.name}" default="{attribute(default)}" '
             f'doc="{attribute(launch_doc(setting, world))}"/>')
 
 

@@ -127,6 +127,10 @@ class Setting:
     #: world.launch's doc, where the table's speaks of what the world alone does not run
     #: (None: the table's).
     world_doc: Optional[str] = None
+    #: world.launch's default, where the world alone takes another than hrc.launch (None: the
+    #: table's). pause_when_idle: the world alone runs freely; hrc.launch's auto decides by
+    #: real_time_factor and mode.
+    world_default: Optional[str] = None
     #: A ``registered`` setting's entry-point group (:mod:`ros_hrc.registry`): its values
     #: are the names found there at run time, or ``module:Class``.
     registry: str = ""
@@ -424,7 +428,10 @@ _TABLE: Tuple[Setting, ...] = (
            smallest_nonzero=0.001),
         _s("pause_when_idle", "bool", None, "freeze simulated time between actions; auto (or "
            "empty): true when real_time_factor is 0 (the run then depends only on the seed) or "
-           "in manual mode (the world waits while you type a state)"),
+           "in manual mode (the world waits while you type a state)", world_default="false",
+           world_doc="freeze simulated time while no action runs, so a run depends only on the "
+           "calls made (auto: when real_time_factor is 0 or mode is manual, as hrc.launch "
+           "passes it; the world alone runs freely)"),
         _s("belt_speed", "float", 0.02, "conveyor belt speed", minimum=0, maximum=0.5,
            unit="m/s"),
         _s("away_time", "float", None, "how long a walk away lasts when the human is "

@@ -117,7 +117,10 @@ def test_world_launch_takes_the_world_settings_with_the_tables_defaults_and_chec
             if not a.get("name").startswith("_")}
     assert tuple(args) == settings.WORLD_SETTINGS
     for name, default in args.items():
-        assert default == SETTINGS[name].launch_default, name
+        own = SETTINGS[name].world_default     # the world alone's, where it differs
+        assert default == (own if own is not None else SETTINGS[name].launch_default), name
+    # the world alone runs freely, whatever its real-time factor (world_sim_time.test)
+    assert args["pause_when_idle"] == "false"
     # its pre-flight (hrc_check --world) is given every one of them
     command = next(p.get("command") for p in root.iter("param") if "hrc_check" in
                    (p.get("command") or ""))
@@ -280,9 +283,10 @@ def test_a_policy_file_must_be_readable(tmp_path):
 
 
 def test_unknown_names_are_refused_naming_them():
-    assert refusal("belt_sped", "1").startswith("belt_sped:=1: no such argument; known: ")
-    with pytest.raises(SettingError, match=r"^belt_sped:=0.1: no such argument; known: "
-                                           r"human_model, "):
+    assert refusal("belt_sped", "1").startswith(
+        "belt_sped:=1: no such argument; did you mean belt_speed? known: ")
+    with pytest.raises(SettingError, match=r"^belt_sped:=0.1: no such argument; did you mean "
+                                           r"belt_speed\? known: human_model, "):
         settings.resolve({"belt_sped": "0.1"})
     with pytest.raises(SettingError, match="^foo, bar:=: no such arguments"):
         settings.resolve({"foo": "1", "bar": "2", "seed": "1"})
