@@ -11,20 +11,14 @@ import select
 import signal
 from pathlib import Path
 
-from ros_hrc.link.transport import free_port
+from private_launch import private_launch
 
 ROOT = Path(__file__).resolve().parents[3]
 STEP_BLOCK = b"------------------------------ step 0 ------------------------------"
 
 
 def test_ctrl_c_in_make_run_s_terminal_ends_it_with_status_0(tmp_path):
-    ports = set()
-    while len(ports) < 3:
-        ports.add(free_port())
-    master, pomdp, human = sorted(ports)
-    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{master}",
-               ROS_HOME=str(tmp_path / "ros_home"))
-    env.pop("DISPLAY", None)
+    (master, pomdp, human), env = private_launch(tmp_path)
     args = (f"-p {master} pomdp_port:={pomdp} human_port:={human} viz:=false "
             "on_episode_end:=wait step_delay:=0")
     pid, terminal = pty.fork()

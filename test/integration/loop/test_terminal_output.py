@@ -8,9 +8,7 @@ import signal
 import subprocess
 import time
 
-import pytest
-
-from ros_hrc.link.transport import free_port
+from private_launch import private_launch
 
 WARNINGS = ("KDL", "symlink to latest log directory", "cannot load font", "media_export",
             "RLException", "Traceback")
@@ -21,13 +19,7 @@ NOISE = ("pybullet build time", "says hello")
 
 def one_step(tmp_path, *words, wait=120.0):
     """(stdout, stderr) of hrc.launch run until its first episode (one step) is over."""
-    ports = set()
-    while len(ports) < 3:
-        ports.add(free_port())
-    master, pomdp, human = sorted(ports)
-    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{master}",
-               ROS_HOME=str(tmp_path / "ros_home"))
-    env.pop("DISPLAY", None)
+    (master, pomdp, human), env = private_launch(tmp_path)
     out, err = tmp_path / "stdout.txt", tmp_path / "stderr.txt"
     with open(out, "w") as stdout, open(err, "w") as stderr:
         launch = subprocess.Popen(
