@@ -49,9 +49,10 @@ def test_the_frames_do_not_depend_on_the_process_or_its_hash_seed():
     assert len(hashes) == 1 and len(hashes.pop()) == 64
 
 
-def test_pillow_and_tabulate_wait_for_a_snapshot_and_a_summary():
-    # Pillow (~70 ms to import) writes snapshots and tabulate (~200 ms) the summary's tables:
-    # neither is on a node's start or a step's path (docs/performance.md, issue #41).
+def test_pillow_tabulate_and_scipy_stats_wait_for_a_snapshot_and_a_summary():
+    # Pillow (~70 ms to import) writes snapshots, tabulate (~200 ms) the summary's tables and
+    # scipy.stats (~1.3 s of CPU) its intervals and tests: none is on a node's start, a step's
+    # path or hrc_experiment's start (docs/performance.md, issue #41).
     code = ("import sys, ros_hrc.world.scene, ros_hrc.experiment.cli, ros_hrc.loop.runner; "
-            "sys.exit(bool({'PIL', 'tabulate'} & set(sys.modules)))")
+            "sys.exit(bool({'PIL', 'tabulate', 'scipy.stats'} & set(sys.modules)))")
     assert subprocess.run([sys.executable, "-c", code], timeout=120).returncode == 0

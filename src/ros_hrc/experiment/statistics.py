@@ -18,8 +18,6 @@ import operator
 import os
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
-from scipy import stats
-
 from ros_hrc.experiment import paired
 from ros_hrc.experiment.episode import ALONE_POLICY, is_reactive, robot_policy
 from ros_hrc.experiment.rows import UNPAIRED, EpisodeRow
@@ -64,7 +62,9 @@ def mean_ci(values: Iterable[float], confidence: float = 0.95) -> Tuple[float, f
     if min(xs) == max(xs):
         return (mean, mean, mean)     # every resample's mean is the one value
     import numpy as np
-
+    # On first use: scipy.stats costs a program about 1.3 s of CPU to import, and
+    # hrc_experiment needs it only for the summary at a run's end.
+    from scipy import stats
     interval = stats.bootstrap((np.asarray(xs),), np.mean, confidence_level=confidence,
                                n_resamples=BOOTSTRAP_RESAMPLES, batch=1000,
                                method="percentile",
@@ -352,6 +352,7 @@ def adjust_for_many_tests(summary: Sequence[Dict[str, Any]],
             for e in summary:
                 e[f"{prefix}_{test}_q"] = math.nan
             if tested:
+                from scipy import stats   # on first use, as in mean_ci
                 q = stats.false_discovery_control([e[f"{prefix}_{test}_p"] for e in tested],
                                                   method="bh")
                 for e, value in zip(tested, q):
