@@ -33,13 +33,14 @@ the kinds are given by the callers, each a floor above.
 """
 from __future__ import annotations
 
-import difflib
 import functools
 import importlib
 import re
 import sys
 from importlib import metadata
 from typing import Any, Dict, List, Mapping, Tuple
+
+from ros_hrc.errors import did_you_mean
 
 __all__ = ["PLANNERS", "SELECTORS", "POLICIES", "WHAT", "BUILT_IN", "RegistryError",
            "entry_points", "names", "known_text", "check_name", "load", "is_object_path"]
@@ -139,9 +140,8 @@ def check_name(group: str, text: str) -> str:
     name = str(text).strip()
     if is_object_path(name) or name in BUILT_IN.get(group, {}) or name in names(group):
         return name
-    known = names(group)
-    near = difflib.get_close_matches(name, known, n=1)
-    hint = f"; did you mean {near[0]}?" if near else ""
+    hint = did_you_mean(name, names(group))
+    hint = f"; {hint}" if hint else ""
     raise RegistryError(f"unknown {WHAT.get(group, group)} {name!r}{hint} (known: "
                         f"{known_text(group)})")
 

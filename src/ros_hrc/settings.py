@@ -31,7 +31,6 @@ parameters; each other bound is what the setting's consumer takes.
 """
 from __future__ import annotations
 
-import difflib
 import ipaddress
 import json
 import math
@@ -770,8 +769,8 @@ def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: task
     if kind != "fixed" and selector not in LEARNING_SELECTORS and \
             not registry.is_object_path(selector) and selector not in selector_words():
         known = selector_words()
-        near = difflib.get_close_matches(selector, known, n=1)
-        hint = f"; did you mean {near[0]}?" if near else ""
+        hint = did_you_mean(selector, known)
+        hint = f"; {hint}" if hint else ""
         raise SettingError("selector", values.get("selector"),
                            f"unknown selector{hint} (known: {', '.join(known)}, fixed:POLICY "
                            "(a policy of the library), or module:Class)")

@@ -33,6 +33,12 @@ PYBULLET_CHATTER = re.compile(
     r"Thread TERMINATED|destroy (main )?semaphore|(main )?semaphore destroyed|finished$)")
 
 
+def without_chatter(text: str) -> str:
+    """``text`` without its lines of :data:`PYBULLET_CHATTER`."""
+    return "".join(line for line in text.splitlines(keepends=True)
+                   if not PYBULLET_CHATTER.match(line))
+
+
 def _flush_c_streams() -> None:
     """Flush the C library's stdio buffers (PyBullet prints with printf: into a file or a
     pipe its text waits in a buffer, and must be out before the descriptors move back)."""
@@ -68,10 +74,8 @@ def pybullet_chatter_dropped() -> Iterator[None]:
             os.dup2(saved, fd)
             os.close(saved)
             sink.seek(0)
-            text = sink.read().decode(errors="replace")
+            kept = without_chatter(sink.read().decode(errors="replace"))
             sink.close()
-            kept = "".join(line for line in text.splitlines(keepends=True)
-                           if not PYBULLET_CHATTER.match(line))
             if kept:
                 stream = sys.stdout if fd == 1 else sys.stderr
                 stream.write(kept if kept.endswith("\n") else kept + "\n")
@@ -113,8 +117,7 @@ class ChatterFilter:
             self._write(pending + b"\n")
 
     def _write(self, text: bytes) -> None:
-        kept = b"".join(line for line in text.splitlines(keepends=True)
-                        if not PYBULLET_CHATTER.match(line.decode(errors="replace")))
+        kept = without_chatter(text.decode(errors="replace")).encode()
         while kept:
             try:
                 kept = kept[os.write(self._saved, kept):]
