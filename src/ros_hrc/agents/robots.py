@@ -144,6 +144,10 @@ class ReactiveRobot(BeliefPlanner):
         return reactive_planner(task_, model, budget=values["reactive_budget"],
                                 wait=values["reactive_wait"], seed=values.get("seed"))
 
+    @classmethod
+    def acts_by(cls, task_: Any) -> Optional[str]:
+        return reactive_robot_model(task_) or None
+
 
 class ReactivePlanner(ReactiveRobot):
     """Rule-based robot on the current observation; keeps the exact belief (module docstring).

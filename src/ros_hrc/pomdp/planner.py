@@ -130,6 +130,13 @@ class Planner(ABC):
             out[name] = value
         return out
 
+    @classmethod
+    def acts_by(cls, task: Any) -> Optional[str]:
+        """What a report names as the robot model of a policy of this planner on ``task``
+        (``/hrc/task_status.robot_model``) when that is not the model it keeps its belief
+        over (a rule-based robot's own rules or MDP); None: that model."""
+        return None
+
     def reseed(self, seed: int) -> None:
         """Draw from ``seed``'s stream from now on (each episode's reset). By default nothing:
         a planner that draws nothing at random."""

@@ -88,7 +88,6 @@ from ros_hrc.pomdp.planner import Planner, planner_class
 from ros_hrc.pomdp.type_names import ranked_types
 from ros_hrc.pomdp.typed import TypeLayout
 from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of, selector_of
-from ros_hrc.agents.robots import reactive_robot_model
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
 from ros_hrc.processes.solver_process import CANNOT_START, solver_parser, start_solver
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
@@ -593,7 +592,7 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
     if not uses_library(args.selector):
         name = fixed_policy_name(args)
         agent = RobotAgent(model, planner, first_action=first, seed=args.seed)
-        acts_by = reactive_robot_model(task) if args.planner == "reactive" else model.source
+        acts_by = planner.acts_by(task) or model.source
         # The forgetting a model of human types carries its type belief across tasks with.
         return SequenceRobot(task, {name: agent}, {name: acts_by or ""}, seed=args.seed,
                              forgetting=args.bpr_forgetting)
@@ -611,7 +610,7 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
         # What the reports name as its model: its file; the reactive robot's own (its MDP's
         # file, or its name), not the belief model it keeps.
         files[policy.name] = str(policy.robot_model) if policy.robot_model is not None else (
-            reactive_robot_model(task) if policy.planner == "reactive" else "")
+            agents[policy.name].planner.acts_by(task) or "")
         options = ", ".join(f"{k} {v}" for k, v in policy.options.items())
         print(f"{NAME}: policy {policy.name}: planner {policy.planner}"
               f"{', ' + shown_model(policy.robot_model) if policy.robot_model else ''}"
