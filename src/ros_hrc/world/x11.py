@@ -74,14 +74,34 @@ class WindowNamer:
     :meth:`name` once the window opened, then :meth:`close`. Best effort: without X11 it does
     nothing, and it never stops a world for its title."""
 
-    def __init__(self) -> None:
-        self._display = open_display()
+    def __init__(self, hold_for: float = 2.0) -> None:
+        self._display = None
         self._before: Set[int] = set()
-        if self._display is not None:
+        # A connection that arrives while the server resets (its last client just left) is
+        # accepted and then cut: it holds nothing. Listing the windows is a round trip, so a
+        # connection that answered it is one the server kept; one cut is made again, for up
+        # to ``hold_for`` s (a reset takes milliseconds).
+        deadline = time.monotonic() + hold_for
+        while True:
+            display = open_display()
+            if display is None:
+                if os.environ.get("DISPLAY") and time.monotonic() < deadline:
+                    time.sleep(0.05)     # refused while the server resets: try again
+                    continue
+                return
             try:
-                self._before = _windows(self._display, BULLET_TITLE)
+                self._before = _windows(display, BULLET_TITLE)
+                self._display = display
+                return
             except Exception:
-                LOG.debug("could not list the X windows", exc_info=True)
+                LOG.debug("the X connection was cut; connecting again", exc_info=True)
+                try:
+                    display.close()
+                except Exception:
+                    pass
+                if time.monotonic() >= deadline:
+                    return
+                time.sleep(0.05)
 
     def name(self, title: str, wait: float = 2.0) -> bool:
         """Give the window that opened since ``title``, waiting up to ``wait`` s for it to
