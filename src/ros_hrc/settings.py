@@ -573,6 +573,11 @@ _TABLE: Tuple[Setting, ...] = (
            "before each task and plans over (root sampling: its belief weighs them as the task "
            "goes on); pomdp_learning_mean plans on the posterior mean alone", minimum=1,
            maximum=64),
+        _s("learning_bonus", "float", 0.0, "the learning robot's exploration bonus beta: "
+           "beta / (1 + n) is added to the reward of the task's idle action in a state it "
+           "was taken in n times (by the counts learnt), so that early in a sequence the "
+           "robot watches what its human does alone (0: none; docs/learning.md; chosen on "
+           "the fit set)", minimum=0, maximum=1e6),
     ),
     *_group(
         "the terminal",
@@ -602,9 +607,10 @@ WORLD_SETTINGS: Tuple[str, ...] = tuple(name for name in SETTINGS if name in (
 #: (ros_hrc.agents.learning): one robot whose model of the human is learnt, root-sampled or
 #: its posterior mean; it plans with DESPOT (planner:=despot).
 LEARNING_SELECTORS: Tuple[str, ...] = ("pomdp_learning", "pomdp_learning_mean")
-#: The learning robot's own settings (its prior strength, forgetting rate and draws).
+#: The learning robot's own settings (its prior strength, forgetting rate, draws and
+#: exploration bonus).
 LEARNING_SETTINGS: Tuple[str, ...] = ("learning_strength", "learning_forgetting",
-                                      "learning_draws")
+                                      "learning_draws", "learning_bonus")
 
 
 def selector_words() -> Tuple[str, ...]:

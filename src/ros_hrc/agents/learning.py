@@ -5,7 +5,8 @@ Its model of the human is a Dirichlet posterior over the robot model's transitio
 (e.g. ``robot_utility_fitted``: fitted on the zoo's fit set, priced by the task's utility), of
 ``strength`` pseudo-counts per row. After each task the posterior takes the task's expected
 transitions (forward-backward over the robot's own actions and observations; the true state
-is never read), after the counts so far were moved towards the prior by ``forgetting``. Before
+is never read) and its ending (a success: the robot's last action led into the success
+state), after the counts so far were moved towards the prior by ``forgetting``. Before
 each task the robot plans on the posterior: its mean (``planning="mean"``,
 ``pomdp_learning_mean``) or root sampling over ``draws`` posterior draws (``"sampled"``,
 ``pomdp_learning``), which plans for what an action reveals of this human.
@@ -25,8 +26,8 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from ros_hrc import settings
-from ros_hrc.pomdp.bayes_adaptive import (DirichletPosterior, check_draws,
-                                          check_forgetting, check_strength, planning_model,
+from ros_hrc.pomdp.bayes_adaptive import (DirichletPosterior, End, check_bonus,
+                                          check_draws, check_forgetting, check_strength, planning_model,
                                           reach_probability)
 from ros_hrc.pomdp.model import Model
 from ros_hrc.tasks.definition import Task
@@ -64,15 +65,19 @@ class LearntHuman:
     """A learning robot's model of its human, carried from task to task of one sequence.
 
     ``prior``: the pooled robot model (checked against ``task`` by whoever loaded it);
-    ``strength``, ``forgetting``, ``draws`` as the module docstring says; ``seed``: the
-    stream the draws come from (a new sequence starts it again: :meth:`restart`)."""
+    ``strength``, ``forgetting``, ``draws`` as the module docstring says; ``bonus``: the
+    exploration bonus on the task's idle action
+    (:meth:`ros_hrc.pomdp.bayes_adaptive.DirichletPosterior.bonus_rewards`; 0: none);
+    ``seed``: the stream the draws come from (a new sequence starts it again:
+    :meth:`restart`)."""
 
     def __init__(self, prior: Model, task: Task, strength: float, forgetting: float,
-                 planning: str, draws: int, seed: int = 0) -> None:
+                 planning: str, draws: int, seed: int = 0, bonus: float = 0.0) -> None:
         self.prior = prior
         self.task = task
         self.strength = check_strength(strength)
         self.forgetting = check_forgetting(forgetting)
+        self.bonus = check_bonus(bonus)
         self.planning = planning
         self.draws = check_draws(draws)
         self.tasks_learnt = 0
@@ -89,7 +94,9 @@ class LearntHuman:
 
     def restart(self, seed: int) -> None:
         """Back to the prior (a new sequence: a new human), drawing from ``seed``'s stream."""
-        self.posterior = DirichletPosterior(self.prior, self.strength)
+        self.posterior = DirichletPosterior(
+            self.prior, self.strength, bonus=self.bonus,
+            bonus_action=self.prior.index("action", self.task.robot_idle_action))
         self.rng = np.random.default_rng(seed)
         self.tasks_learnt = 0
 
@@ -97,13 +104,27 @@ class LearntHuman:
         """The model the next task is planned on (a new draw for root sampling each task)."""
         return planning_model(self.posterior, self.planning, self.draws, self.rng)
 
-    def learn(self, steps: Sequence[Tuple[int, int]]) -> None:
+    def learn(self, steps: Sequence[Tuple[int, int]], last_action: Optional[int] = None,
+              succeeded: Optional[bool] = None) -> None:
         """The task that ended: its ``(action, observation)`` steps, as the robot's belief
-        update took them. Its expected counts come from the posterior the task was planned
-        on; the counts so far are then moved towards the prior, and the task's added whole:
-        ``n <- (1 - forgetting) n + the task's``."""
-        self.posterior.learn(steps, forget_first=self.forgetting)
+        update took them, and how it ended: the robot's ``last_action`` (chosen after the last
+        observation) led into the success state if it ``succeeded``, into any other state if
+        not (None: the end is not counted). Its expected counts come from the posterior the
+        task was planned on; the counts so far are then moved towards the prior, and the
+        task's added whole: ``n <- (1 - forgetting) n + the task's``."""
+        self.posterior.learn(steps, forget_first=self.forgetting,
+                             end=self._end(last_action, succeeded))
         self.tasks_learnt += 1
+
+    def _end(self, last_action: Optional[int], succeeded: Optional[bool]) -> Optional[End]:
+        """A task's ending as evidence (:data:`ros_hrc.pomdp.bayes_adaptive.End`): a success is
+        the task's success state (whoever brought it about, as ``hrc_fit`` counts it), any
+        other ending every state but it."""
+        if last_action is None or succeeded is None or not self.task.robot_success_state:
+            return None
+        success = np.zeros(self.prior.n_states)
+        success[self.prior.index("state", self.task.robot_success_state)] = 1.0
+        return last_action, (success if succeeded else 1.0 - success)
 
     def figure(self) -> Optional[LearntFigure]:
         """The key figure under the posterior now (None: the task names no recovery)."""

@@ -33,7 +33,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,8 +43,8 @@ from ros_hrc.pomdp.fit import posterior_table
 from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.typed import compose
 
-__all__ = ["expected_counts", "DirichletPosterior", "check_strength", "check_forgetting",
-           "check_draws", "planning_model", "reach_probability", "PLANNING"]
+__all__ = ["End", "expected_counts", "DirichletPosterior", "check_strength", "check_forgetting",
+           "check_draws", "check_bonus", "planning_model", "reach_probability", "PLANNING"]
 
 #: How a robot plans on its posterior: ``sampled`` (root sampling over ``draws`` models drawn
 #: from it) or ``mean`` (the posterior mean alone).
@@ -53,16 +53,31 @@ PLANNING = ("sampled", "mean")
 Step = Tuple[int, int]
 
 
+#: How a task ended, as evidence of its last transition: the robot's last ``action`` (chosen
+#: after the last observation, never followed by one) and, per state, whether the task could
+#: have ended in it (``states``: 1 where it could, 0 where not). A success is the success
+#: state and nothing else; a task that ran out is any state but it.
+End = Tuple[int, np.ndarray]
+
+
 def expected_counts(model: Model, steps: Sequence[Step],
-                    belief: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+                    belief: Optional[np.ndarray] = None,
+                    end: Optional[End] = None) -> Tuple[np.ndarray, np.ndarray]:
     """The expected counts of a task's hidden transitions and observations under ``model``,
-    given its ``steps`` (``(action, observation)`` indices) and the belief it started from
-    (``belief``; the model's initial belief when None): ``(transitions[a, s, s'],
-    observations[a, s', o])``, float arrays whose entries for each step sum to 1.
+    given its ``steps`` (``(action, observation)`` indices), the belief it started from
+    (``belief``; the model's initial belief when None) and, with ``end``, how it ended (one
+    more transition, under the robot's last action, into a state the end allows; no
+    observation): ``(transitions[a, s, s'], observations[a, s', o])``, float arrays whose
+    entries for each step sum to 1.
+
+    The end is what ``hrc_fit`` counts as a success's last transition, and what tells a
+    learner that a human it left alone after a failure went on to succeed: without it the
+    task's last and most telling transition is never counted.
 
     Forward-backward (scaled): an observation the model gives probability 0 after the
     prediction is left out of that step (the belief keeps the prediction, as the robot's
-    belief update does), so that one surprise does not void the task."""
+    belief update does), so that one surprise does not void the task; so is an end the model
+    cannot reach."""
     T, O = model.dense_T, model.dense_O
     A, S, _ = T.shape
     n_obs = O.shape[2]
@@ -73,30 +88,39 @@ def expected_counts(model: Model, steps: Sequence[Step],
         if not (0 <= a < A and 0 <= o < n_obs):
             raise ModelError(f"step ({a}, {o}) is outside the model's {A} actions and "
                              f"{n_obs} observations")
+    # Each transition: its action and the likelihood of what followed it, per next state.
+    chain = [(a, O[a][:, o]) for a, o in steps]
+    if end is not None:
+        end_action, allowed = end
+        allowed = np.asarray(allowed, dtype=float)
+        if not 0 <= end_action < A or allowed.shape != (S,) or allowed.min() < 0:
+            raise ModelError(f"a task's end must be an action of the model's {A} and {S} "
+                             f"non-negative weights, not ({end_action!r}, {allowed!r})")
+        chain.append((end_action, allowed))
     transitions = np.zeros((A, S, S))
     observations = np.zeros((A, S, n_obs))
-    if not steps:
+    if not chain:
         return transitions, observations
-    # Forward: alpha[t] is P(s_t | o_1..o_t), the likelihood each step used in lik[t - 1].
+    # Forward: alpha[t] is P(s_t | what followed the first t transitions).
     alphas, likelihoods = [b / b.sum()], []
-    for a, o in steps:
+    for a, likelihood in chain:
         predicted = alphas[-1] @ T[a]
-        likelihood = O[a][:, o]
         if not (predicted @ likelihood) > 0:
             likelihood = np.ones(S)      # an impossible observation: the prediction stands
         posterior = predicted * likelihood
         alphas.append(posterior / posterior.sum())
         likelihoods.append(likelihood)
-    # Backward: beta[t] (scaled) with alpha[t] * beta[t] = P(s_t | all observations).
+    # Backward: beta[t] (scaled) with alpha[t] * beta[t] = P(s_t | all the evidence).
     beta = np.ones(S)
-    for t in range(len(steps), 0, -1):
-        a, o = steps[t - 1]
+    for t in range(len(chain), 0, -1):
+        a = chain[t - 1][0]
         weighted = likelihoods[t - 1] * beta                      # over s_t
         joint = alphas[t - 1][:, None] * T[a] * weighted[None, :]  # (s_{t-1}, s_t)
         total = joint.sum()
         joint /= total
         transitions[a] += joint
-        observations[a][:, o] += joint.sum(axis=0)
+        if t <= len(steps):                                       # the end saw nothing
+            observations[a][:, steps[t - 1][1]] += joint.sum(axis=0)
         beta = (T[a] @ weighted) / total
     return transitions, observations
 
@@ -121,6 +145,11 @@ def check_strength(strength: float) -> float:
 def check_forgetting(rate: float) -> float:
     """A forgetting rate: from 0 (keep everything) to 1 (back to the prior)."""
     return _checked(rate, "the forgetting rate", "from 0 to 1", lambda r: 0.0 <= r <= 1.0)
+
+
+def check_bonus(bonus: float) -> float:
+    """The exploration bonus (reward units of the prior): a finite number >= 0."""
+    return _checked(bonus, "the exploration bonus", "a finite number >= 0", lambda b: b >= 0)
 
 
 def check_draws(draws: int) -> int:
@@ -175,9 +204,15 @@ class DirichletPosterior:
     learn_observations: bool = False
     transitions: Optional[np.ndarray] = None      # (A, S, S') counts learnt
     observations: Optional[np.ndarray] = None     # (A, S', O) counts learnt
+    #: The exploration bonus (:meth:`bonus_rewards`): ``bonus / (1 + n(s))`` added to the
+    #: reward of ``bonus_action`` in each state ``s``, ``n(s)`` the times that action was
+    #: taken in ``s`` by the counts learnt. 0: none.
+    bonus: float = 0.0
+    bonus_action: int = 0
 
     def __post_init__(self) -> None:
         self.strength = check_strength(self.strength)
+        self.bonus = check_bonus(self.bonus)
         self.prior.validate()
         A, S, n_obs = self.prior.n_actions, self.prior.n_states, self.prior.n_observations
         if self.transitions is None:
@@ -189,11 +224,12 @@ class DirichletPosterior:
                              f"states and {n_obs} observations")
 
     def learn(self, steps: Sequence[Step], belief: Optional[np.ndarray] = None,
-              forget_first: float = 0.0) -> None:
-        """Add a task's expected counts, computed under the posterior mean; with
-        ``forget_first``, the counts so far are moved towards the prior by that rate
-        (:meth:`forget`) after the task's were computed and before they are added."""
-        transitions, observations = expected_counts(self.mean(), steps, belief)
+              forget_first: float = 0.0, end: Optional[End] = None) -> None:
+        """Add a task's expected counts (with ``end``, its ending too: :func:`expected_counts`),
+        computed under the posterior mean; with ``forget_first``, the counts so far are moved
+        towards the prior by that rate (:meth:`forget`) after the task's were computed and
+        before they are added."""
+        transitions, observations = expected_counts(self.mean(), steps, belief, end)
         if forget_first:
             self.forget(forget_first)
         self.transitions += transitions
@@ -207,10 +243,31 @@ class DirichletPosterior:
         self.transitions *= keep
         self.observations *= keep
 
+    def bonus_rewards(self) -> List[sp.csr_matrix]:
+        """The prior's rewards, and with a ``bonus`` the exploration bonus on
+        ``bonus_action``: in state ``s`` its expected reward rises by ``bonus / (1 +
+        n(s))``, ``n(s)`` the counts learnt of that action in ``s`` (added to ``R(s, a, s')``
+        on the prior's support of ``T(s, a, .)``, which every draw keeps, so the expectation
+        rises by exactly that under any draw).
+
+        Why (BEB: Kolter and Ng, ICML 2009): DESPOT plans one task, so what an action would
+        teach for the tasks after it is worth nothing to it, and root sampling alone does not
+        explore (docs/study/learning.md). The robot's idle action is the one whose rows are
+        the human's own dynamics — what a human does when left alone — and the one a helping
+        robot never takes where it believes help is needed: a bonus that falls as those rows
+        are seen makes it watch, early in a sequence, what it would otherwise never see."""
+        R = [sp.csr_matrix(r, copy=True) for r in self.prior.R]
+        if self.bonus > 0:
+            a = self.bonus_action
+            support = (sp.csr_matrix(self.prior.T[a]) != 0).astype(float)
+            per_state = self.bonus / (1.0 + self.transitions[a].sum(axis=1))
+            R[a] = sp.csr_matrix(R[a] + sp.diags(per_state) @ support)
+        return R
+
     def _model(self, T, O, name: str) -> Model:
         prior = self.prior
         model = dataclasses.replace(
-            prior, T=T, O=O, R=[sp.csr_matrix(r, copy=True) for r in prior.R],
+            prior, T=T, O=O, R=self.bonus_rewards(),
             initial_belief=np.array(prior.initial_belief, dtype=float, copy=True),
             fully_observable=prior.fully_observable and not self.learn_observations,
             observed_key=(np.array(prior.observed_key, copy=True)

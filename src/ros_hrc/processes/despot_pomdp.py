@@ -326,7 +326,8 @@ class SequenceRobot:
         agent = self.agents[record.policy]
         if self.learner is not None:
             started = time.perf_counter()
-            self.learner.learn(agent.history)
+            self.learner.learn(agent.history, agent.last_action,
+                               succeeded=msg.outcome == "success")
             self.learn_ms = (time.perf_counter() - started) * 1000.0
             self.figure = self.learner.figure()
         if agent.reports_types:
@@ -575,7 +576,8 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
             raise ValueError(f"selector:={args.selector} {problem}")
         learner = LearntHuman(model, task, args.learning_strength, args.learning_forgetting,
                               planning, args.learning_draws,
-                              seed=stream_seed(args.seed, 0, "learning"))
+                              seed=stream_seed(args.seed, 0, "learning"),
+                              bonus=args.learning_bonus)
         name = fixed_policy_name(args)
         # Until the first task's reset, the agent is the prior's: each task then gets an
         # agent on the model the posterior gives for it (_plan_on_posterior).
@@ -586,6 +588,7 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
         print(f"{NAME}: selector {args.selector}: learns its human from the prior "
               f"{shown_model(model.source or args.robot_model)}, strength "
               f"{learner.strength:g}, forgetting {learner.forgetting:g}"
+              + (f", exploration bonus {learner.bonus:g}" if learner.bonus else "")
               + (f", {learner.draws} posterior draws a task" if planning == "sampled" else
                  ", the posterior mean"), flush=True)
         return robot

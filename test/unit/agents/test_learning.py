@@ -65,10 +65,18 @@ def test_bad_numbers_are_refused_in_one_line(pooled, strength, forgetting, draws
     assert says in str(caught.value) and "\n" not in str(caught.value)
 
 
+def test_a_negative_exploration_bonus_is_refused_in_one_line(pooled):
+    with pytest.raises(ValueError) as caught:
+        LearntHuman(pooled, SEED, 20, 0.1, "sampled", 8, bonus=-0.5)
+    assert "the exploration bonus must be a finite number >= 0" in str(caught.value)
+    assert "\n" not in str(caught.value)
+
+
 @pytest.mark.parametrize("word, value, says", [
     ("learning_strength", "0", "learning_strength"),
     ("learning_forgetting", "1.5", "learning_forgetting"),
     ("learning_draws", "0", "learning_draws"),
+    ("learning_bonus", "-1", "learning_bonus"),
 ])
 def test_the_launch_refuses_bad_learning_settings(word, value, says):
     with pytest.raises(settings.SettingError) as caught:
@@ -93,6 +101,24 @@ def test_the_figure_is_a_probability_that_moves_with_what_the_task_showed(pooled
     after = learner.figure()
     assert after.value > before.value        # it saw a failed grasp recovered from alone
     assert after.spread < before.spread      # and is surer of it
+
+
+def test_a_tasks_end_tells_whether_the_human_left_alone_recovered(pooled):
+    """A human fails twice while the robot idles and the task then ends, the robot still
+    idle: a success says he recovered alone (the figure rises above what the failures alone
+    left it at), a task that ran out says he did not (it falls below)."""
+    failed = steps_of(pooled, ["rIdle", "rIdle"], ["O7", "O7"])
+    idle = pooled.index("action", "rIdle")
+    figures = {}
+    for ending in (None, True, False):
+        learner = LearntHuman(pooled, SEED, strength=5, forgetting=0.0, planning="mean",
+                              draws=1)
+        for _ in range(5):
+            learner.learn(failed, last_action=idle, succeeded=ending)
+        figures[ending] = learner.figure().value
+        counted = learner.posterior.transitions.sum()
+        assert counted == pytest.approx(5 * (len(failed) + (ending is not None)))
+    assert figures[True] > figures[None] > figures[False]
 
 
 def test_root_sampling_plans_on_draws_of_the_posterior(pooled):

@@ -42,21 +42,27 @@ def test_seen_states_give_the_counts_one_counts_by_hand():
     assert observations.sum() == pytest.approx(len(steps))
 
 
-def brute_force_counts(model, steps, belief):
-    """Expected counts by summing over every hidden path s_0 .. s_T."""
+def brute_force_counts(model, steps, belief, end=None):
+    """Expected counts by summing over every hidden path s_0 .. s_T (with ``end``, one more
+    state: the end's, weighted by whether the end allows it)."""
     T, O = model.dense_T, model.dense_O
     S = model.n_states
     transitions = np.zeros_like(T)
     observations = np.zeros_like(O)
     total = 0.0
-    for path in itertools.product(range(S), repeat=len(steps) + 1):
+    length = len(steps) + 1 + (end is not None)
+    for path in itertools.product(range(S), repeat=length):
         weight = belief[path[0]]
         for t, (a, o) in enumerate(steps, 1):
             weight *= T[a, path[t - 1], path[t]] * O[a, path[t], o]
+        if end is not None:
+            weight *= T[end[0], path[-2], path[-1]] * end[1][path[-1]]
         total += weight
         for t, (a, o) in enumerate(steps, 1):
             transitions[a, path[t - 1], path[t]] += weight
             observations[a, path[t], o] += weight
+        if end is not None:
+            transitions[end[0], path[-2], path[-1]] += weight
     return transitions / total, observations / total
 
 
@@ -72,6 +78,39 @@ def test_forward_backward_matches_every_path_summed():
     want_t, want_o = brute_force_counts(model, steps, belief)
     assert np.allclose(transitions, want_t, atol=1e-12)
     assert np.allclose(observations, want_o, atol=1e-12)
+
+
+def test_a_tasks_end_is_counted_as_every_path_through_it_summed():
+    """A task's ending (the robot's last action, and the states it could have ended in) is
+    one more transition with no observation: the counts are those of every path that ends
+    where the end allows, summed."""
+    rng = np.random.default_rng(5)
+    S, A, Z = 3, 2, 3
+    model = make_model(rng.dirichlet(np.ones(S), size=(A, S)),
+                       rng.dirichlet(np.ones(Z), size=(A, S)), np.zeros((A, S, S)), 0.9,
+                       rng.dirichlet(np.ones(S)))
+    steps = [(0, 2), (1, 0), (1, 1), (0, 0)]
+    belief = rng.dirichlet(np.ones(S))
+    for end in ((1, np.array([0.0, 0.0, 1.0])), (0, np.array([1.0, 1.0, 0.0]))):
+        transitions, observations = expected_counts(model, steps, belief, end)
+        want_t, want_o = brute_force_counts(model, steps, belief, end)
+        assert np.allclose(transitions, want_t, atol=1e-12)
+        assert np.allclose(observations, want_o, atol=1e-12)
+        assert transitions.sum() == pytest.approx(len(steps) + 1)
+        assert observations.sum() == pytest.approx(len(steps))
+
+
+def test_a_success_after_the_robot_idled_is_counted_where_it_happened():
+    """By hand: states seen exactly, then the task ends in s2 after a1 (which stays put)
+    from s1 is impossible, so the end stands as the prediction; after a0 it is s1 -> s2."""
+    model = three_state_model()
+    transitions, _ = expected_counts(model, [(0, 1)], end=(0, np.array([0.0, 0.0, 1.0])))
+    by_hand = np.zeros((2, 3, 3))
+    by_hand[0, 0, 1] = 1
+    by_hand[0, 1, 2] = 1
+    assert np.allclose(transitions, by_hand)
+    with pytest.raises(ModelError, match="end"):
+        expected_counts(model, [(0, 1)], end=(5, np.ones(3)))
 
 
 def test_an_observation_the_model_rules_out_leaves_its_step_to_the_prediction():
@@ -155,3 +194,29 @@ def test_a_forgetting_rate_outside_zero_to_one_is_refused(rate):
 def test_steps_outside_the_model_are_refused():
     with pytest.raises(ModelError, match="outside the model"):
         expected_counts(three_state_model(), [(0, 7)])
+
+
+def test_the_exploration_bonus_falls_as_its_action_is_seen_in_each_state():
+    """beta / (1 + n(s)) on the bonus action's expected reward in state s, n(s) the counts
+    learnt of that action in s; every other action's rewards, and every draw's, as the
+    prior's plus the same bonus."""
+    model = three_state_model()
+    posterior = DirichletPosterior(model, strength=4.0, bonus=2.0, bonus_action=1)
+
+    def expected(m, a):
+        return np.asarray(m.T[a].multiply(m.R[a]).sum(axis=1)).ravel()
+    assert np.allclose(expected(posterior.mean(), 1), 2.0)         # nothing seen: beta
+    assert np.allclose(expected(posterior.mean(), 0), 0.0)         # the other action: none
+    posterior.learn([(1, 0), (1, 0), (1, 0)])                      # a1 taken in s0 three times
+    assert np.allclose(expected(posterior.mean(), 1), [2.0 / 4, 2.0, 2.0])
+    drawn = posterior.sample(np.random.default_rng(2))
+    assert np.allclose(expected(drawn, 1), [2.0 / 4, 2.0, 2.0])
+    posterior.forget(1.0)                                          # forgotten: seen no more
+    assert np.allclose(expected(posterior.mean(), 1), 2.0)
+
+
+@pytest.mark.parametrize("bonus", [-1.0, float("nan"), float("inf"), "x"])
+def test_a_bad_exploration_bonus_is_refused_in_one_line(bonus):
+    with pytest.raises(ValueError) as caught:
+        DirichletPosterior(three_state_model(), strength=1.0, bonus=bonus)
+    assert "the exploration bonus must be" in str(caught.value)
