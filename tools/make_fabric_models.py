@@ -60,8 +60,8 @@ from ros_hrc.tasks.fabric import FABRIC  # noqa: E402
 from ros_hrc.tasks.fabric_reactive import MDP_STATES  # noqa: E402
 
 TABLES = Path(__file__).resolve().parent / "fabric_tables"
-STAY = 0.9          # a "stay" row: this on the current state ...
-FLOOR = 0.01        # ... and this on every other column the row spans
+STAY = 0.9                  # a "stay" row: this on the current state ...
+FLOOR = FABRIC.model_floor  # ... and this on every other column the row spans
 
 HUMAN_STATES = list(FABRIC.human_states)
 HUMAN_ACTIONS = list(FABRIC.human_actions)

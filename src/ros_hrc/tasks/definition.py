@@ -272,8 +272,16 @@ class Task:
     #: The human's action that warns the robot: a sequence's task counts them (its outcome's
     #: ``warnings``).
     human_warning_action: str = "warnRobot"
+    #: The probability the task's model files give each next state a row leaves open but does
+    #: not mean (FABRIC's: the authors' 0.01, which its human's draw folds into the row's
+    #: largest entry, ``FabricReaction.row``; ``tools/make_fabric_models.py`` writes it). A
+    #: perturbed human (``hrc_perturb_humans``) keeps these entries as they are. 0: none (the
+    #: seed's rows hold only what they mean).
+    model_floor: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.model_floor < 1.0:
+            raise ValueError(f"task {self.name}: model_floor must be in [0, 1)")
         if not self.task_timeout > 0:
             raise ValueError(f"task {self.name}: task_timeout must be > 0")
         if self.human_warning_action not in self.human_action_services:

@@ -417,6 +417,9 @@ FABRIC = TaskWithWorld(
     new_observation_map=FabricObservationMap,
     reaction=FabricReaction(),
     noise=noisy_bits,
+    # The authors' floor: 0.01 on each next state a row of theirs leaves open ("stay": 0.9 on
+    # the state left, 0.01 on each other).
+    model_floor=0.01,
     default_human_model="beginner_nontired_collaborative",
     default_robot_model="base",
     # The authors' human in Recovery waited while the task's clock ran on (their task ended
