@@ -573,7 +573,7 @@ _TABLE: Tuple[Setting, ...] = (
            "before each task and plans over (root sampling: its belief weighs them as the task "
            "goes on); pomdp_learning_mean plans on the posterior mean alone", minimum=1,
            maximum=64),
-        _s("learning_bonus", "float", 0.0, "the learning robot's exploration bonus beta: "
+        _s("learning_bonus", "float", 10.0, "the learning robot's exploration bonus beta: "
            "beta / (1 + n) is added to the reward of the task's idle action in a state it "
            "was taken in n times (by the counts learnt), so that early in a sequence the "
            "robot watches what its human does alone (0: none; docs/learning.md; chosen on "

@@ -24,6 +24,11 @@ and its belief update weighs the draws by how well each explains what the task s
 tree search values an action also for what it reveals of this human. The draws are names
 ``d0``, ``d1``, ... and mean nothing beyond the task.
 
+A task's ending is evidence too (:data:`End`): one more transition under the robot's last
+action, into the states the ending allows. With a ``bonus``, the models a planner gets carry
+an exploration bonus on one action (:meth:`DirichletPosterior.bonus_rewards`), falling as
+that action is seen in each state.
+
 Steps are ``(action, observation)`` pairs by index: ``action`` is the one taken before
 ``observation`` was made (the robot's previous action; for a task's first step its idle
 action), as the robot's belief update takes them. No task is known here.

@@ -133,7 +133,8 @@ def test_root_sampling_plans_on_draws_of_the_posterior(pooled):
 
 def test_an_infinitely_strong_prior_decides_as_the_pooled_robot(pooled):
     """With kappa -> inf nothing a task shows moves the model: on a pinned seeded run the
-    learning robot (posterior mean) makes the pooled robot's every decision."""
+    learning robot (posterior mean, without the exploration bonus, whose purpose is to
+    decide otherwise) makes the pooled robot's every decision."""
     learner = LearntHuman(pooled, SEED, strength=1e12, forgetting=0.0, planning="mean",
                           draws=1)
     for _ in range(3):

@@ -32,7 +32,7 @@ DEFAULTS = {
     "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
     "selector_model": "auto", "task_timeout": None, "bpr_forgetting": 0.05,
     "learning_strength": 20.0, "learning_forgetting": 0.1, "learning_draws": 8,
-    "learning_bonus": 0.0,
+    "learning_bonus": 10.0,
 }
 
 
