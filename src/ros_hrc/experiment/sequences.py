@@ -192,14 +192,15 @@ def cell_humans(args: argparse.Namespace, schedule: str) -> List[Tuple[str, str]
 
 
 def ceiling_model(args: argparse.Namespace, human: str) -> str:
-    """The ceiling's robot model for ``human`` (``--ceiling-models DIR``: ``DIR/<human>.pomdp``,
+    """The ceiling's robot model for ``human`` (``--ceiling-models DIR``: ``DIR/<label>.pomdp``,
+    the label the human's rows carry, the file's stem for a human given as a file;
     ``hrc_fit --human-models <human>`` on another seed), checked: it exists and was fitted on
     that human on none of the study's seeds. GridError (one line) otherwise."""
     folder = getattr(args, "ceiling_models", None)
     if not folder:
         raise GridError(f"--selectors {CEILING}: give --ceiling-models DIR, a folder of robot "
                         f"models each fitted on one human (docs/learning.md)")
-    path = Path(folder) / f"{human}.pomdp"
+    path = Path(folder) / f"{Path(human).stem}.pomdp"
     if not path.is_file():
         raise GridError(f"--selectors {CEILING}: no model fitted on human {human} ({path}); "
                         f"fit one on other seeds of that human: hrc_fit --human-models {human} "

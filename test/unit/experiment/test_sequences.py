@@ -521,3 +521,6 @@ def test_the_ceiling_needs_a_model_of_its_human_fitted_on_other_seeds(tmp_path):
         ceiling_model(args, "tired")
     fitted_on(1, file_sha256(human_file))
     assert ceiling_model(args, "tired") == str(tmp_path / "tired.pomdp")
+    # A human given as a file: its model is DIR/<the file's stem>.pomdp, as its rows' label.
+    args.human_files = {human_file: human_file}
+    assert ceiling_model(args, human_file) == str(tmp_path / "tired.pomdp")
