@@ -57,7 +57,11 @@ def load(runs: Sequence[str]) -> List[TaskRow]:
     for run in runs:
         with open(Path(run) / "tasks.csv", newline="") as f:
             # A run from before the learnt figure was recorded has no such column.
-            rows += [TaskRow.from_dict({"learnt_figure": "", **d}) for d in csv.DictReader(f)]
+            # A human given as a file (a perturbed one) is named by the file's stem, as its
+            # rows' human_model and its ceiling's model (DIR/<stem>.pomdp) are.
+            rows += [TaskRow.from_dict({"learnt_figure": "", **d,
+                                        "schedule": Path(d["schedule"]).stem})
+                     for d in csv.DictReader(f)]
     return rows
 
 
