@@ -10,5 +10,11 @@ else
   export VIRTUAL_ENV="$_ros_hrc_root/.venv"
   export PATH="$VIRTUAL_ENV/bin:$PATH"
   export ROS_HRC_ROOT="$_ros_hrc_root"
+  # ROS's own Python tools (roslaunch, rostest: rosclean imports distutils.spawn) get the
+  # standard library's distutils, not setuptools' shim (Debian's distutils-precedence.pth),
+  # which imports the whole of setuptools and pkg_resources first: 0.2 s of CPU at every
+  # roslaunch start (docs/performance.md, "The CPU the suite spends"). The same
+  # find_executable either way.
+  export SETUPTOOLS_USE_DISTUTILS=stdlib
 fi
 unset _ros_hrc_root

@@ -117,7 +117,20 @@ fi
 # imports, each time (about 0.2 s of CPU a process, over a second a stack; docs/performance.md).
 # By the source's hash, not its time: an edited file is never run from stale bytecode.
 .venv/bin/python -m compileall -q --invalidation-mode checked-hash src \
-  .ws/devel/lib/python3/dist-packages > .ws/compileall.log 2>&1 \
+  .ws/devel/lib/python3/dist-packages test > .ws/compileall.log 2>&1 \
   || { tail -20 .ws/compileall.log; exit 1; }
+# The tests' bytecode as pytest runs them (their asserts rewritten, cached as
+# *.cpython-*-pytest-*.pyc beside the plain ones), written here by one collection for the same
+# reason: without it each pytest process (make test's two workers, each time) rewrote and
+# compiled every test file, about 4.5 s of CPU (docs/performance.md). pytest checks each
+# against its source's time and size, and rewrites an edited file in memory.
+test_key=$( (echo pytest-bytecode-1; cat requirements.txt; find test -name '*.py' -print0 | sort -z \
+  | xargs -0 sha256sum) | sha256sum | cut -d' ' -f1)
+if ! stamp_ok test_bytecode "$test_key"; then
+  (set +u; source env.sh; env -u PYTHONDONTWRITEBYTECODE OPENBLAS_NUM_THREADS=1 \
+     python -m pytest -q -p no:cacheprovider --collect-only > .ws/test_bytecode.log 2>&1) \
+    && echo "$test_key" > "$stamps/test_bytecode" \
+    || say "pytest did not collect every test (.ws/test_bytecode.log): the test run will say why"
+fi
 say "wall time: setup $SECONDS s"
 say "ready: source env.sh to use roslaunch, rosrun, rostopic and rosservice by hand"

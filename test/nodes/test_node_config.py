@@ -6,6 +6,7 @@ from typing import Tuple
 import pytest
 
 from ros_hrc import settings
+from ros_hrc.errors import HrcError
 from ros_hrc.nodes.common import parameter, read_config
 from ros_hrc.nodes.human_node import HumanNodeConfig
 from ros_hrc.nodes.viz_node import VizNodeConfig
@@ -81,6 +82,24 @@ def test_the_world_node_decides_what_its_parameters_leave_open(monkeypatch, tmp_
         WorldNodeConfig.from_params(params(belt_speed="-5"))
     with pytest.raises(ValueError, match="~tf_rate must be > 0"):
         WorldNodeConfig.from_params(params(tf_rate=0))
+
+
+def test_under_hrc_launch_the_world_takes_its_settings_from_the_checked_configuration():
+    """hrc.launch's pre-flight checked and resolved the world's settings with the rest (its
+    hrc/config): the world reads them there, and world.launch runs no pre-flight of its own."""
+    from ros_hrc.commands.check import check
+    # (pause_when_idle: auto, decided there by the mode, which the world is not given)
+    resolved = check(["belt_speed:=0.05", "real_time_factor:=2", "mode:=manual"],
+                     port_check=False)
+    config = WorldNodeConfig.from_params(params(
+        checked_config="hrc/config", belt_speed="0.3", tf_rate=10,
+        **{"hrc/config": resolved, "/use_sim_time": True}))
+    assert (config.belt_speed, config.real_time_factor, config.pause_when_idle,
+            config.snapshot_dir, config.tf_rate, config.use_sim_time) == (
+        0.05, 2.0, True, resolved["snapshot_dir"], 10.0, True)
+    with pytest.raises(HrcError, match="~checked_config: no resolved configuration at "
+                                       "hrc/config"):
+        WorldNodeConfig.from_params(params(checked_config="hrc/config"))
 
 
 def test_the_viz_node_s_scenery_is_the_world_s():

@@ -350,6 +350,12 @@ class TestLoopFaults(unittest.TestCase):
             # (The one the test before restarted may still be starting on a loaded machine.)
             old = wait_for_pids(self.proc, "despot_pomdp")
             self.assertTrue(old, "no despot_pomdp process in the launch")
+            # And it must serve: a step it decided after it is there. Stopped while it still
+            # started (seen under load, after an attempt that fell on a reset killed it), it
+            # never connected, and the loop only retried its reset: no step waited.
+            offset = os.path.getsize(self.launch_log)
+            self.assertTrue(wait_for_text(self.launch_log, offset, "robot action", 120),
+                            "no step decided by the despot_pomdp running now")
             offset = os.path.getsize(self.launch_log)
             self.log.clear()
             # Stopped, the POMDP process answers nothing: the step under way waits for its

@@ -25,10 +25,10 @@ six bits. The performance model is Gaussian, N(mean[τ, π], std[τ, π]) of the
 and the signature model a distribution over the 64 codes per (policy, type): both come from
 the selector model file (:mod:`ros_hrc.agents.selector_model`).
 
-No ROS. numpy and scipy; the bandit imports MABWiser when one is made, and the Gaussian
-scores import scipy.stats when first computed (0.4 s of a process's start that the launch's
-pre-flight and every robot process whose selector scores nothing need not pay:
-docs/performance.md, "Stack start-up").
+No ROS. numpy and scipy; the bandit imports MABWiser when one is made, the Gaussian
+scores import scipy.stats when first computed, and the posteriors scipy.special (0.4 s and
+0.1 s of a process's start that the launch's pre-flight and every robot process whose
+selector scores nothing need not pay: docs/performance.md, "Stack start-up").
 """
 from __future__ import annotations
 
@@ -37,7 +37,6 @@ from dataclasses import dataclass
 from typing import ClassVar, Dict, Optional, Sequence, Tuple, Type
 
 import numpy as np
-from scipy.special import logsumexp
 
 from ros_hrc import registry
 from ros_hrc.agents.selector_model import SIGNATURE_CODES, SelectorModel
@@ -205,7 +204,7 @@ def type_posterior(belief: np.ndarray, log_likelihood: np.ndarray) -> Optional[n
         log_posterior = np.log(np.asarray(belief, dtype=float)) + log_likelihood
     if not np.isfinite(log_posterior).any():
         return None
-    return np.exp(log_posterior - logsumexp(log_posterior))
+    return np.exp(log_posterior - _logsumexp(log_posterior))
 
 
 def mix_with_uniform(belief: np.ndarray, forgetting: float) -> np.ndarray:
@@ -234,6 +233,13 @@ def _norm():
     """scipy.stats.norm, imported when a selector first scores (the module's docstring)."""
     from scipy.stats import norm
     return norm
+
+
+def _logsumexp(values: np.ndarray) -> float:
+    """scipy.special.logsumexp, imported when a posterior is first updated (the module's
+    docstring)."""
+    from scipy.special import logsumexp
+    return logsumexp(values)
 
 
 def improvement_target(u_bar: float, u_max: float) -> float:
@@ -295,7 +301,7 @@ def fabric_type_posterior(belief: np.ndarray, signature: np.ndarray,
     rows = np.asarray(signature, dtype=float)
     log_posterior = (np.log(np.asarray(belief, dtype=float) + FABRIC_BELIEF_EPSILON)
                      + np.log(rows[:, _codes(codes)] + FABRIC_SIGNATURE_EPSILON).sum(axis=1))
-    return np.exp(log_posterior - logsumexp(log_posterior))
+    return np.exp(log_posterior - _logsumexp(log_posterior))
 
 
 def fabric_scores(belief: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:

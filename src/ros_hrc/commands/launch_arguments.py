@@ -8,7 +8,7 @@ them declares, in one line naming the nearest declared argument::
 
     human_modle:=tired: no such argument (did you mean human_model?)
 
-Only the top-level files count: an included file (world.launch under hrc.launch) gets its
+Only the top-level files count: an included file (world_nodes.launch under hrc.launch) gets its
 arguments from its includer, never from the command line. A user's argument is an ``<arg>``
 with no ``value=`` (a ``value=`` argument is derived inside the file, roslaunch does not take
 it from the command line) outside an ``<include>`` (whose ``<arg>`` children pass values on).

@@ -92,7 +92,11 @@ class RayNode:
         cmd = [sys.executable, "-m", "ray.scripts.scripts", "start", "--block",
                "--node-ip-address", node_ip, "--num-cpus", str(cpus),
                "--resources", f'{{"{RESOURCE}": {ros_hrc}}}', "--temp-dir", str(directory),
-               "--object-store-memory", str(100 * 1024 * 1024), "--disable-usage-stats"]
+               "--object-store-memory", str(100 * 1024 * 1024), "--disable-usage-stats",
+               # No log monitor: it tails every worker's log to forward it to drivers, and
+               # ours take none (cluster.py: log_to_driver=False; a cell's lines go to its
+               # own log files). Several nodes on one machine would each run one.
+               "--include-log-monitor=false"]
         if head_address is None:
             head_port = ports.take()
             cmd += ["--head", "--port", str(head_port), "--include-dashboard=false",

@@ -35,7 +35,8 @@ def parameter(default: Any, name: str) -> Any:
     return field(default=default, metadata={_PARAM: name})
 
 
-def read_config(config_type: Type[C], get_param: Optional[ParamReader] = None) -> C:
+def read_config(config_type: Type[C], get_param: Optional[ParamReader] = None,
+                settings_from: Optional[Dict[str, Any]] = None) -> C:
     """The node's configuration: the config dataclass ``config_type`` built from the node's
     parameters, read once (``get_param``: rospy's by default). The one way a node reads its
     parameters.
@@ -44,15 +45,19 @@ def read_config(config_type: Type[C], get_param: Optional[ParamReader] = None) -
     one its :func:`parameter` names. A field named after a launch setting
     (:mod:`ros_hrc.settings`) is parsed and checked there, and takes the table's default when
     unset or empty (the one source of defaults; a bad value raises the table's one-line
-    :class:`~ros_hrc.settings.SettingError`). Any other field takes the dataclass default when
-    unset, coerced to the default's type: a bool from a word (true/1/yes/on), a number, a
-    tuple from a list or a text of items apart by spaces or commas."""
+    :class:`~ros_hrc.settings.SettingError`); with ``settings_from`` (a launch's resolved
+    configuration, setting name -> value), such a field that names no parameter of its own
+    is read there instead. Any other field takes the dataclass default when unset, coerced
+    to the default's type: a bool from a word (true/1/yes/on), a number, a tuple from a list
+    or a text of items apart by spaces or commas."""
     read = rospy.get_param if get_param is None else get_param
     values = {}
     for f in fields(config_type):
         name = f.metadata.get(_PARAM, f"~{f.name}")
         if f.name in settings.SETTINGS:
-            values[f.name] = settings.parse(f.name, read(name, ""))
+            given = settings_from.get(f.name, "") \
+                if settings_from is not None and _PARAM not in f.metadata else read(name, "")
+            values[f.name] = settings.parse(f.name, given)
             continue
         default = f.default if f.default is not MISSING else f.default_factory()  # type: ignore[misc]
         values[f.name] = _coerced(read(name, default), default)

@@ -5,8 +5,8 @@ roslaunch (1.15) exits 0 however it ends unless it fails to start (ros_comm #919
 ``required`` node dies, its process monitor shuts everything down and returns normally, and
 SIGINT, SIGTERM and SIGHUP all take the same graceful path. Nothing a node can call changes that.
 So the world is started through this guard (``launch-prefix="$(find ros_hrc)/scripts/hrc_guard"``
-on the node in world.launch): roslaunch starts the guard, the guard starts the world as its own
-child and waits for it. roslaunch learns nothing until the guard ends, so nothing races.
+on the node in world_nodes.launch): roslaunch starts the guard, the guard starts the world as its
+own child and waits for it. roslaunch learns nothing until the guard ends, so nothing races.
 
 How the world ends, and what the guard does:
 
@@ -251,8 +251,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if len(argv) == 2 and argv[0] == _GUARDING and argv[1].isdigit():
         return guard(int(argv[1]), os.environ.get(NODE_ENV, "the guarded process"))
     if not argv or argv[0].startswith("-"):
-        print("usage: hrc_guard COMMAND [ARG...]  (hrc_world's launch-prefix in world.launch)",
-              file=sys.stderr)
+        print("usage: hrc_guard COMMAND [ARG...]  (hrc_world's launch-prefix in "
+              "world_nodes.launch)", file=sys.stderr)
         return 2
     start(argv)
     return 1   # not reached: start() re-executes this process

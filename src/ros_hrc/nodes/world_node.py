@@ -78,7 +78,11 @@ real_time_factor is 0), ~publish_rate, ~snapshot_dir (empty: $ROS_HOME/hrc_snaps
 names carry the run's start time and a counter: never overwritten), ~viz (joint states and
 /tf, above), ~camera_rate (0: /hrc/camera/image not published) and /use_sim_time (publish
 /clock from the simulated time), each with its default and checks from ros_hrc.settings
-(docs/settings.md); and the node's own:
+(docs/settings.md). world.launch's pre-flight (hrc_check --world) sets them; under
+hrc.launch, whose pre-flight checked and resolved them with the rest of the launch's settings,
+they are read from that resolved configuration instead (~checked_config names it:
+hrc/config), and no second pre-flight runs (both include launch/world_nodes.launch). And the
+node's own:
   ~action_timeout (float, 120.0)  wall seconds a service call waits for its action
   ~tf_rate (float, 30.0)          the rate of the joint states and /tf, Hz (wall clock)
   ~model_dir (str, <package>/models/urdf)       where the URDF models are
@@ -151,7 +155,8 @@ class WorldNodeConfig:
     def from_params(cls, get_param: Optional[ParamReader] = None) -> "WorldNodeConfig":
         """Read the parameters once (:func:`ros_hrc.nodes.common.read_config`), then decide
         what they leave open: the automatic pause_when_idle, the default paths."""
-        given = read_config(cls, get_param)
+        read = rospy.get_param if get_param is None else get_param
+        given = read_config(cls, read, checked_config(read))
         # resolve() decides an automatic pause_when_idle (when real_time_factor is 0) and the
         # snapshots' default folder.
         pace = settings.resolve({"real_time_factor": given.real_time_factor,
@@ -165,6 +170,21 @@ class WorldNodeConfig:
         if config.action_timeout <= 0 or config.tf_rate <= 0:
             raise ValueError(f"~action_timeout and ~tf_rate must be > 0; got {config}")
         return config
+
+
+def checked_config(read: ParamReader) -> Optional[Dict[str, Any]]:
+    """The launch's resolved configuration that ``~checked_config`` names (hrc.launch's
+    pre-flight put it there, having checked the world's settings with the rest), or None
+    when it names none (world.launch alone: its own pre-flight gave the private parameters).
+    Raises HrcError when it names one that is not there."""
+    name = read("~checked_config", "")
+    if not name:
+        return None
+    config = read(name, None)
+    if not isinstance(config, dict):
+        raise HrcError(f"~checked_config: no resolved configuration at {name} (hrc.launch's "
+                       "pre-flight puts it there)")
+    return config
 
 
 def stop_parent_launch(parent: Optional[int] = None) -> bool:

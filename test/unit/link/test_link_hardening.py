@@ -2,10 +2,12 @@
 ports: anyone could drive a server (now a launch token is proved in the hello, both ways); a
 malformed `error` was answered; fields that reach a ROS message were not bounded; the accept
 loop died when the process ran out of file descriptors. Timeouts are safety nets only."""
+import contextlib
 import json
 import logging
 
 import pytest
+from websockets.exceptions import ConnectionClosed
 
 from ros_hrc.link.protocol import (ERR_INVALID, ERR_UNAUTHORIZED, MAX_UINT32, Ack, Action,
                                    DispatchTable, Error, Hello, MessageError, Reset, Step,
@@ -92,7 +94,10 @@ def test_a_forged_proof_is_refused(forge, link_token):
                  "no nonce": Hello(who="hrc_human", auth="0" * 64)}[forge]
         ws = raw(node.server)
         ws.send(encode(hello))
-        ws.send(encode(Action(step=0, action="rGrasp_obj")))
+        # The server may have refused the hello and closed before this frame leaves (seen
+        # once, under load): the action then never reaches it, which is as refused.
+        with contextlib.suppress(ConnectionClosed):
+            ws.send(encode(Action(step=0, action="rGrasp_obj")))
         got, code = frames_until_closed(ws)
     assert code == CLOSE_REFUSED and node.actions == []
     assert [decode(g).code for g in got] == [ERR_UNAUTHORIZED]
