@@ -46,6 +46,7 @@ from ros_hrc.experiment.sequence_rows import TaskRow
 from ros_hrc.experiment.sequence_statistics import best_fixed, pair_key
 from ros_hrc.models import load_robot_model
 from ros_hrc.pomdp.bayes_adaptive import reach_probability
+from ros_hrc.tasks.schedule import type_name
 
 POOLED, CEILING = "pomdp_pooled", "pomdp_ceiling"
 #: Tasks per point of the learning curves.
@@ -60,7 +61,7 @@ def load(runs: Sequence[str]) -> List[TaskRow]:
             # A human given as a file (a perturbed one) is named by the file's stem, as its
             # rows' human_model and its ceiling's model (DIR/<stem>.pomdp) are.
             rows += [TaskRow.from_dict({"learnt_figure": "", **d,
-                                        "schedule": Path(d["schedule"]).stem})
+                                        "schedule": type_name(d["schedule"])})
                      for d in csv.DictReader(f)]
     return rows
 

@@ -39,6 +39,7 @@ from ros_hrc.settings import LEARNING_SELECTORS, LEARNING_SETTINGS
 from ros_hrc.experiment.stack import CellSpec, EpisodeRanges
 from ros_hrc.model_files import user_path
 from ros_hrc.models import model_path
+from ros_hrc.tasks.schedule import type_name
 
 #: ``--schedule`` words that are no file.
 PER_TYPE = "per-type"
@@ -200,7 +201,7 @@ def ceiling_model(args: argparse.Namespace, human: str) -> str:
     if not folder:
         raise GridError(f"--selectors {CEILING}: give --ceiling-models DIR, a folder of robot "
                         f"models each fitted on one human (docs/learning.md)")
-    path = Path(folder) / f"{Path(human).stem}.pomdp"
+    path = Path(folder) / f"{type_name(human)}.pomdp"
     if not path.is_file():
         raise GridError(f"--selectors {CEILING}: no model fitted on human {human} ({path}); "
                         f"fit one on other seeds of that human: hrc_fit --human-models {human} "
