@@ -184,9 +184,13 @@ MASTER_WAIT = 120.0
 
 def still_running(watch: StackWatch) -> None:
     """What every wait of a worker checks between its polls: a signal not yet acted on
-    (:meth:`_Signals.check`), then the stack (:meth:`StackWatch.check`)."""
+    (:meth:`_Signals.check`), then the stack (:meth:`StackWatch.check`). The stack's check is
+    deferred (:meth:`_Signals.deferred`): a CellStopped raised inside ``Popen.poll()`` can
+    land between its ``_waitpid_lock``'s acquire and release and leave the lock held, so the
+    ``wait()`` of the stack's stop blocked for good (seen once under load)."""
     SIGNALS.check()
-    watch.check()
+    with SIGNALS.deferred():
+        watch.check()
 
 
 def wait_for_master(watch: StackWatch, wait: float = MASTER_WAIT) -> None:

@@ -118,6 +118,49 @@ def test_a_signal_a_library_swallowed_still_stops_the_cell_at_its_next_poll():
     signals.check()
 
 
+@pytest.mark.skipif(importlib.util.find_spec("rospy") is None, reason="the worker needs rospy")
+def test_a_signal_during_the_stacks_poll_leaves_its_lock_free_for_the_stop(monkeypatch, tmp_path):
+    """Before: the worker's SIGTERM handler raised CellStopped wherever it landed; once it
+    landed in ``Popen.poll()`` between its ``_waitpid_lock``'s acquire and its ``try``, the
+    lock stayed held and the stop's ``wait()`` blocked for good (a worker found hung an hour
+    later). Here the SIGTERM is sent at that very point of a real child's poll."""
+    from ros_hrc.experiment.stack import StackWatch
+    from ros_hrc.nodes import experiment_cell
+    from ros_hrc.nodes.experiment_cell import CellStopped, _Signals
+
+    class SignalledInPoll(subprocess.Popen):
+        signalled = False
+
+        def poll(self):
+            if self.signalled:       # the test's own kill() polls too
+                return super().poll()
+            self.signalled = True
+            # Popen._internal_poll's own order: the lock taken, then (here) the signal, then
+            # the work and the release, with nothing to release it if an exception lands.
+            if not self._waitpid_lock.acquire(False):
+                return None
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):    # bytecodes for the handler to run in
+                pass
+            code = self.returncode
+            self._waitpid_lock.release()
+            return code
+
+    monkeypatch.setattr(experiment_cell, "SIGNALS", _Signals())
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    child = SignalledInPoll(["sleep", "30"])
+    try:
+        experiment_cell.SIGNALS.install()
+        with pytest.raises(CellStopped, match="stopped by SIGTERM"):
+            experiment_cell.still_running(StackWatch(child, tmp_path / "stack.log", "cell"))
+        assert not child._waitpid_lock.locked()
+    finally:
+        for s, h in handlers.items():
+            signal.signal(s, h)
+        child.kill()
+    assert child.wait(timeout=10) == -signal.SIGKILL     # the stop's wait is not blocked
+
+
 # ------------------------------------------------------------------ a stack that cannot run
 
 DYING_ROSLAUNCH = """#!/bin/sh
