@@ -573,11 +573,12 @@ _TABLE: Tuple[Setting, ...] = (
            "before each task and plans over (root sampling: its belief weighs them as the task "
            "goes on); pomdp_learning_mean plans on the posterior mean alone", minimum=1,
            maximum=64),
-        _s("learning_bonus", "float", 10.0, "the learning robot's exploration bonus beta: "
+        _s("learning_bonus", "float", None, "the learning robot's exploration bonus beta: "
            "beta / (1 + n) is added to the reward of the task's idle action in a state it "
            "was taken in n times (by the counts learnt), so that early in a sequence the "
-           "robot watches what its human does alone (0: none; docs/learning.md; chosen on "
-           "the fit set)", minimum=0, maximum=1e6),
+           "robot watches what its human does alone (0: none; docs/learning.md); auto: the "
+           "task's (seed 10, fabric 0: each chosen on streams it is not judged on)",
+           minimum=0, maximum=1e6),
     ),
     *_group(
         "the terminal",
@@ -803,6 +804,8 @@ def _resolve_sequence(out: Dict[str, Any], values: Mapping[str, Any], task: task
         out[name] = text if text == AUTO_WORD else str(user_path(text))
     if out["task_timeout"] is None:
         out["task_timeout"] = task.task_timeout
+    if out["learning_bonus"] is None:
+        out["learning_bonus"] = task.learning_bonus
     if out["tasks"] is None:
         out["tasks"] = 0     # resolved: no sequence (the parameter server carries no None)
 

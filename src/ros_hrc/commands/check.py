@@ -295,13 +295,18 @@ def hand_run_command(process: str, config: Mapping[str, object], token_file: str
     else:
         from ros_hrc.processes.despot_pomdp import build_parser
     always = {"host", BY_HAND[process][1], "human_model", "robot_model"}
+    # What each automatic setting resolves to on this task: the process, given the task,
+    # resolves it the same (e.g. learning_bonus), so the command need not say it.
+    automatic = settings.resolve({"task": str(config.get("task", ""))}, environ={})
     words = ["rosrun", "ros_hrc", process]
     for action in build_parser()._actions:
         name = getattr(action, "setting", None)
         if name is None or name not in config:
             continue
         value = config[name]
-        if name not in always and value == settings.default(name):
+        default = settings.default(name)
+        if name not in always and (value == default or
+                                   (default is None and value == automatic.get(name))):
             continue
         flag = max(action.option_strings, key=len)
         words += [flag, shlex.quote(settings._shown(value))]

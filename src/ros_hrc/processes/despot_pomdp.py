@@ -577,7 +577,8 @@ def build_sequence_robot(task: Task, model: Model, planner: Planner, args: argpa
         learner = LearntHuman(model, task, args.learning_strength, args.learning_forgetting,
                               planning, args.learning_draws,
                               seed=stream_seed(args.seed, 0, "learning"),
-                              bonus=args.learning_bonus)
+                              bonus=task.learning_bonus if args.learning_bonus is None
+                              else args.learning_bonus)
         name = fixed_policy_name(args)
         # Until the first task's reset, the agent is the prior's: each task then gets an
         # agent on the model the posterior gives for it (_plan_on_posterior).

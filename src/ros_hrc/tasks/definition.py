@@ -243,6 +243,10 @@ class Task:
     #: The robot model the learning robot's study starts from (its prior: a pooled fit priced
     #: by the task's utility, ``hrc_fit --rewards utility``); "" for none yet.
     learning_prior: str = ""
+    #: The learning robot's exploration bonus on this task (``learning_bonus:=auto``), chosen
+    #: on streams it is not judged on (docs/learning.md): the seed's on its fit set, fabric's
+    #: on its ten types' tuning seed, where any bonus made the robot stare at experts.
+    learning_bonus: float = 0.0
     #: The robot state of a human who warned the robot: acting in it is acting against a
     #: warning, which a model of the task's utility prices (ros_hrc.tasks.utility.
     #: utility_rewards). "" for none.

@@ -409,6 +409,7 @@ FABRIC = TaskWithWorld(
     robot_success_state="GlobalSuccess",
     recovery_state="MayNotBeCapable",
     learning_prior="robot_utility_fitted",
+    learning_bonus=0.0,
     robot_warned_state="WarningReceived",
     observations=OBSERVATIONS,
     predicate_bits=PREDICATE_BITS,

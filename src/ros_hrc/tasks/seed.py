@@ -206,6 +206,7 @@ SEED = Task(
     robot_success_state="S1",
     recovery_state="S2",
     learning_prior="robot_utility_fitted",
+    learning_bonus=10.0,
     robot_warned_state="S6",
     observations=OBSERVATIONS,
     predicate_bits=PREDICATE_BITS,

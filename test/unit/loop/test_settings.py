@@ -32,7 +32,7 @@ DEFAULTS = {
     "verbose": False, "tasks": None, "schedule": "", "selector": "fixed", "library": "auto",
     "selector_model": "auto", "task_timeout": None, "bpr_forgetting": 0.05,
     "learning_strength": 20.0, "learning_forgetting": 0.1, "learning_draws": 8,
-    "learning_bonus": 10.0,
+    "learning_bonus": None,
 }
 
 
@@ -299,8 +299,18 @@ def test_resolve_fills_every_default_in_table_order():
     config = settings.resolve({}, environ={"ROS_HOME": "/ros home"})
     assert list(config) == list(SETTINGS)
     expected = dict(DEFAULTS, pause_when_idle=False, mdp_xterm=False, away_time=0.0,
-                    task_timeout=80.0, tasks=0, snapshot_dir="/ros home/hrc_snapshots")
+                    task_timeout=80.0, tasks=0, snapshot_dir="/ros home/hrc_snapshots",
+                    learning_bonus=10.0)
     assert config == expected
+
+
+@pytest.mark.parametrize("task, bonus", [("seed", 10.0), ("fabric", 0.0)])
+def test_the_learning_bonus_is_the_tasks_unless_given(task, bonus):
+    """learning_bonus:=auto is the bonus chosen for the task (docs/learning.md): a bonus
+    tuned on one task's humans is not carried to another's."""
+    assert settings.resolve({"task": task}, environ={})["learning_bonus"] == bonus
+    assert settings.resolve({"task": task, "learning_bonus": "2.5"},
+                            environ={})["learning_bonus"] == 2.5
 
 
 def test_resolve_parses_what_is_given():
