@@ -202,7 +202,8 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
 
 
 def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str,
-          prefix: str = "") -> None:
+          prefix: str = "", task: tasks.Task = None) -> None:
+    task = task or tasks.get(tasks.DEFAULT_TASK)
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -235,7 +236,6 @@ def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str,
     fig.savefig(folder / f"{prefix}learning_curves.png", dpi=110)
     plt.close(fig)
     # The learnt figure per human against the ceiling model's.
-    seed = tasks.get("seed")
     humans = sorted({r.schedule for r in rows if r.selector == learner and r.learnt})
     if not humans:
         return
@@ -254,11 +254,11 @@ def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str,
         ax.fill_between(xs, mean - spread, mean + spread, color="tab:blue", alpha=0.2)
         path = Path(ceilings) / f"{h}.pomdp" if ceilings else None
         if path is not None and path.is_file():
-            m = load_robot_model(str(path), seed)
-            truth = reach_probability(m.dense_T[m.index("action", seed.robot_idle_action)],
-                                      m.index("state", seed.recovery_state),
-                                      m.index("state", seed.robot_success_state),
-                                      seed.recovery_steps)
+            m = load_robot_model(str(path), task)
+            truth = reach_probability(m.dense_T[m.index("action", task.robot_idle_action)],
+                                      m.index("state", task.recovery_state),
+                                      m.index("state", task.robot_success_state),
+                                      task.recovery_steps)
             ax.axhline(truth, color="tab:red", ls="--", label="this human (fitted, other seeds)")
         ax.set_title(h, fontsize=9)
         ax.set_ylim(0, 1)
@@ -267,8 +267,8 @@ def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str,
     for ax in list(axes.flat)[len(humans):]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=6, loc="upper right")
-    fig.suptitle(f"P(recovers alone from {seed.recovery_state} within {seed.recovery_steps} "
-                 f"steps of {seed.robot_idle_action}): what {learner} learnt, after each task",
+    fig.suptitle(f"P(recovers alone from {task.recovery_state} within {task.recovery_steps} "
+                 f"steps of {task.robot_idle_action}): what {learner} learnt, after each task",
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(folder / f"{prefix}learnt_figure.png", dpi=110)
@@ -283,11 +283,14 @@ def main(argv=None) -> int:
     p.add_argument("--plots", default=None)
     p.add_argument("--ceiling-models", default="")
     p.add_argument("--prefix", default="", help="the plots' file names start with it")
+    p.add_argument("--task", default=tasks.DEFAULT_TASK, choices=tasks.TASK_NAMES,
+                   help="the task the runs played (the ceiling models' states are its)")
     args = p.parse_args(argv)
     rows = load(args.runs)
     print(tables(rows, args.first, args.learner))
     if args.plots:
-        plots(rows, Path(args.plots), args.learner, args.ceiling_models, args.prefix)
+        plots(rows, Path(args.plots), args.learner, args.ceiling_models, args.prefix,
+              tasks.get(args.task))
     return 0
 
 
