@@ -280,11 +280,13 @@ class SequenceRobot:
         learner = self.learner
         if index == 1:
             learner.restart(stream_seed(self.seed, episode, "learning"))
+            # Back to the prior: its figure. Between tasks the posterior is the one the last
+            # task's end learnt, whose figure end_task took (a figure costs ~7 ms).
+            self.figure = learner.figure()
         model = learner.model_for_task()
         self.agents[policy] = RobotAgent(model, self.new_planner(model), seed=self.seed,
                                          first_action=self.task.robot_idle_action,
                                          reports_types=False)
-        self.figure = learner.figure()
 
     def _start_belief(self, policy: str) -> Optional[np.ndarray]:
         """The belief ``policy``'s agent starts a new task from: the type belief it ended its
