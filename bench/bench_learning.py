@@ -10,16 +10,18 @@
    observation streams simulated from the prior; p50/p99/max against the budget, and the
    pooled robot's on the same streams. Target: p99 within the budget.
 3. **A sequence study's pace**: ``hrc_experiment --sequence 30`` on the same grid (two fit
-   humans, two sequences each, seed 5) with ``--selectors bpr`` and with
-   ``--selectors pomdp_learning``, warm stacks, both cores: tasks per minute as the study
-   reports it (run.json), and their ratio; steps per minute beside it, since the learning
-   robot's tasks can be longer. Target: within 10 % of BPR's. ``--no-study`` leaves it out.
+   humans, three sequences each, seed 5) with ``--selectors bpr``, with ``--selectors
+   pomdp_learning`` (the seed task's bonus, 10) and with it at ``--learning-bonus 0``, warm
+   stacks, both cores: tasks per minute as the study reports it (run.json), and the ratios;
+   steps per minute beside it, since the learning robot's tasks can be longer. Target:
+   within 10 % of BPR's. ``--no-study`` leaves it out.
 
     source env.sh && python bench/bench_learning.py [--no-study]
 """
 import argparse
 import csv
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -30,10 +32,10 @@ from pathlib import Path
 import numpy as np
 
 from common import percentile, write_result
-from ros_hrc import tasks
+from ros_hrc import settings, tasks
 from ros_hrc.agents.learning import LearntHuman
 from ros_hrc.models import load_robot_model, model_path
-from ros_hrc.pomdp.despot import DespotConfig, DespotPlanner
+from ros_hrc.pomdp.despot import DespotPlanner
 
 SEED_TASK = tasks.get("seed")
 UPDATE_TARGET_MS = 50.0
@@ -41,7 +43,14 @@ BUDGET_S = 0.1
 PACE_TOLERANCE = 0.10
 STUDY_HUMANS = "tired,beginner"
 SEQUENCE_LENGTH = 30
-SEQUENCES = 2
+SEQUENCES = 3
+#: A decision's line in the robot process's log: "- Action = rGrasp_obj (72.3 ms)".
+DECISION_LINE = re.compile(r"Action = \S+ \(([\d.]+) ms\)")
+#: The study's robots: BPR, the learning robot with the task's bonus, and without a bonus.
+STUDY_ROBOTS = (("bpr", ["--selectors", "bpr"]),
+                ("pomdp_learning", ["--selectors", "pomdp_learning"]),
+                ("pomdp_learning without the bonus", ["--selectors", "pomdp_learning",
+                                                      "--learning-bonus", "0"]))
 
 
 def simulated_task(model, rng, steps):
@@ -93,11 +102,18 @@ def bench_update(prior):
 def bench_decisions(prior, decisions=300):
     rng = np.random.default_rng(2)
     learner = LearntHuman(prior, SEED_TASK, 20.0, 0.1, "sampled", 8, seed=3)
-    config = DespotConfig(time_per_step=BUDGET_S)
+    # As it ships on the seed task: its bonus (which keeps DESPOT's bounds apart, so every
+    # decision uses its whole budget).
+    with_bonus = LearntHuman(prior, SEED_TASK, 20.0, 0.1, "sampled", 8, seed=3,
+                             bonus=SEED_TASK.learning_bonus)
+    # The live launch's DESPOT: its settings' defaults (0.1 s a step, K = 500, D = 90, λ = 0.1).
+    launch = dict(settings.resolve({}, environ={}), time_per_step=BUDGET_S)
     out = {}
-    for label, model in (("root sampling (8 draws)", learner.model_for_task()),
+    for label, model in ((f"root sampling (8 draws), bonus {SEED_TASK.learning_bonus:g}",
+                          with_bonus.model_for_task()),
+                         ("root sampling (8 draws), no bonus", learner.model_for_task()),
                          ("pooled (no learning)", prior)):
-        planner = DespotPlanner(model, config, seed=4)
+        planner = DespotPlanner.from_settings(model, SEED_TASK, dict(launch, seed=4))
         walls, a = [], model.index("action", SEED_TASK.robot_idle_action)
         streams = [simulated_task(prior, rng, 10) for _ in range(decisions // 10)]
         for task in streams:
@@ -118,13 +134,13 @@ def bench_decisions(prior, decisions=300):
     return out
 
 
-def run_study(selector, out_dir):
+def run_study(selector_words, out_dir):
     """One study of SEQUENCES sequences of SEQUENCE_LENGTH tasks a human: the study's own
     figures (run.json: its wall time and tasks a minute) and the steps its tasks took, since
     a robot that watches longer plays longer tasks at the same speed."""
     words = ["rosrun", "ros_hrc", "hrc_experiment", "--sequence", str(SEQUENCE_LENGTH),
              "--episodes", str(SEQUENCES), "--seeds", "5", "--human-models", STUDY_HUMANS,
-             "--selectors", selector, "--jobs", "2", "--no-plots", "--out", str(out_dir)]
+             "--jobs", "2", "--no-plots", "--out", str(out_dir)] + selector_words
     done = subprocess.run(words, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                           stderr=subprocess.STDOUT, text=True)
     if done.returncode != 0:
@@ -134,26 +150,37 @@ def run_study(selector, out_dir):
     with open(out_dir / "tasks.csv", newline="") as f:
         steps = sum(int(row["steps"]) for row in csv.DictReader(f))
     wall = run["wall_seconds"]
+    # Each DESPOT decision of the run, as the robot process printed it (its wall time).
+    decisions = [float(ms) for log in (out_dir / "logs" / "ros").glob("*/*-*/despot_pomdp-*.log")
+                 for ms in DECISION_LINE.findall(log.read_text(errors="replace"))]
     return {"wall_s": wall, "tasks": run["tasks"], "tasks_per_min": run["tasks_per_minute"],
-            "steps": steps, "steps_per_min": 60 * steps / wall}
+            "steps": steps, "steps_per_min": 60 * steps / wall,
+            "despot_decisions": len(decisions),
+            "despot_ms_p50": percentile(decisions, 50) if decisions else None,
+            "despot_ms_p99": percentile(decisions, 99) if decisions else None}
 
 
 def bench_study():
+    """BPR, the learning robot as it ships on this task (its bonus, ``auto``) and without the
+    bonus: the bonus is what costs (DESPOT's bounds no longer meet early, so every decision
+    runs its whole trial budget), the learning itself (an update and a model a task) hardly."""
     folder = Path(tempfile.mkdtemp(prefix="bench_learning_"))
     try:
         out = {}
-        for selector in ("bpr", "pomdp_learning"):
-            r = out[selector] = run_study(selector, folder / selector)
-            print(f"  study, --selectors {selector}: {r['tasks']} tasks ({r['steps']} steps) in "
+        for label, words in STUDY_ROBOTS:
+            r = out[label] = run_study(words, folder / label.replace(" ", "_"))
+            planned = (f"; {r['despot_decisions']} DESPOT decisions, p50 "
+                       f"{r['despot_ms_p50']:.1f} ms, p99 {r['despot_ms_p99']:.1f} ms"
+                       if r["despot_decisions"] else "; no DESPOT decision")
+            print(f"  study, {label}: {r['tasks']} tasks ({r['steps']} steps) in "
                   f"{r['wall_s']:.1f} s = {r['tasks_per_min']:.1f} tasks/min, "
-                  f"{r['steps_per_min']:.0f} steps/min", flush=True)
-        ratio = out["pomdp_learning"]["tasks_per_min"] / out["bpr"]["tasks_per_min"]
-        out["ratio"] = ratio
-        out["steps_ratio"] = (out["pomdp_learning"]["steps_per_min"]
-                              / out["bpr"]["steps_per_min"])
-        print(f"  pace of pomdp_learning / bpr: {ratio:.3f} in tasks a minute (target >= "
-              f"{1 - PACE_TOLERANCE:.2f}: {'met' if ratio >= 1 - PACE_TOLERANCE else 'MISSED'}); "
-              f"{out['steps_ratio']:.3f} in steps a minute", flush=True)
+                  f"{r['steps_per_min']:.0f} steps/min{planned}", flush=True)
+        for label, _ in STUDY_ROBOTS[1:]:
+            ratio = out[label]["tasks_per_min"] / out["bpr"]["tasks_per_min"]
+            out[f"ratio {label}"] = ratio
+            print(f"  pace of {label} / bpr: {ratio:.3f} in tasks a minute (target >= "
+                  f"{1 - PACE_TOLERANCE:.2f}: {'met' if ratio >= 1 - PACE_TOLERANCE else 'MISSED'})",
+                  flush=True)
         return out
     finally:
         shutil.rmtree(folder, ignore_errors=True)
