@@ -35,7 +35,7 @@ import math
 import sys
 from collections import defaultdict
 from pathlib import Path
-from typing import Dict, List, Sequence
+from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 from scipy import stats
@@ -202,7 +202,7 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
 
 
 def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str,
-          prefix: str = "", task: tasks.Task = None) -> None:
+          prefix: str = "", task: Optional[tasks.Task] = None) -> None:
     task = task or tasks.get(tasks.DEFAULT_TASK)
     import matplotlib
     matplotlib.use("Agg")

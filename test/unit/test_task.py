@@ -1,4 +1,6 @@
 """Observation bits and the robot's true state, as the observer computes them."""
+import dataclasses
+
 import pytest
 
 from ros_hrc.tasks import seed as task
@@ -98,3 +100,9 @@ def test_a_warning_is_labelled_only_when_the_human_warned():
     assert tracker.update("no_attention", "lookAround") == "S4"
     assert tracker.update("warningTheRobot", "lookAround") == "S4"
     assert tracker.update("task_assigned", "idle") == "S0"
+
+
+@pytest.mark.parametrize("bonus", [-1.0, float("nan"), float("inf")])
+def test_a_task_refuses_a_learning_bonus_that_is_not_a_finite_number_at_least_0(bonus):
+    with pytest.raises(ValueError, match="learning_bonus must be a finite number >= 0"):
+        dataclasses.replace(task.SEED, learning_bonus=bonus)

@@ -288,6 +288,8 @@ class Task:
             raise ValueError(f"task {self.name}: model_floor must be in [0, 1)")
         if not self.task_timeout > 0:
             raise ValueError(f"task {self.name}: task_timeout must be > 0")
+        if not 0.0 <= self.learning_bonus < float("inf"):
+            raise ValueError(f"task {self.name}: learning_bonus must be a finite number >= 0")
         if self.human_warning_action not in self.human_action_services:
             raise ValueError(f"task {self.name}: warning {self.human_warning_action} is not a "
                              "human action")
