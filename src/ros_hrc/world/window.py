@@ -115,6 +115,17 @@ def window_options(width: int, height: int, background: Sequence[float]) -> str:
             f"--background_color_green={green:.3f} --background_color_blue={blue:.3f}")
 
 
+def camera_has_view(camera: Sequence) -> bool:
+    """Whether ``getDebugVisualizerCamera``'s answer is of a window that shows a view: a window
+    being closed answers a size of 0 and matrices of zeros, from which no point can be placed
+    (:func:`screen_points` would invert a singular matrix)."""
+    if float(camera[0]) <= 0 or float(camera[1]) <= 0:
+        return False
+    view = np.array(camera[2], dtype=float).reshape(4, 4).T
+    projection = np.array(camera[3], dtype=float).reshape(4, 4).T
+    return bool(abs(np.linalg.det(projection @ view)) > 1e-12)
+
+
 def screen_points(camera: Sequence, pixels: Sequence[Sequence[float]], depth: float = 0.5) -> List[List[float]]:
     """World points ``depth`` metres in front of the camera that show at ``pixels`` ((x, y)
     from the top-left corner). ``camera``: what ``getDebugVisualizerCamera`` returns."""
@@ -210,6 +221,11 @@ class Window:
         c = self.client
         camera = c.getDebugVisualizerCamera()
         self._caption = [str(line) for line in lines]
+        if not camera_has_view(camera):
+            # The window is going away (Escape or its close button while a step drew): nothing
+            # can be placed; the caption is kept for a view that comes back (follow_view).
+            self._overlay_view = None
+            return
         self._overlay_view = self._view_seen = _size_and_view(camera)
         wrapped = wrap_lines(self._caption, overlay_columns(camera[0]))
         x, y = _OVERLAY_MARGIN
