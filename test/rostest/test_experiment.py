@@ -44,6 +44,7 @@ class TestExperiment(unittest.TestCase):
 
     def test_tiny_grid_end_to_end_then_resume(self):
         out = tempfile.mkdtemp(prefix="hrc_experiment_")
+        self.addCleanup(shutil.rmtree, out, ignore_errors=True)
         first = run_experiment(out)
         self.assertEqual(first.returncode, 0, first.stdout[-3000:] + first.stderr[-3000:])
 
@@ -117,6 +118,7 @@ class TestExperiment(unittest.TestCase):
         """Before: the robot process, started by roslaunch in $ROS_HOME, found no
         `mine/robot.pomdp`, respawned every second, and the cell failed after 600 s."""
         work = tempfile.mkdtemp(prefix="hrc_experiment_relative_")
+        self.addCleanup(shutil.rmtree, work, ignore_errors=True)
         os.makedirs(os.path.join(work, "mine"))
         shutil.copy(os.path.join(MODELS, "robot", "robot.pomdp"), os.path.join(work, "mine"))
         shutil.copy(os.path.join(MODELS, "human", "expert.pomdpx"), os.path.join(work, "mine"))

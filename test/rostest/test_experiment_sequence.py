@@ -8,6 +8,7 @@ run."""
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -38,6 +39,7 @@ class TestExperimentSequences(unittest.TestCase):
 
     def test_tiny_sequence_grid_end_to_end_then_grown_by_a_sequence(self):
         out = tempfile.mkdtemp(prefix="hrc_experiment_sequence_")
+        self.addCleanup(shutil.rmtree, out, ignore_errors=True)
         first = run_experiment(out, "--episodes", "2")
         self.assertEqual(first.returncode, 0, first.stdout[-3000:] + first.stderr[-3000:])
         header, tasks = read_csv(os.path.join(out, "tasks.csv"))

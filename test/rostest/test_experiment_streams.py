@@ -10,6 +10,7 @@ shrank its search with the machine's load, so a loaded run gave other decisions.
 episode draws from the streams of (seed, episode, role) and experiments bound DESPOT by
 trials, not time."""
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -122,6 +123,10 @@ class TestReproducibleStudy(unittest.TestCase):
         # The cell as a grid plays it, which each test below plays again another way.
         cls.work = tempfile.mkdtemp(prefix="hrc_streams_")
         cls.grid = run_cell([0, 1, 2, 3], os.path.join(cls.work, "grid"))
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.work, ignore_errors=True)
 
     def test_one_episode_of_a_cell_replays_alone_exactly(self):
         alone = run_cell([2], os.path.join(self.work, "alone"))
