@@ -102,8 +102,7 @@ def bench_update(prior):
 def bench_decisions(prior, decisions=300):
     rng = np.random.default_rng(2)
     learner = LearntHuman(prior, SEED_TASK, 20.0, 0.1, "sampled", 8, seed=3)
-    # As it ships on the seed task: its bonus (which keeps DESPOT's bounds apart, so every
-    # decision uses its whole budget).
+    # As it ships on the seed task: with its bonus.
     with_bonus = LearntHuman(prior, SEED_TASK, 20.0, 0.1, "sampled", 8, seed=3,
                              bonus=SEED_TASK.learning_bonus)
     # The live launch's DESPOT: its settings' defaults (0.1 s a step, K = 500, D = 90, λ = 0.1).
@@ -162,8 +161,8 @@ def run_study(selector_words, out_dir):
 
 def bench_study():
     """BPR, the learning robot as it ships on this task (its bonus, ``auto``) and without the
-    bonus: the bonus is what costs (DESPOT's bounds no longer meet early, so every decision
-    runs its whole trial budget), the learning itself (an update and a model a task) hardly."""
+    bonus: the bonus is what costs (DESPOT searches far longer once it has partly faded:
+    docs/performance.md), the learning itself (an update and a model a task) hardly."""
     folder = Path(tempfile.mkdtemp(prefix="bench_learning_"))
     try:
         out = {}
