@@ -44,8 +44,9 @@ PACE_TOLERANCE = 0.10
 STUDY_HUMANS = "tired,beginner"
 SEQUENCE_LENGTH = 30
 SEQUENCES = 3
-#: A decision's line in the robot process's log: "- Action = rGrasp_obj (72.3 ms)".
-DECISION_LINE = re.compile(r"Action = \S+ \(([\d.]+) ms\)")
+#: A DESPOT decision's line in the robot process's log:
+#: "- Action = rGrasp_obj (72.3 ms, 500 trials, depth 41)" (a reactive rule's names its rule).
+DECISION_LINE = re.compile(r"Action = \S+ \(([\d.]+) ms(?:, (\d+) trials, depth (\d+))?\)")
 #: The study's robots: BPR, the learning robot with the task's bonus, and without a bonus.
 STUDY_ROBOTS = (("bpr", ["--selectors", "bpr"]),
                 ("pomdp_learning", ["--selectors", "pomdp_learning"]),
@@ -150,26 +151,34 @@ def run_study(selector_words, out_dir):
         steps = sum(int(row["steps"]) for row in csv.DictReader(f))
     wall = run["wall_seconds"]
     # Each DESPOT decision of the run, as the robot process printed it (its wall time).
-    decisions = [float(ms) for log in (out_dir / "logs" / "ros").glob("*/*-*/despot_pomdp-*.log")
-                 for ms in DECISION_LINE.findall(log.read_text(errors="replace"))]
+    found = [match for log in (out_dir / "logs" / "ros").glob("*/*-*/despot_pomdp-*.log")
+             for match in DECISION_LINE.findall(log.read_text(errors="replace"))]
+    decisions = [float(ms) for ms, _, _ in found]
+    trials = [int(n) for _, n, _ in found if n]
+    depths = [int(d) for _, _, d in found if d]
     return {"wall_s": wall, "tasks": run["tasks"], "tasks_per_min": run["tasks_per_minute"],
             "steps": steps, "steps_per_min": 60 * steps / wall,
             "despot_decisions": len(decisions),
             "despot_ms_p50": percentile(decisions, 50) if decisions else None,
-            "despot_ms_p99": percentile(decisions, 99) if decisions else None}
+            "despot_ms_p99": percentile(decisions, 99) if decisions else None,
+            "trials_p50": percentile(trials, 50) if trials else None,
+            "depth_p50": percentile(depths, 50) if depths else None}
 
 
 def bench_study():
     """BPR, the learning robot as it ships on this task (its bonus, ``auto``) and without the
-    bonus: the bonus is what costs (DESPOT searches far longer once it has partly faded:
-    docs/performance.md), the learning itself (an update and a model a task) hardly."""
+    bonus: the bonus is what costs (once it has partly faded the root's bounds no longer meet
+    and every decision runs its whole trial budget: docs/performance.md), the learning itself
+    (an update and a model a task) hardly."""
     folder = Path(tempfile.mkdtemp(prefix="bench_learning_"))
     try:
         out = {}
         for label, words in STUDY_ROBOTS:
             r = out[label] = run_study(words, folder / label.replace(" ", "_"))
+            searched = (f" ({r['trials_p50']:.0f} trials, depth {r['depth_p50']:.0f}, p50)"
+                        if r["trials_p50"] is not None else "")
             planned = (f"; {r['despot_decisions']} DESPOT decisions, p50 "
-                       f"{r['despot_ms_p50']:.1f} ms, p99 {r['despot_ms_p99']:.1f} ms"
+                       f"{r['despot_ms_p50']:.1f} ms, p99 {r['despot_ms_p99']:.1f} ms{searched}"
                        if r["despot_decisions"] else "; no DESPOT decision")
             print(f"  study, {label}: {r['tasks']} tasks ({r['steps']} steps) in "
                   f"{r['wall_s']:.1f} s = {r['tasks_per_min']:.1f} tasks/min, "

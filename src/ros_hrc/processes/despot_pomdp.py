@@ -439,8 +439,12 @@ class PomdpProcess:
         rule = self.agent.planner.last_rule
         mdp_state = self.agent.planner.mdp_state
         why = (f"rule {rule}, " if rule else "") + (f"MDP state {mdp_state}, " if mdp_state else "")
+        # How far a search went (trials, deepest node), for a planner that searches.
+        stats = self.agent.planner.last_stats
+        searched = (f", {stats.trials} trials, depth {stats.depth}"
+                    if stats.trials else "")
         print(f"- Belief:\n{self._belief_text()}\n- Action = {model.actions[action]} "
-              f"({why}{decision_ms:.1f} ms)", flush=True)
+              f"({why}{decision_ms:.1f} ms{searched})", flush=True)
         # Why it chose: the value of each action the planner compared (none from a baseline).
         values = sorted(self.agent.planner.last_stats.action_values.items())
         layout = self.agent.layout
