@@ -35,17 +35,17 @@ import math
 import sys
 from collections import defaultdict
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Sequence
 
 import numpy as np
 from scipy import stats
 
 from ros_hrc import tasks
+from ros_hrc.agents.learning import LearntHuman
 from ros_hrc.experiment import paired
 from ros_hrc.experiment.sequence_rows import TaskRow
 from ros_hrc.experiment.sequence_statistics import best_fixed, pair_key
 from ros_hrc.models import load_robot_model
-from ros_hrc.pomdp.bayes_adaptive import reach_probability
 from ros_hrc.tasks.schedule import type_name
 
 POOLED, CEILING = "pomdp_pooled", "pomdp_ceiling"
@@ -202,8 +202,7 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
 
 
 def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str,
-          prefix: str = "", task: Optional[tasks.Task] = None) -> None:
-    task = task or tasks.get(tasks.DEFAULT_TASK)
+          prefix: str, task: tasks.Task) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -254,11 +253,7 @@ def plots(rows: Sequence[TaskRow], folder: Path, learner: str, ceilings: str,
         ax.fill_between(xs, mean - spread, mean + spread, color="tab:blue", alpha=0.2)
         path = Path(ceilings) / f"{h}.pomdp" if ceilings else None
         if path is not None and path.is_file():
-            m = load_robot_model(str(path), task)
-            truth = reach_probability(m.dense_T[m.index("action", task.robot_idle_action)],
-                                      m.index("state", task.recovery_state),
-                                      m.index("state", task.robot_success_state),
-                                      task.recovery_steps)
+            truth = LearntHuman.figure_of(load_robot_model(str(path), task), task)
             ax.axhline(truth, color="tab:red", ls="--", label="this human (fitted, other seeds)")
         ax.set_title(h, fontsize=9)
         ax.set_ylim(0, 1)

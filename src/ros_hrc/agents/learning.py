@@ -126,6 +126,16 @@ class LearntHuman:
         success[self.prior.index("state", self.task.robot_success_state)] = 1.0
         return last_action, (success if succeeded else 1.0 - success)
 
+    @classmethod
+    def figure_of(cls, model: Model, task: Task) -> Optional[float]:
+        """The key figure of a fixed ``model`` (a ceiling's fit of one human: what the learnt
+        figure is measured against); None when the task names no recovery."""
+        indices = cls._figure_indices(model, task)
+        if indices is None:
+            return None
+        start, idle, success, k = indices
+        return reach_probability(model.dense_T[idle], start, success, k)
+
     def figure(self) -> Optional[LearntFigure]:
         """The key figure under the posterior now (None: the task names no recovery)."""
         if self._recovery is None:

@@ -446,7 +446,7 @@ class PomdpProcess:
         print(f"- Belief:\n{self._belief_text()}\n- Action = {model.actions[action]} "
               f"({why}{decision_ms:.1f} ms{searched})", flush=True)
         # Why it chose: the value of each action the planner compared (none from a baseline).
-        values = sorted(self.agent.planner.last_stats.action_values.items())
+        values = sorted(stats.action_values.items())
         layout = self.agent.layout
         return Decision(step=msg.step, action=model.actions[action], belief=belief.tolist(),
                         belief_states=states, decision_ms=decision_ms,

@@ -115,14 +115,21 @@ def window_options(width: int, height: int, background: Sequence[float]) -> str:
             f"--background_color_green={green:.3f} --background_color_blue={blue:.3f}")
 
 
+def _camera_matrices(camera: Sequence) -> Tuple[np.ndarray, np.ndarray]:
+    """The view and projection matrices of ``getDebugVisualizerCamera``'s answer (PyBullet's
+    are column-major)."""
+    view = np.array(camera[2], dtype=float).reshape(4, 4).T
+    projection = np.array(camera[3], dtype=float).reshape(4, 4).T
+    return view, projection
+
+
 def camera_has_view(camera: Sequence) -> bool:
     """Whether ``getDebugVisualizerCamera``'s answer is of a window that shows a view: a window
     being closed answers a size of 0 and matrices of zeros, from which no point can be placed
     (:func:`screen_points` would invert a singular matrix)."""
     if float(camera[0]) <= 0 or float(camera[1]) <= 0:
         return False
-    view = np.array(camera[2], dtype=float).reshape(4, 4).T
-    projection = np.array(camera[3], dtype=float).reshape(4, 4).T
+    view, projection = _camera_matrices(camera)
     return bool(abs(np.linalg.det(projection @ view)) > 1e-12)
 
 
@@ -130,8 +137,7 @@ def screen_points(camera: Sequence, pixels: Sequence[Sequence[float]], depth: fl
     """World points ``depth`` metres in front of the camera that show at ``pixels`` ((x, y)
     from the top-left corner). ``camera``: what ``getDebugVisualizerCamera`` returns."""
     width, height = float(camera[0]), float(camera[1])
-    view = np.array(camera[2], dtype=float).reshape(4, 4).T        # column-major in PyBullet
-    projection = np.array(camera[3], dtype=float).reshape(4, 4).T
+    view, projection = _camera_matrices(camera)
     inverse = np.linalg.inv(projection @ view)
     # Clip-space depth of a point `depth` in front of the eye (eye space looks down -z).
     clip = projection @ np.array([0.0, 0.0, -depth, 1.0])

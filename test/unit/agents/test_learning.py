@@ -103,6 +103,13 @@ def test_the_figure_is_a_probability_that_moves_with_what_the_task_showed(pooled
     assert after.spread < before.spread      # and is surer of it
 
 
+def test_a_fixed_models_figure_is_the_learners_before_it_learnt_anything(pooled):
+    """The figure a ceiling's fit is drawn at (figure_of) is the learner's own figure: before
+    any task the posterior mean is the prior."""
+    learner = LearntHuman(pooled, SEED, strength=5, forgetting=0.0, planning="mean", draws=1)
+    assert LearntHuman.figure_of(pooled, SEED) == pytest.approx(learner.figure().value)
+
+
 def test_a_tasks_end_tells_whether_the_human_left_alone_recovered(pooled):
     """A human fails twice while the robot idles and the task then ends, the robot still
     idle: a success says he recovered alone (the figure rises above what the failures alone
