@@ -574,10 +574,11 @@ _TABLE: Tuple[Setting, ...] = (
            "goes on); pomdp_learning_mean plans on the posterior mean alone", minimum=1,
            maximum=64),
         _s("learning_bonus", "float", None, "the learning robot's exploration bonus beta: "
-           "beta / (1 + n) is added to the reward of the task's idle action in a state it "
-           "was taken in n times (by the counts learnt), so that early in a sequence the "
-           "robot watches what its human does alone (0: none; docs/learning.md); auto: the "
-           "task's (seed 10, fabric 0: each chosen on streams it is not judged on)",
+           "on a decision's first step, beta / (1 + n + m) is added to the reward of the "
+           "task's idle action in a state it was taken in n times (by the counts learnt) and "
+           "looked at m times this task, so that early in a sequence the robot watches what "
+           "its human does alone (0: none; docs/learning.md); auto: the task's (seed 10, "
+           "fabric 0: each chosen on streams it is not judged on)",
            minimum=0, maximum=1e6),
     ),
     *_group(

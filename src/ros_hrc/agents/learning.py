@@ -26,9 +26,9 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from ros_hrc import settings
-from ros_hrc.pomdp.bayes_adaptive import (DirichletPosterior, End, check_bonus,
-                                          check_draws, check_forgetting, check_strength, planning_model,
-                                          reach_probability)
+from ros_hrc.pomdp.bayes_adaptive import (DirichletPosterior, End, LookBonus, check_bonus,
+                                          check_draws, check_forgetting, check_strength,
+                                          planning_model, reach_probability)
 from ros_hrc.pomdp.model import Model
 from ros_hrc.tasks.definition import Task
 
@@ -66,8 +66,8 @@ class LearntHuman:
 
     ``prior``: the pooled robot model (checked against ``task`` by whoever loaded it);
     ``strength``, ``forgetting``, ``draws`` as the module docstring says; ``bonus``: the
-    exploration bonus on the task's idle action
-    (:meth:`ros_hrc.pomdp.bayes_adaptive.DirichletPosterior.bonus_rewards`; 0: none);
+    scale of the exploration bonus on the task's idle action
+    (:class:`ros_hrc.pomdp.bayes_adaptive.LookBonus`, :meth:`look_bonus`; 0: none);
     ``seed``: the stream the draws come from (a new sequence starts it again:
     :meth:`restart`)."""
 
@@ -94,15 +94,21 @@ class LearntHuman:
 
     def restart(self, seed: int) -> None:
         """Back to the prior (a new sequence: a new human), drawing from ``seed``'s stream."""
-        self.posterior = DirichletPosterior(
-            self.prior, self.strength, bonus=self.bonus,
-            bonus_action=self.prior.index("action", self.task.robot_idle_action))
+        self.posterior = DirichletPosterior(self.prior, self.strength)
         self.rng = np.random.default_rng(seed)
         self.tasks_learnt = 0
 
     def model_for_task(self) -> Model:
         """The model the next task is planned on (a new draw for root sampling each task)."""
         return planning_model(self.posterior, self.planning, self.draws, self.rng)
+
+    def look_bonus(self) -> Optional[LookBonus]:
+        """The next task's exploration bonus on the idle action, from what the posterior has
+        seen of it (None: no bonus). A task's decisions take it on their first step."""
+        if not self.bonus:
+            return None
+        idle = self.prior.index("action", self.task.robot_idle_action)
+        return LookBonus(self.bonus, idle, self.posterior.times_seen(idle))
 
     def learn(self, steps: Sequence[Tuple[int, int]], last_action: Optional[int] = None,
               succeeded: Optional[bool] = None) -> None:

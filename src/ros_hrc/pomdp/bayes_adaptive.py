@@ -25,9 +25,9 @@ tree search values an action also for what it reveals of this human. The draws a
 ``d0``, ``d1``, ... and mean nothing beyond the task.
 
 A task's ending is evidence too (:data:`End`): one more transition under the robot's last
-action, into the states the ending allows. With a ``bonus``, the models a planner gets carry
-an exploration bonus on one action (:meth:`DirichletPosterior.bonus_rewards`), falling as
-that action is seen in each state.
+action, into the states the ending allows. What an action would teach for the tasks after
+this one is priced by :class:`LookBonus`, on a decision's first step only (the models a
+planner gets keep the prior's rewards).
 
 Steps are ``(action, observation)`` pairs by index: ``action`` is the one taken before
 ``observation`` was made (the robot's previous action; for a task's first step its idle
@@ -49,7 +49,8 @@ from ros_hrc.pomdp.model import Model
 from ros_hrc.pomdp.typed import compose
 
 __all__ = ["End", "expected_counts", "DirichletPosterior", "check_strength", "check_forgetting",
-           "check_draws", "check_bonus", "planning_model", "reach_probability", "PLANNING"]
+           "check_draws", "check_bonus", "planning_model", "reach_probability", "LookBonus",
+           "PLANNING"]
 
 #: How a robot plans on its posterior: ``sampled`` (root sampling over ``draws`` models drawn
 #: from it) or ``mean`` (the posterior mean alone).
@@ -209,15 +210,9 @@ class DirichletPosterior:
     learn_observations: bool = False
     transitions: Optional[np.ndarray] = None      # (A, S, S') counts learnt
     observations: Optional[np.ndarray] = None     # (A, S', O) counts learnt
-    #: The exploration bonus (:meth:`bonus_rewards`): ``bonus / (1 + n(s))`` added to the
-    #: reward of ``bonus_action`` in each state ``s``, ``n(s)`` the times that action was
-    #: taken in ``s`` by the counts learnt. 0: none.
-    bonus: float = 0.0
-    bonus_action: int = 0
 
     def __post_init__(self) -> None:
         self.strength = check_strength(self.strength)
-        self.bonus = check_bonus(self.bonus)
         self.prior.validate()
         A, S, n_obs = self.prior.n_actions, self.prior.n_states, self.prior.n_observations
         if self.transitions is None:
@@ -248,31 +243,15 @@ class DirichletPosterior:
         self.transitions *= keep
         self.observations *= keep
 
-    def bonus_rewards(self) -> List[sp.csr_matrix]:
-        """The prior's rewards, and with a ``bonus`` the exploration bonus on
-        ``bonus_action``: in state ``s`` its expected reward rises by ``bonus / (1 +
-        n(s))``, ``n(s)`` the counts learnt of that action in ``s`` (added to ``R(s, a, s')``
-        on the prior's support of ``T(s, a, .)``, which every draw keeps, so the expectation
-        rises by exactly that under any draw).
-
-        Why (BEB: Kolter and Ng, ICML 2009): DESPOT plans one task, so what an action would
-        teach for the tasks after it is worth nothing to it, and root sampling alone does not
-        explore (docs/study/learning.md). The robot's idle action is the one whose rows are
-        the human's own dynamics — what a human does when left alone — and the one a helping
-        robot never takes where it believes help is needed: a bonus that falls as those rows
-        are seen makes it watch, early in a sequence, what it would otherwise never see."""
-        R = [sp.csr_matrix(r, copy=True) for r in self.prior.R]
-        if self.bonus > 0:
-            a = self.bonus_action
-            support = (sp.csr_matrix(self.prior.T[a]) != 0).astype(float)
-            per_state = self.bonus / (1.0 + self.transitions[a].sum(axis=1))
-            R[a] = sp.csr_matrix(R[a] + sp.diags(per_state) @ support)
-        return R
+    def times_seen(self, action: int) -> np.ndarray:
+        """``n(s)``: the times ``action`` was taken in each state ``s`` by the counts learnt
+        (expected counts, forgetting applied)."""
+        return self.transitions[action].sum(axis=1)
 
     def _model(self, T, O, name: str) -> Model:
         prior = self.prior
         model = dataclasses.replace(
-            prior, T=T, O=O, R=self.bonus_rewards(),
+            prior, T=T, O=O, R=[sp.csr_matrix(r, copy=True) for r in prior.R],
             initial_belief=np.array(prior.initial_belief, dtype=float, copy=True),
             fully_observable=prior.fully_observable and not self.learn_observations,
             observed_key=(np.array(prior.observed_key, copy=True)
@@ -330,3 +309,35 @@ def planning_model(posterior: DirichletPosterior, planning: str, draws: int,
         raise ValueError(f"planning must be one of {', '.join(PLANNING)}, not {planning!r}")
     models = {f"d{i}": posterior.sample(rng) for i in range(check_draws(draws))}
     return compose(models, name=f"{posterior.prior.name or 'model'}-posterior-draws")
+
+
+class LookBonus:
+    """An exploration bonus for one task, paid on a decision's first step only: taking
+    ``action`` in state ``s`` is worth ``scale / (1 + n(s) + m(s))`` more there, ``n(s)`` the
+    times the posterior has seen it (:meth:`DirichletPosterior.times_seen`, at the task's
+    start) and ``m(s)`` the looks this task has taken so far (:meth:`looked`: the belief in
+    ``s`` at each decision that took it).
+
+    Why (BEB: Kolter and Ng, ICML 2009): DESPOT plans one task, so what an action would teach
+    for the tasks after it is worth nothing to it, and root sampling alone does not explore
+    (docs/study/learning.md). Why on the first step only, and falling with this task's looks:
+    a bonus in the model's rewards is paid on every step the planner imagines and only fades
+    between tasks, so a robot can stare at a human who never recovers until the task runs
+    out, and its search never closes its bounds (every decision ran all its trials,
+    docs/performance.md). Here the tree plans on the posterior's own rewards; only the
+    decision now is weighed by what it would show, and each look makes the next worth less.
+    """
+
+    def __init__(self, scale: float, action: int, times_seen: np.ndarray) -> None:
+        self.scale = check_bonus(scale)
+        self.action = action
+        self.times_seen = np.asarray(times_seen, dtype=float)
+        self.looks = np.zeros_like(self.times_seen)
+
+    def per_state(self) -> np.ndarray:
+        """The bonus on ``action`` at the next decision, per state."""
+        return self.scale / (1.0 + self.times_seen + self.looks)
+
+    def looked(self, belief: np.ndarray) -> None:
+        """A decision took ``action`` while believing ``belief`` (over the states)."""
+        self.looks += np.asarray(belief, dtype=float)

@@ -354,6 +354,11 @@ class DespotPlanner(BeliefPlanner):
         self._state_rows, self._n_up = tables.state_rows, tables.n_up
         self._lower_rollout = self.config.lower == "rollout"
         self._root_action = 0
+        #: An exploration bonus on the root's first step only: (action, per-state reward
+        #: added to that action's in each start state), or None. Set before act() (e.g.
+        #: :class:`ros_hrc.pomdp.bayes_adaptive.LookBonus`); the tree below the root plans
+        #: on the model's own rewards, so its bounds meet as they do without it.
+        self.root_bonus: Optional[Tuple[int, np.ndarray]] = None
         self._obs_offsets = (np.arange(self._A) * self._Z)[:, None]
         self._u: List[np.ndarray] = []
         self._u_rows: List[tuple] = []                # each depth's uniforms, as two rows
@@ -432,6 +437,10 @@ class DespotPlanner(BeliefPlanner):
             near = means >= best - TIE_TOLERANCE * max(1.0, abs(best))
             self._root_action = int(self._plan_actions[near].min())
         lower, upper = float(low[0]), float(up[0])
+        if self.root_bonus is not None:
+            # The bonus raises at most one action's first reward: U0 plus its mean stays an
+            # upper bound (the backup only ever lowers the root's).
+            upper += float(self.root_bonus[1][states].mean())
         upper = max(upper, lower)
         return _VNode(0, (scen, states), 0, K, 1.0, lower, lower, upper, upper)
 
@@ -477,6 +486,9 @@ class DespotPlanner(BeliefPlanner):
         lam = self.config.pruning
         wr = self._gamma ** v.depth / K
         rho = [r * wr - lam for r in self._t_vals[pos].sum(axis=1).tolist()]
+        if v.depth == 0 and self.root_bonus is not None:
+            action, per_state = self.root_bonus
+            rho[action] += float(per_state[v.block[1][lo:hi]].sum()) * wr
         up = np.maximum(up, low)                                      # μ0 = max(U0, ℓ0)
         # Children of action a: keys in [a·Z, (a+1)·Z); the action nodes' initial bounds sum
         # them in order from 0 (as np.bincount), then add ρ.

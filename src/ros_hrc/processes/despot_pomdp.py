@@ -88,6 +88,7 @@ from ros_hrc.pomdp.planner import Planner, planner_class
 from ros_hrc.pomdp.type_names import ranked_types
 from ros_hrc.pomdp.typed import TypeLayout
 from ros_hrc.agents.learning import LearntFigure, LearntHuman, planning_of, selector_of
+from ros_hrc.pomdp.bayes_adaptive import LookBonus
 from ros_hrc.agents.selectors import Selector, TaskResult, mix_with_uniform, signature_code
 from ros_hrc.processes.solver_process import CANNOT_START, solver_parser, start_solver
 from ros_hrc.processes.selection import Selection, load_selection, new_selector, uses_library
@@ -105,9 +106,13 @@ class RobotAgent:
     (:attr:`type_belief`)."""
 
     def __init__(self, model: Model, planner: Planner, first_action: str = "rIdle",
-                 seed: int = 0, reports_types: bool = True) -> None:
+                 seed: int = 0, reports_types: bool = True,
+                 bonus: Optional[LookBonus] = None) -> None:
         self.model = model
         self.planner = planner
+        #: The learning robot's exploration bonus for this task (its states the task's: with
+        #: types, every type's block takes the same), or None.
+        self.bonus = bonus
         self.seed = seed
         self.layout = TypeLayout.of(model)
         #: Whether its hidden types are human types worth reporting (a learning robot's
@@ -145,7 +150,14 @@ class RobotAgent:
             note = (f"observation {observation} has probability 0 after "
                     f"{self.model.actions[self.last_action]}: the belief keeps the "
                     "prediction without it")
+        if self.bonus is not None:
+            per_state = self.bonus.per_state()
+            if self.layout is not None:
+                per_state = np.tile(per_state, len(self.layout.types))
+            self.planner.root_bonus = (self.bonus.action, per_state)
         action = self.planner.act()
+        if self.bonus is not None and action == self.bonus.action:
+            self.bonus.looked(self.task_belief()[1])
         decision_ms = (time.perf_counter() - started) * 1000.0
         self.last_action = action
         return action, decision_ms, note
@@ -286,7 +298,7 @@ class SequenceRobot:
         model = learner.model_for_task()
         self.agents[policy] = RobotAgent(model, self.new_planner(model), seed=self.seed,
                                          first_action=self.task.robot_idle_action,
-                                         reports_types=False)
+                                         reports_types=False, bonus=learner.look_bonus())
 
     def _start_belief(self, policy: str) -> Optional[np.ndarray]:
         """The belief ``policy``'s agent starts a new task from: the type belief it ended its

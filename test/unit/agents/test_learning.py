@@ -158,3 +158,45 @@ def test_an_infinitely_strong_prior_decides_as_the_pooled_robot(pooled):
         mine, pooled_action = ours.act(), theirs.act()
         assert mine == pooled_action
         last = mine
+
+
+def failed_twice(model):
+    """A human who fails a grasp and fails again: the belief is on the failure states."""
+    return steps_of(model, ["rIdle", "rIdle"], ["O7", "O35"])
+
+
+def test_the_look_bonus_moves_only_the_first_step_and_the_search_still_closes(pooled):
+    """The exploration bonus is paid at the root only: a bonus of 0 decides as none does, a
+    large one makes the robot watch (idle), and with it the search still closes the root's
+    bounds before its trial cap (a bonus in the model's rewards never let them meet)."""
+    config = DespotConfig(scenarios=200, depth=30, time_per_step=float("inf"), max_trials=300)
+    idle = pooled.index("action", "rIdle")
+
+    def decide(per_state):
+        planner = DespotPlanner(pooled, config, seed=7)
+        for a, o in failed_twice(pooled):
+            planner.update(a, o)
+        if per_state is not None:
+            planner.root_bonus = (idle, per_state)
+        return planner.act(), planner.last_stats
+
+    plain, plain_stats = decide(None)
+    assert plain != idle                                 # the pooled robot helps here
+    zero, zero_stats = decide(np.zeros(pooled.n_states))
+    assert zero == plain and zero_stats.action_values == plain_stats.action_values
+    watched, stats = decide(np.full(pooled.n_states, 50.0))
+    assert watched == idle
+    assert stats.trials < config.max_trials
+    assert stats.upper - stats.lower <= config.gap_tolerance
+
+
+def test_the_learning_robot_takes_its_bonus_from_what_it_has_seen(pooled):
+    """Each task's bonus starts from the posterior's counts of idling in each state; no bonus
+    at 0."""
+    assert LearntHuman(pooled, SEED, 20, 0.1, "sampled", 8).look_bonus() is None
+    learner = LearntHuman(pooled, SEED, 20, 0.1, "sampled", 8, bonus=10.0)
+    fresh = learner.look_bonus()
+    assert np.allclose(fresh.per_state(), 10.0)
+    learner.learn(failed_then_recovered(pooled))
+    seen = learner.look_bonus().per_state()
+    assert (seen <= 10.0).all() and seen.sum() < 10.0 * pooled.n_states

@@ -10,7 +10,7 @@ import pytest
 
 from solver_models import make_model
 from ros_hrc.errors import ModelError
-from ros_hrc.pomdp.bayes_adaptive import DirichletPosterior, expected_counts
+from ros_hrc.pomdp.bayes_adaptive import DirichletPosterior, LookBonus, expected_counts
 
 
 def three_state_model(noise: float = 0.0):
@@ -196,27 +196,26 @@ def test_steps_outside_the_model_are_refused():
         expected_counts(three_state_model(), [(0, 7)])
 
 
-def test_the_exploration_bonus_falls_as_its_action_is_seen_in_each_state():
-    """beta / (1 + n(s)) on the bonus action's expected reward in state s, n(s) the counts
-    learnt of that action in s; every other action's rewards, and every draw's, as the
-    prior's plus the same bonus."""
+def test_the_exploration_bonus_falls_as_its_action_is_seen_and_as_this_task_looks():
+    """scale / (1 + n(s) + m(s)): n(s) the counts learnt of the action in s before the task,
+    m(s) the belief in s at each of this task's decisions that took it; the models a planner
+    gets keep the prior's rewards."""
     model = three_state_model()
-    posterior = DirichletPosterior(model, strength=4.0, bonus=2.0, bonus_action=1)
-
-    def expected(m, a):
-        return np.asarray(m.T[a].multiply(m.R[a]).sum(axis=1)).ravel()
-    assert np.allclose(expected(posterior.mean(), 1), 2.0)         # nothing seen: beta
-    assert np.allclose(expected(posterior.mean(), 0), 0.0)         # the other action: none
+    posterior = DirichletPosterior(model, strength=4.0)
     posterior.learn([(1, 0), (1, 0), (1, 0)])                      # a1 taken in s0 three times
-    assert np.allclose(expected(posterior.mean(), 1), [2.0 / 4, 2.0, 2.0])
-    drawn = posterior.sample(np.random.default_rng(2))
-    assert np.allclose(expected(drawn, 1), [2.0 / 4, 2.0, 2.0])
+    assert np.allclose(posterior.times_seen(1), [3.0, 0.0, 0.0])
+    bonus = LookBonus(2.0, 1, posterior.times_seen(1))
+    assert np.allclose(bonus.per_state(), [2.0 / 4, 2.0, 2.0])
+    bonus.looked([0.0, 0.5, 0.5])                                  # one look, s1 or s2
+    assert np.allclose(bonus.per_state(), [2.0 / 4, 2.0 / 1.5, 2.0 / 1.5])
     posterior.forget(1.0)                                          # forgotten: seen no more
-    assert np.allclose(expected(posterior.mean(), 1), 2.0)
+    assert np.allclose(posterior.times_seen(1), 0.0)
+    for planned in (posterior.mean(), posterior.sample(np.random.default_rng(2))):
+        assert all((a != b).nnz == 0 for a, b in zip(planned.R, model.R))
 
 
 @pytest.mark.parametrize("bonus", [-1.0, float("nan"), float("inf"), "x"])
 def test_a_bad_exploration_bonus_is_refused_in_one_line(bonus):
     with pytest.raises(ValueError) as caught:
-        DirichletPosterior(three_state_model(), strength=1.0, bonus=bonus)
+        LookBonus(bonus, 0, np.zeros(3))
     assert "the exploration bonus must be" in str(caught.value)
