@@ -578,7 +578,7 @@ _TABLE: Tuple[Setting, ...] = (
            "task's idle action in a state it was taken in n times (by the counts learnt) and "
            "looked at m times this task, so that early in a sequence the robot watches what "
            "its human does alone (0: none; docs/learning.md); auto: the task's (seed 10, "
-           "fabric 0: each chosen on streams it is not judged on)",
+           "fabric 10: each chosen on streams it is not judged on)",
            minimum=0, maximum=1e6),
     ),
     *_group(

@@ -245,7 +245,7 @@ class Task:
     learning_prior: str = ""
     #: The learning robot's exploration bonus on this task (``learning_bonus:=auto``), chosen
     #: on streams it is not judged on (docs/learning.md): the seed's on its fit set, fabric's
-    #: on its ten types' tuning seed, where any bonus made the robot stare at experts.
+    #: on its ten types' tuning seed.
     learning_bonus: float = 0.0
     #: The robot state of a human who warned the robot: acting in it is acting against a
     #: warning, which a model of the task's utility prices (ros_hrc.tasks.utility.

@@ -304,7 +304,7 @@ def test_resolve_fills_every_default_in_table_order():
     assert config == expected
 
 
-@pytest.mark.parametrize("task, bonus", [("seed", 10.0), ("fabric", 0.0)])
+@pytest.mark.parametrize("task, bonus", [("seed", 10.0), ("fabric", 10.0)])
 def test_the_learning_bonus_is_the_tasks_unless_given(task, bonus):
     """learning_bonus:=auto is the bonus chosen for the task (docs/learning.md): a bonus
     tuned on one task's humans is not carried to another's."""
