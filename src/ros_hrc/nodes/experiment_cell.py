@@ -47,7 +47,7 @@ from ros_hrc.experiment.stack import (CellFailed, CellSpec, StackWatch, cell_nam
                                       encode_sequence, launch_arguments, pick_ports, read_spec,
                                       stack_environment, stack_log, start_stack, stop_launched,
                                       stop_stack)
-from ros_hrc.link.token import replace_session_settings
+from ros_hrc.link.token import TokenError, replace_session_settings
 from ros_hrc.experiment.rows import EpisodeRow
 from ros_hrc.experiment.sequence_rows import SequenceRow, sequence_row, task_episode, task_row
 from ros_hrc.models import load_robot_model
@@ -418,7 +418,14 @@ class WarmStack:
         if moved:
             raise CellFailed(f"{', '.join(moved)} differ from the stack's: a new launch "
                              "is needed")
-        replace_session_settings(rospy.get_param("/hrc_human/link_session"), wanted)
+        try:
+            replace_session_settings(rospy.get_param("/hrc_human/link_session"), wanted)
+        except TokenError as exc:
+            # The launch removes its session's settings as it stops: a stack that is dying
+            # (its roslaunch killed) fails here, not as a refusal of the cell's settings, so
+            # the pool replaces it and the cell runs on a new stack.
+            raise CellFailed(f"the warm stack of {self.name} cannot take the cell: "
+                             f"{exc}") from exc
         shown = dict(wanted, token_file=rospy.get_param("/hrc/config/token_file", ""))
         rospy.set_param("/hrc/config", shown)
         self.topics.listen(on_status, on_task)
