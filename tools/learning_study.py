@@ -67,7 +67,9 @@ def load(runs: Sequence[str]) -> List[TaskRow]:
 
 
 def fmt_p(p: float) -> str:
-    return "-" if not math.isfinite(p) else ("< 0.001" if p < 0.001 else f"{p:.3f}")
+    """Three decimals; below 0.001, one significant digit (2e-12), so that a claim can quote
+    the figure the table gives."""
+    return "-" if not math.isfinite(p) else (f"{p:.0e}" if p < 0.001 else f"{p:.3f}")
 
 
 def compare(mine: Sequence[TaskRow], theirs: Sequence[TaskRow]) -> Dict[str, float]:
