@@ -36,6 +36,7 @@ import numpy as np
 from common import percentile, write_result
 from ros_hrc import settings, tasks
 from ros_hrc.agents.learning import LearntHuman
+from ros_hrc.experiment.arguments import at_least
 from ros_hrc.models import load_robot_model, model_path
 from ros_hrc.pomdp.despot import DespotPlanner
 from ros_hrc.processes.despot_pomdp import RobotAgent
@@ -210,13 +211,11 @@ def bench_study(rounds):
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--no-study", action="store_true", help="leave the study's pace out")
-    p.add_argument("--rounds", type=int, default=3,
+    p.add_argument("--rounds", type=at_least(1), default=3,
                    help="the study's pace: how many times each robot's study runs, in turn")
     p.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results"
                    / "learning.json")
     args = p.parse_args(argv)
-    if args.rounds < 1:
-        p.error(f"--rounds {args.rounds}: must be at least 1")
     prior = load_robot_model(str(model_path(SEED_TASK.learning_prior, "robot", SEED_TASK)),
                              SEED_TASK)
     result = {"update": bench_update(prior), "decision": bench_decisions(prior)}

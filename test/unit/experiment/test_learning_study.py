@@ -25,27 +25,23 @@ def learning_study():
 
 
 def write_run(folder: Path, selector: str, outcomes):
-    """A run's tasks.csv: one 30-task sequence per (episode), ``outcomes`` its (success,
-    utility) per task in order."""
+    """A run's tasks.csv: 30-task sequences, ``outcomes`` their (success, utility) per task."""
     folder.mkdir()
-    names = [f.name for f in TaskRow.__dataclass_fields__.values()]
     with open(folder / "tasks.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=names)
+        w = csv.DictWriter(f, fieldnames=TaskRow.COLUMNS)
         w.writeheader()
         for i, (success, utility) in enumerate(outcomes):
             episode, task = divmod(i, 30)
-            w.writerow({**{n: "" for n in names},
-                        "schedule": "tired", "selector": selector, "seed": 2,
-                        "episode": episode, "task_index": task + 1, "human_model": "tired",
-                        "true_type": "tired", "policy": "p", "success": int(success),
-                        "utility": utility, "outcome": "success" if success else "fail",
-                        "who_succeeded": "human" if success else "",
-                        "estimation_correct": 0, "warnings": 0,
-                        "preemptions": 0, "steps": 5, "duration": 9.0,
-                        "total_disc_reward": 0.0,
-                        "end_reason": "success" if success else "object_left_belt",
-                        "task_episode": i,
-                        "against_warning": 0})
+            w.writerow(TaskRow(
+                schedule="tired", selector=selector, seed=2, episode=episode,
+                task_index=task + 1, human_model="tired", true_type="tired", policy="p",
+                success=int(success), utility=utility,
+                outcome="success" if success else "fail",
+                who_succeeded="human" if success else "", belief_argmax="",
+                estimation_correct=0, warnings=0, preemptions=0, steps=5, duration=9.0,
+                total_disc_reward=0.0,
+                end_reason="success" if success else "object_left_belt",
+                task_episode=i).as_dict())
 
 
 def test_two_runs_are_paired_by_stream_and_tested_as_scipy_tests_them(learning_study, tmp_path):
