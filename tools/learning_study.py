@@ -192,9 +192,10 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
             g = [r for r in rows if r.selector == sel and (h == "(pooled)" or r.schedule == h)]
             return float(np.mean([r.utility for r in g])) if g else math.nan
         if h == "(pooled)":
-            bf = float(np.mean([r.utility for hh in humans
-                                for r in by[(hh, best_fixed([x for x in rows
-                                                             if x.schedule == hh]))]]))
+            # nan, as mean_of's, when the runs hold no fixed policy
+            each_best = [r.utility for hh in humans
+                         for r in by[(hh, best_fixed([x for x in rows if x.schedule == hh]))]]
+            bf = float(np.mean(each_best)) if each_best else math.nan
         else:
             bf = mean_of(best_fixed([r for r in rows if r.schedule == h]))
         pooled, lrn, ceil = mean_of(POOLED), mean_of(learner), mean_of(CEILING)
