@@ -187,15 +187,18 @@ def tables(rows: Sequence[TaskRow], first: int, learner: str) -> str:
     out += ["", "The share of the gap closed (mean utility per task):\n",
             "| human | best fixed | pooled | learning | ceiling | of best fixed -> ceiling | "
             "of pooled -> ceiling |", "|---|--:|--:|--:|--:|--:|--:|"]
+    def mean_utility(group):
+        """Mean utility a task; nan when the runs hold no such robot."""
+        return float(np.mean([r.utility for r in group])) if group else math.nan
+
     for h in humans + ["(pooled)"]:
         def mean_of(sel):
-            g = [r for r in rows if r.selector == sel and (h == "(pooled)" or r.schedule == h)]
-            return float(np.mean([r.utility for r in g])) if g else math.nan
+            return mean_utility([r for r in rows if r.selector == sel
+                                 and (h == "(pooled)" or r.schedule == h)])
         if h == "(pooled)":
-            # nan, as mean_of's, when the runs hold no fixed policy
-            each_best = [r.utility for hh in humans
-                         for r in by[(hh, best_fixed([x for x in rows if x.schedule == hh]))]]
-            bf = float(np.mean(each_best)) if each_best else math.nan
+            bf = mean_utility([r for hh in humans
+                               for r in by[(hh, best_fixed([x for x in rows
+                                                            if x.schedule == hh]))]])
         else:
             bf = mean_of(best_fixed([r for r in rows if r.schedule == h]))
         pooled, lrn, ceil = mean_of(POOLED), mean_of(learner), mean_of(CEILING)
